@@ -1,0 +1,1 @@
+"""Mechanics of the four-cable sinking platform: pure numpy/scipy, no ROS."""

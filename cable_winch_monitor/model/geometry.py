@@ -1,0 +1,108 @@
+"""Rigid-body geometry of the platform: poses, cable spans and the structure matrix of eq. (8)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .plant import Plant
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """[v]x, the cross-product matrix."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def rotation_from_vector(omega: np.ndarray) -> np.ndarray:
+    """exp([omega]x): rotation by |omega| about omega (Rodrigues)."""
+    angle = float(np.linalg.norm(omega))
+    if angle < 1e-12:
+        return np.eye(3) + skew(omega)
+    k = skew(omega / angle)
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def rotation_about_z(angle: float) -> np.ndarray:
+    """Rotation by angle [rad] about the shaft's vertical axis."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rotation_aligning(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The smallest rotation turning direction `source` into direction `target`."""
+    s = source / np.linalg.norm(source)
+    t = target / np.linalg.norm(target)
+    axis = np.cross(s, t)
+    sin_angle, cos_angle = np.linalg.norm(axis), float(np.dot(s, t))
+    if sin_angle < 1e-15:
+        if cos_angle > 0.0:
+            return np.eye(3)
+        ortho = np.cross(s, [1.0, 0.0, 0.0] if abs(s[0]) < 0.9 else [0.0, 1.0, 0.0])
+        return rotation_from_vector(np.pi * ortho / np.linalg.norm(ortho))
+    return rotation_from_vector(axis / sin_angle * np.arctan2(sin_angle, cos_angle))
+
+
+def quaternion_from_rotation(rotation: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) of a rotation matrix, w >= 0."""
+    m = rotation
+    trace = np.trace(m)
+    if trace > 0.0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
+    else:
+        i = int(np.argmax(np.diag(m)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
+        q = np.empty(4)
+        q[i] = 0.25 * s
+        q[j] = (m[j, i] + m[i, j]) / s
+        q[k] = (m[k, i] + m[i, k]) / s
+        q[3] = (m[k, j] - m[j, k]) / s
+    q /= np.linalg.norm(q)
+    return q if q[3] >= 0.0 else -q
+
+
+def roll_pitch_yaw(rotation: np.ndarray) -> tuple[float, float, float]:
+    """Roll, pitch, yaw [rad] of a rotation (REP-103 fixed-axis x-y-z convention)."""
+    pitch = float(np.arcsin(np.clip(-rotation[2, 0], -1.0, 1.0)))
+    roll = float(np.arctan2(rotation[2, 1], rotation[2, 2]))
+    yaw = float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+    return roll, pitch, yaw
+
+
+def fit_rotation(body: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares rigid transform (Kabsch) with world ~ position + rotation @ body."""
+    body_centre, world_centre = body.mean(axis=0), world.mean(axis=0)
+    h = (body - body_centre).T @ (world - world_centre)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rotation, world_centre - rotation @ body_centre
+
+
+def attachment_points(plant: Plant, rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """B_i in `shaft` for a platform pose, shape (4, 3)."""
+    return position + plant.attachments @ rotation.T
+
+
+def cog_point(plant: Plant, rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """C in `shaft` for a platform pose."""
+    return position + rotation @ plant.cog
+
+
+def structure_matrix(plant: Plant, points_b: np.ndarray, point_c: np.ndarray) -> np.ndarray:
+    """J^T of eq. (8): column i is (u_i, CB_i x u_i), u_i the unit vector of A_i B_i. Shape (6, 4).
+
+    A cable pulls B_i towards A_i with tau_i (-u_i); the balance with gravity then reads
+    J^T tau = F, F = (0, 0, -mg, 0, 0, 0), as in eq. (7). Moments are taken about C.
+    """
+    spans = points_b - plant.anchors
+    units = spans / np.linalg.norm(spans, axis=1, keepdims=True)
+    moments = np.cross(points_b - point_c, units)
+    return np.vstack([units.T, moments.T])
+
+
+def wrench_residual(plant: Plant, points_b: np.ndarray, point_c: np.ndarray, tensions: np.ndarray) -> tuple[float, float]:
+    """Force and moment imbalance of J^T tau = F, relative to mg and mg * max|CB_i|."""
+    imbalance = structure_matrix(plant, points_b, point_c) @ tensions - plant.wrench
+    force = float(np.linalg.norm(imbalance[:3])) / plant.weight
+    moment = float(np.linalg.norm(imbalance[3:])) / (plant.weight * plant.moment_scale)
+    return force, moment

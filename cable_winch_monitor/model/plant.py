@@ -1,0 +1,206 @@
+"""The plant: geometry, mass and shaft of a four-cable sinking platform, read from YAML.
+
+Frames follow seed 002 and the interface contract: `shaft` has its origin at the
+centroid of the head-sheave tangent points A1..A4 with z up; `platform` has its origin
+at the centroid of the attachment points B1..B4 and coincides in orientation with
+`shaft` when all four cables have equal length.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from ..paths import default_plant_file
+
+CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
+
+
+class PlantConfigError(ValueError):
+    """A plant file is unreadable or a key in it is missing or wrong."""
+
+
+@dataclass(frozen=True)
+class OutlinePoint:
+    """One point of the platform outline (platform frame) used for wall clearance."""
+
+    name: str
+    position: np.ndarray
+
+
+@dataclass(frozen=True)
+class Plant:
+    """Rigid-cable model of the platform: anchors, attachment points, centre of gravity, weight.
+
+    anchors      A_i in `shaft` [m], shape (4, 3)
+    attachments  B_i in `platform` [m], shape (4, 3); their centroid is the origin
+    cog          C in `platform` [m], shape (3,)
+    rectangle    (a, b) when the plant is seed 002's rectangle, else None; the paper's
+                 closed-form special cases (3.2, 3.3) need it
+    """
+
+    name: str
+    anchors: np.ndarray
+    attachments: np.ndarray
+    cog: np.ndarray
+    mass: float
+    g: float
+    rectangle: tuple[float, float] | None = None
+    shaft_radius: float = float("inf")
+    shaft_centre: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    outline: tuple[OutlinePoint, ...] = ()
+    raw: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def weight(self) -> float:
+        """m g [N]."""
+        return self.mass * self.g
+
+    @property
+    def wrench(self) -> np.ndarray:
+        """External wrench F = (0, 0, -mg, 0, 0, 0) of eq. (7)."""
+        return np.array([0.0, 0.0, -self.weight, 0.0, 0.0, 0.0])
+
+    @property
+    def cog_distances(self) -> np.ndarray:
+        """r_i = |C B_i| (seed 002, after eq. 2) [m]."""
+        return np.linalg.norm(self.attachments - self.cog, axis=1)
+
+    @property
+    def moment_scale(self) -> float:
+        """A lever arm [m] to make moment residuals relative: max |C B_i|."""
+        return float(self.cog_distances.max())
+
+    def with_changes(self, **changes: Any) -> "Plant":
+        """A copy with some fields replaced (for effects and fits)."""
+        values = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        values.update(changes)
+        return Plant(**values)
+
+
+def seed002_rectangle(a: float, b: float, h: float, k1: float, k2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Anchors, attachments and centre of gravity of seed 002's rectangular plant (Fig. 2)."""
+    corners = np.array([[a, b, 0.0], [-a, b, 0.0], [-a, -b, 0.0], [a, -b, 0.0]])
+    return corners.copy(), corners.copy(), np.array([k1 * a, k2 * b, -h])
+
+
+def _number(section: Mapping[str, Any], key: str, where: str, positive: bool = False) -> float:
+    if key not in section:
+        raise PlantConfigError(f"plant file: missing key '{where}{key}'")
+    try:
+        value = float(section[key])
+    except (TypeError, ValueError):
+        raise PlantConfigError(f"plant file: key '{where}{key}' must be a number, got {section[key]!r}") from None
+    if not np.isfinite(value) or (positive and value <= 0.0):
+        raise PlantConfigError(f"plant file: key '{where}{key}' must be a finite{' positive' if positive else ''} number, got {value}")
+    return value
+
+
+def _points(value: Any, key: str, count: int | None, dim: int = 3) -> np.ndarray:
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise PlantConfigError(f"plant file: key '{key}' must be a list of [x, y, z] points") from None
+    expected = (count, dim) if count else (array.shape[0] if array.ndim == 2 else -1, dim)
+    if array.ndim != 2 or array.shape != expected or not np.all(np.isfinite(array)):
+        raise PlantConfigError(f"plant file: key '{key}' must hold {count or 'some'} finite {dim}-D points, got shape {array.shape}")
+    return array
+
+
+def _outline(section: Any) -> tuple[OutlinePoint, ...]:
+    """Outline points of every deck: either explicit points or a circle per deck."""
+    if section is None:
+        return ()
+    if not isinstance(section, Mapping) or "decks" not in section:
+        raise PlantConfigError("plant file: key 'outline' must be a mapping with a list 'decks'")
+    points: list[OutlinePoint] = []
+    for index, deck in enumerate(section["decks"]):
+        where = f"outline.decks[{index}]."
+        if not isinstance(deck, Mapping):
+            raise PlantConfigError(f"plant file: '{where[:-1]}' must be a mapping")
+        name = str(deck.get("name", f"deck_{index + 1}"))
+        z = _number(deck, "z", where)
+        if "points" in deck:
+            xy = _points(deck["points"], where + "points", None, dim=2)
+        else:
+            radius = _number(deck, "radius", where, positive=True)
+            count = int(deck.get("count", 36))
+            angles = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
+            xy = radius * np.column_stack([np.cos(angles), np.sin(angles)])
+        points += [OutlinePoint(f"{name}/p{k + 1}", np.array([x, y, z])) for k, (x, y) in enumerate(xy)]
+    return tuple(points)
+
+
+def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
+    """Build a Plant from the parsed YAML document; errors name the offending key."""
+    if not isinstance(config, Mapping) or "plant" not in config:
+        raise PlantConfigError("plant file: top-level key 'plant' is missing")
+    section = config["plant"]
+    if not isinstance(section, Mapping):
+        raise PlantConfigError("plant file: key 'plant' must be a mapping")
+    if "geometry" not in section or not isinstance(section["geometry"], Mapping):
+        raise PlantConfigError("plant file: key 'plant.geometry' is missing or not a mapping")
+    geometry = section["geometry"]
+    mass = _number(section, "mass", "plant.", positive=True)
+    g = _number(section, "g", "plant.", positive=True)
+    explicit = [key for key in ("anchors", "attachments", "centre_of_gravity") if key in geometry]
+    if explicit:
+        if len(explicit) != 3:
+            raise PlantConfigError("plant file: give all of 'plant.geometry.anchors', '.attachments' and '.centre_of_gravity', or none")
+        anchors = _points(geometry["anchors"], "plant.geometry.anchors", 4)
+        attachments = _points(geometry["attachments"], "plant.geometry.attachments", 4)
+        cog = _points([geometry["centre_of_gravity"]], "plant.geometry.centre_of_gravity", 1)[0]
+        centroid = attachments.mean(axis=0)
+        attachments, cog = attachments - centroid, cog - centroid
+        rectangle = None
+    else:
+        a = _number(geometry, "a", "plant.geometry.", positive=True)
+        b = _number(geometry, "b", "plant.geometry.", positive=True)
+        h = _number(geometry, "h", "plant.geometry.", positive=True)
+        k1 = _number(geometry, "k1", "plant.geometry.")
+        k2 = _number(geometry, "k2", "plant.geometry.")
+        for key, value in (("k1", k1), ("k2", k2)):
+            if not -1.0 < value < 1.0:
+                raise PlantConfigError(f"plant file: key 'plant.geometry.{key}' must lie in (-1, 1), got {value}")
+        anchors, attachments, cog = seed002_rectangle(a, b, h, k1, k2)
+        rectangle = (a, b)
+    if cog[2] >= attachments[:, 2].min():
+        raise PlantConfigError("plant file: the centre of gravity must lie below the attachment points (hanging platform)")
+    shaft = section.get("shaft", {}) or {}
+    if not isinstance(shaft, Mapping):
+        raise PlantConfigError("plant file: key 'plant.shaft' must be a mapping")
+    shaft_radius = _number(shaft, "radius", "plant.shaft.", positive=True) if "radius" in shaft else float("inf")
+    shaft_centre = _points([shaft.get("centre", [0.0, 0.0])], "plant.shaft.centre", 1, dim=2)[0]
+    return Plant(
+        name=str(section.get("name", name)),
+        anchors=anchors,
+        attachments=attachments,
+        cog=cog,
+        mass=mass,
+        g=g,
+        rectangle=rectangle,
+        shaft_radius=shaft_radius,
+        shaft_centre=shaft_centre,
+        outline=_outline(section.get("outline")),
+        raw=config,
+    )
+
+
+def load_plant(path: str | Path | None = None) -> Plant:
+    """Read a plant YAML file (the bundled seed-002 plant when path is None)."""
+    path = Path(path) if path else default_plant_file()
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise PlantConfigError(f"plant file {path}: cannot be read ({error.strerror})") from None
+    try:
+        config = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        raise PlantConfigError(f"plant file {path}: not valid YAML ({error})") from None
+    try:
+        return plant_from_mapping(config, name=path.stem)
+    except PlantConfigError as error:
+        raise PlantConfigError(f"{path}: {error}") from None

@@ -1,0 +1,188 @@
+"""One result type for every solve, and the physics checks every solution must pass."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any, Sequence
+
+import numpy as np
+
+from .geometry import quaternion_from_rotation, roll_pitch_yaw, wrench_residual
+from .plant import CABLE_NAMES, Plant
+
+
+class SolveStatus(str, Enum):
+    """How a solve ended. The values are stable identifiers used in JSON and messages."""
+
+    SOLVED = "solved"
+    SINGLE_CABLE_INDETERMINATE = "single_cable_indeterminate"
+    NO_EQUILIBRIUM = "no_equilibrium"
+    INVALID_INPUT = "invalid_input"
+    SOLVER_FAILED = "solver_failed"
+
+
+@dataclass(frozen=True)
+class Solution:
+    """Static equilibrium of the platform for four cable lengths.
+
+    Arrays are in `shaft` and SI units. Pose fields are None unless status is SOLVED;
+    for a single-cable state `single_cable` (0-based) and `rotation_range` (the set phi of
+    seed 002, 3.1, as [start, end] intervals in [0, 2 pi]) say what is known instead.
+    """
+
+    status: SolveStatus
+    message: str
+    method: str
+    lengths: np.ndarray
+    taut: np.ndarray | None = None
+    tensions: np.ndarray | None = None
+    rotation: np.ndarray | None = None
+    position: np.ndarray | None = None
+    points_b: np.ndarray | None = None
+    point_c: np.ndarray | None = None
+    spans: np.ndarray | None = None
+    force_residual: float = float("nan")
+    moment_residual: float = float("nan")
+    iterations: int = 0
+    single_cable: int | None = None
+    rotation_range: tuple[tuple[float, float], ...] = ()
+    extras: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status is SolveStatus.SOLVED
+
+    @property
+    def taut_set(self) -> tuple[int, ...]:
+        """1-based numbers of the taut cables, as the paper writes them."""
+        if self.taut is None:
+            return (self.single_cable + 1,) if self.single_cable is not None else ()
+        return tuple(int(i) + 1 for i in np.flatnonzero(self.taut))
+
+    @property
+    def tension_state(self) -> str:
+        """Plain words: 'taut {1,2,4}', 'single cable 1: pose indeterminate', ..."""
+        if self.status is SolveStatus.SOLVED:
+            return "taut {" + ",".join(str(i) for i in self.taut_set) + "}"
+        if self.status is SolveStatus.SINGLE_CABLE_INDETERMINATE:
+            return f"single cable {self.single_cable + 1}: pose indeterminate"
+        return self.status.value.replace("_", " ")
+
+    @property
+    def quaternion(self) -> np.ndarray | None:
+        return None if self.rotation is None else quaternion_from_rotation(self.rotation)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready content: tensions in N, points in m, angles in rad."""
+        def listed(array: np.ndarray | None) -> Any:
+            return None if array is None else np.round(np.asarray(array, dtype=float), 9).tolist()
+
+        out: dict[str, Any] = {
+            "status": self.status.value,
+            "message": self.message,
+            "method": self.method,
+            "tension_state": self.tension_state,
+            "lengths": listed(self.lengths),
+            "taut": None if self.taut is None else [bool(t) for t in self.taut],
+            "tensions": listed(self.tensions),
+            "B": listed(self.points_b),
+            "C": listed(self.point_c),
+            "position": listed(self.position),
+            "quaternion_xyzw": listed(self.quaternion),
+            "spans": listed(self.spans),
+            "force_residual": self.force_residual,
+            "moment_residual": self.moment_residual,
+            "iterations": self.iterations,
+        }
+        if self.rotation is not None:
+            out["roll_pitch_yaw"] = list(roll_pitch_yaw(self.rotation))
+        if self.single_cable is not None:
+            out["single_cable"] = CABLE_NAMES[self.single_cable]
+            out["rotation_range"] = [list(interval) for interval in self.rotation_range]
+        return out
+
+
+def failed(status: SolveStatus, message: str, method: str, lengths: Sequence[float] | np.ndarray, **kwargs: Any) -> Solution:
+    """A Solution without a pose."""
+    return Solution(status=status, message=message, method=method, lengths=np.asarray(lengths, dtype=float), **kwargs)
+
+
+def validate_lengths(lengths: Any) -> tuple[np.ndarray | None, str]:
+    """Four finite positive lengths as an array, or None and the reason they are not."""
+    try:
+        array = np.asarray(lengths, dtype=float)
+    except (TypeError, ValueError):
+        return None, f"cable lengths must be numbers, got {lengths!r}"
+    if array.shape != (4,):
+        return None, f"need exactly 4 cable lengths, got {array.size}"
+    bad = [f"{CABLE_NAMES[i]}={array[i]}" for i in range(4) if not np.isfinite(array[i])]
+    if bad:
+        return None, "cable lengths must be finite: " + ", ".join(bad)
+    bad = [f"{CABLE_NAMES[i]}={array[i]}" for i in range(4) if array[i] <= 0.0]
+    if bad:
+        return None, "cable lengths must be positive: " + ", ".join(bad)
+    return array, ""
+
+
+def solved(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
+           tensions: np.ndarray, taut: np.ndarray, iterations: int, message: str = "static equilibrium found",
+           **extras: Any) -> Solution:
+    """A SOLVED Solution with its points, spans and equilibrium residuals filled in."""
+    points_b = position + plant.attachments @ rotation.T
+    point_c = position + rotation @ plant.cog
+    force, moment = wrench_residual(plant, points_b, point_c, tensions)
+    return Solution(
+        status=SolveStatus.SOLVED, message=message, method=method, lengths=lengths, taut=np.asarray(taut, dtype=bool),
+        tensions=np.asarray(tensions, dtype=float), rotation=rotation, position=position, points_b=points_b,
+        point_c=point_c, spans=np.linalg.norm(points_b - plant.anchors, axis=1), force_residual=force,
+        moment_residual=moment, iterations=iterations, extras=dict(extras),
+    )
+
+
+@dataclass(frozen=True)
+class PhysicsCheck:
+    """What a solved state must satisfy: balance, tensions >= 0, slack spans within their lengths."""
+
+    force_residual: float
+    moment_residual: float
+    min_tension: float
+    max_overstretch: float  # max(span - length) over all cables [m]
+    taut_length_error: float  # max |span - length| over taut cables [m]
+    rigid_error: float  # max deviation of the solved points from the rigid body [m]
+    slack_tension: float  # max |tension| over slack cables [N]
+    mirrored: bool  # solved points are the mirror image of the body
+
+    def passes(self, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> bool:
+        return (self.force_residual <= balance_tol and self.moment_residual <= balance_tol
+                and self.min_tension >= 0.0 and self.max_overstretch <= length_tol
+                and self.taut_length_error <= length_tol and self.rigid_error <= length_tol
+                and self.slack_tension == 0.0 and not self.mirrored)
+
+
+def check_physics(plant: Plant, solution: Solution) -> PhysicsCheck:
+    """Recompute the physics of a SOLVED solution from its points, independently of the solver."""
+    if solution.status is not SolveStatus.SOLVED:
+        raise ValueError(f"no pose to check: {solution.tension_state}")
+    points_b, point_c = solution.points_b, solution.point_c
+    force, moment = wrench_residual(plant, points_b, point_c, solution.tensions)
+    spans = np.linalg.norm(points_b - plant.anchors, axis=1)
+    excess = spans - solution.lengths
+    body = np.vstack([plant.attachments, plant.cog])
+    world = np.vstack([points_b, point_c])
+    body_distances = np.linalg.norm(body[:, None] - body[None], axis=2)
+    world_distances = np.linalg.norm(world[:, None] - world[None], axis=2)
+    taut = solution.taut
+
+    def handedness(points: np.ndarray) -> float:
+        return float(np.linalg.det(points[1:4] - points[0]))
+
+    return PhysicsCheck(
+        force_residual=force,
+        moment_residual=moment,
+        min_tension=float(solution.tensions.min()),
+        max_overstretch=float(excess.max()),
+        taut_length_error=float(np.abs(excess[taut]).max()) if taut.any() else 0.0,
+        rigid_error=float(np.abs(world_distances - body_distances).max()),
+        slack_tension=float(np.abs(solution.tensions[~taut]).max()) if (~taut).any() else 0.0,
+        mirrored=handedness(world) * handedness(body) < 0.0,
+    )

@@ -1,0 +1,29 @@
+"""ament_python package `cable_winch_monitor`: console entry points and the ROS share files."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "cable_winch_monitor"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Pose, cable tensions, slack detection and shaft-wall alarms for a four-winch sinking platform",
+    license="Apache-2.0",
+    python_requires=">=3.10",
+    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    install_requires=["numpy", "scipy", "pyyaml", "rosbags", "mcap", "mcap-ros2-support"],
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.py")),
+    ],
+    zip_safe=True,
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "cable-winch-monitor = cable_winch_monitor.cli:main",
+        ],
+    },
+)
