@@ -1,0 +1,269 @@
+"""Static equilibrium as the minimum of the platform's potential energy.
+
+With rigid cables the stable equilibrium minimises the height of the centre of gravity
+subject to |A_i B_i| <= l_i (the minimum-potential-energy principle of seed 003). The
+Karush-Kuhn-Tucker multipliers of the length constraints are the cable tensions, the
+inactive constraints are the slack cables. The solve has two parts:
+
+* a global search (SLSQP over the six pose coordinates) that finds the minimum and so
+  the taut set from any start, used cold and whenever the fast path fails;
+* a Newton iteration on the KKT conditions of the taut set, which polishes the global
+  result to machine precision and, warm-started from the previous sample, is the fast
+  path of the monitor (a few steps per sample).
+
+A platform that can hang from one cable alone has no definite pose; that case is
+recognised first with `plumb_hang`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from .geometry import rotation_from_vector, skew, structure_matrix
+from .plant import CABLE_NAMES, Plant
+from .plumb_hang import PlumbHang, lowest_hang_cable
+from .result import Solution, SolveStatus, failed, solved, validate_lengths
+from .tensions import balance_tensions
+
+METHOD = "energy"
+NEWTON_MAX_STEPS = 15
+NEWTON_TOL = 1e-12          # relative force/moment balance and length error [m]
+ACTIVE_BAND = 1e-5          # [m] a cable this close to its length after the global search may be taut
+SLACK_TOL = 1e-10           # [m] a slack cable may exceed its length by rounding only
+TENSION_TOL = 1e-9          # relative to mg: smaller tensions are zero
+ACTIVE_SET_ROUNDS = 12
+MAX_TURN = 0.3            # [rad] largest turn of the platform the polish may make from its start
+
+
+@dataclass
+class _State:
+    """Pose, active cables and normalised multipliers mu = tau / (m g) during the solve."""
+
+    rotation: np.ndarray
+    position: np.ndarray
+    active: np.ndarray
+    mu: np.ndarray
+    steps: int = 0
+
+
+def solve_energy(plant: Plant, lengths: object, warm_start: Solution | None = None) -> Solution:
+    """Equilibrium for four cable lengths; never raises, the status says what happened."""
+    array, reason = validate_lengths(lengths)
+    if array is None:
+        return failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan))
+    try:
+        return _solve(plant, array, warm_start)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as error:
+        return failed(SolveStatus.SOLVER_FAILED, f"energy solver failed: {error}", METHOD, array)
+
+
+def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> Solution:
+    if warm_start is not None and warm_start.ok:
+        state = _State(warm_start.rotation, warm_start.position, warm_start.taut.copy(),
+                       warm_start.tensions / plant.weight)
+        if _settle_active_set(plant, lengths, state):
+            return _result(plant, lengths, state)
+    single = _single_cable(plant, lengths)
+    if single is not None:
+        return single
+    state = _global_minimum(plant, lengths)
+    if _settle_active_set(plant, lengths, state):
+        return _result(plant, lengths, state)
+    return failed(SolveStatus.SOLVER_FAILED, "energy solver: no admissible taut set found near the energy minimum",
+                  METHOD, lengths, iterations=state.steps)
+
+
+def _settle_active_set(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
+    """Newton on the KKT conditions, changing the taut set one cable at a time until admissible.
+
+    Every taut set starts from the same pose and is tried once, so the iteration neither
+    cycles nor drifts; a result that turned further than MAX_TURN from the start is a
+    different configuration (crossed cables), not this sample's equilibrium.
+    """
+    start_rotation, start_position = state.rotation, state.position
+    visited: set[tuple[bool, ...]] = set()
+    for _ in range(ACTIVE_SET_ROUNDS):
+        visited.add(tuple(state.active))
+        converged = _newton(plant, lengths, state)
+        turn = np.arccos(np.clip((np.trace(state.rotation @ start_rotation.T) - 1.0) / 2.0, -1.0, 1.0))
+        if converged and turn < MAX_TURN and _admissible(plant, lengths, state):
+            return True
+        candidates = [c for c in _next_active_sets(plant, lengths, state, converged) if tuple(c) not in visited]
+        if not candidates:
+            return False
+        state.rotation, state.position, state.active = start_rotation, start_position, candidates[0]
+        state.mu = _multipliers(plant, state)
+    return False
+
+
+def _single_cable(plant: Plant, lengths: np.ndarray) -> Solution | None:
+    """The single-cable state if the lowest-hanging cable can carry the platform alone."""
+    cable = lowest_hang_cable(plant, lengths)
+    hang = PlumbHang(plant, cable, lengths[cable])
+    others = np.arange(4) != cable
+    if np.any(lengths[others] < hang.shortest_spans()[others]):
+        return None
+    intervals = hang.rotation_range(lengths)
+    if sum(hi - lo for lo, hi in intervals) <= 1e-9:
+        return None
+    degrees = ", ".join(f"[{lo:.3f}, {hi:.3f}]" for lo, hi in intervals)
+    rotation, position = hang.pose(0.0)
+    return failed(SolveStatus.SINGLE_CABLE_INDETERMINATE,
+                  f"platform hangs from {CABLE_NAMES[cable]} alone: pose indeterminate, it can turn through "
+                  f"{degrees} rad about the cable", METHOD, lengths, single_cable=cable, rotation_range=intervals,
+                  extras={"B_hanging": position + rotation @ plant.attachments[cable],
+                          "C": position + rotation @ plant.cog})
+
+
+def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
+    """SLSQP on z_C over (position, rotation vector) from the level pose at the shortest length."""
+    start = np.array([0.0, 0.0, -lengths.min(), 0.0, 0.0, 0.0])
+    anchor_centre = plant.anchors.mean(axis=0)
+    start[:2] = anchor_centre[:2]
+
+    def pose(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return rotation_from_vector(x[3:]), x[:3]
+
+    def left_jacobian(omega: np.ndarray) -> np.ndarray:
+        angle = np.linalg.norm(omega)
+        k = skew(omega)
+        if angle < 1e-8:
+            return np.eye(3) + 0.5 * k
+        return np.eye(3) + (1 - np.cos(angle)) / angle**2 * k + (angle - np.sin(angle)) / angle**3 * (k @ k)
+
+    def height(x: np.ndarray) -> float:
+        rotation, position = pose(x)
+        return float(position[2] + rotation[2] @ plant.cog)
+
+    def height_gradient(x: np.ndarray) -> np.ndarray:
+        rotation = rotation_from_vector(x[3:])
+        return np.concatenate([[0.0, 0.0, 1.0], left_jacobian(x[3:]).T @ np.cross(rotation @ plant.cog, [0.0, 0.0, 1.0])])
+
+    def slack(x: np.ndarray) -> np.ndarray:
+        rotation, position = pose(x)
+        return lengths - np.linalg.norm(position + plant.attachments @ rotation.T - plant.anchors, axis=1)
+
+    def slack_jacobian(x: np.ndarray) -> np.ndarray:
+        rotation, position = pose(x)
+        arms = plant.attachments @ rotation.T
+        spans = position + arms - plant.anchors
+        units = spans / np.linalg.norm(spans, axis=1, keepdims=True)
+        return -np.hstack([units, np.cross(arms, units) @ left_jacobian(x[3:])])
+
+    result = minimize(height, start, jac=height_gradient, method="SLSQP",
+                      constraints={"type": "ineq", "fun": slack, "jac": slack_jacobian},
+                      options={"maxiter": 500, "ftol": 1e-10})
+    rotation, position = pose(result.x)
+    active = slack(result.x) < ACTIVE_BAND * max(1.0, lengths.max() * 1e-3)
+    if not active.any():
+        active[np.argmin(slack(result.x))] = True
+    state = _State(rotation, position, active, np.zeros(4), steps=int(result.nit))
+    state.mu = _multipliers(plant, state)
+    return state
+
+
+def _geometry(plant: Plant, state: _State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Arms r_i = R b_i, arm of C, spans A_i B_i and their lengths."""
+    arms = plant.attachments @ state.rotation.T
+    arm_c = state.rotation @ plant.cog
+    spans = state.position + arms - plant.anchors
+    return arms, arm_c, spans, np.linalg.norm(spans, axis=1)
+
+
+def _multipliers(plant: Plant, state: _State) -> np.ndarray:
+    """mu = tau / mg from the wrench balance on the active cables."""
+    _, arm_c, _, _ = _geometry(plant, state)
+    points_b = state.position + plant.attachments @ state.rotation.T
+    structure = structure_matrix(plant, points_b, state.position + arm_c)
+    mu = np.zeros(4)
+    mu[state.active] = balance_tensions(structure[:, state.active], plant.wrench) / plant.weight
+    return mu
+
+
+def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
+    """Newton's method on the KKT conditions of the active set; True when converged.
+
+    Unknowns: position, a rotation increment (applied on the left) and mu of the active
+    cables. Equations: force and moment balance about C and |A_i B_i| = l_i. Steps are
+    least-squares solutions, so a redundant set (four equal lengths) still converges in
+    pose; its tensions are settled afterwards by `balance_tensions`.
+    """
+    idx = np.flatnonzero(state.active)
+    scale = plant.moment_scale
+    ez = np.array([0.0, 0.0, 1.0])
+    for _ in range(NEWTON_MAX_STEPS):
+        arms, arm_c, spans, norms = _geometry(plant, state)
+        units = spans / norms[:, None]
+        levers = arms - arm_c
+        mu = state.mu[idx]
+        force = units[idx].T @ mu + ez
+        moment = np.cross(levers[idx], units[idx]).T @ mu / scale
+        length_error = norms[idx] - lengths[idx]
+        residual = np.concatenate([force, moment, length_error])
+        if np.abs(residual).max() < NEWTON_TOL * max(1.0, lengths.max() * 1e-2):
+            return True
+        jacobian = np.zeros((6 + idx.size, 6 + idx.size))
+        for column, i in enumerate(idx):
+            u, r, q, m_i = units[i], arms[i], levers[i], state.mu[i]
+            projector = (np.eye(3) - np.outer(u, u)) / norms[i]
+            jacobian[0:3, 0:3] += m_i * projector
+            jacobian[0:3, 3:6] -= m_i * projector @ skew(r)
+            jacobian[3:6, 0:3] += m_i * skew(q) @ projector / scale
+            jacobian[3:6, 3:6] += m_i * (skew(u) @ skew(q) - skew(q) @ projector @ skew(r)) / scale
+            jacobian[0:3, 6 + column] = u
+            jacobian[3:6, 6 + column] = np.cross(q, u) / scale
+            jacobian[6 + column, 0:3] = u
+            jacobian[6 + column, 3:6] = np.cross(r, u)
+        step = np.linalg.lstsq(jacobian, -residual, rcond=1e-13)[0]
+        largest = max(np.abs(step[3:6]).max() / 0.2, np.abs(step[0:3]).max() / (0.2 * scale), 1.0)
+        step /= largest
+        state.position = state.position + step[0:3]
+        state.rotation = rotation_from_vector(step[3:6]) @ state.rotation
+        state.mu[idx] = mu + step[6:]
+        state.steps += 1
+    return False
+
+
+def _admissible(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
+    """Tensions of taut cables >= 0 and slack cables within their length."""
+    state.mu = _multipliers(plant, state)
+    _, _, _, norms = _geometry(plant, state)
+    slack_ok = np.all(norms[~state.active] <= lengths[~state.active] + SLACK_TOL * max(1.0, lengths.max()))
+    return bool(slack_ok and np.all(state.mu[state.active] >= -TENSION_TOL))
+
+
+def _next_active_sets(plant: Plant, lengths: np.ndarray, state: _State, converged: bool) -> list[np.ndarray]:
+    """Taut sets to try next, best guess first.
+
+    Converged with a negative tension: release that cable. Converged with a slack cable
+    overstretched: take it up, alone or in exchange for one of the taut cables (least
+    loaded first). Not converged (the set cannot reach all its lengths at once): release
+    one cable, the least loaded first.
+    """
+    _, _, _, norms = _geometry(plant, state)
+    active = np.flatnonzero(state.active)
+    by_load = active[np.argsort(state.mu[active])]
+
+    def toggled(base: np.ndarray, *cables: int) -> np.ndarray:
+        candidate = base.copy()
+        candidate[list(cables)] = ~candidate[list(cables)]
+        return candidate
+
+    if not converged:
+        return [toggled(state.active, k) for k in by_load] if active.size > 1 else []
+    if state.mu[active].min() < -TENSION_TOL and active.size > 1:
+        return [toggled(state.active, by_load[0])]
+    overstretch = np.where(state.active, -np.inf, norms - lengths)
+    if overstretch.max() <= 0.0:
+        return []
+    cable = int(np.argmax(overstretch))
+    return [toggled(state.active, cable)] + [toggled(state.active, cable, k) for k in by_load]
+
+
+def _result(plant: Plant, lengths: np.ndarray, state: _State) -> Solution:
+    tensions = np.where(state.active, state.mu, 0.0) * plant.weight
+    taut = tensions > TENSION_TOL * plant.weight
+    tensions = np.where(taut, tensions, 0.0)
+    return solved(plant, METHOD, lengths, state.rotation, state.position, tensions, taut, state.steps)
