@@ -1,0 +1,28 @@
+# cable_winch_monitor: set-up, demo and tests in a local .venv (ROS 2 Jazzy wheels from PyPI).
+SHELL := /bin/bash
+VENV := .venv
+
+# Keep DDS on this machine, and on a domain of its own unless the caller picks one.
+ROS_DOMAIN_ID ?= 87
+RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
+ROS_LOG_DIR ?= $(CURDIR)/build/ros_log
+export ROS_DOMAIN_ID RMW_IMPLEMENTATION ROS_LOG_DIR
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+
+PYTEST_ARGS ?=
+
+.PHONY: all setup demo test clean
+
+all: test
+
+setup:
+	@scripts/setup_env.sh
+
+demo: setup
+	$(VENV)/bin/cable-winch-monitor demo
+
+test: setup
+	$(VENV)/bin/python -m pytest -q test $(PYTEST_ARGS)
+
+clean:
+	rm -rf build $(VENV)

