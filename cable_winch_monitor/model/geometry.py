@@ -60,6 +60,16 @@ def quaternion_from_rotation(rotation: np.ndarray) -> np.ndarray:
     return q if q[3] >= 0.0 else -q
 
 
+def rotation_from_quaternion(quaternion_xyzw: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (x, y, z, w); it is normalised first."""
+    x, y, z, w = np.asarray(quaternion_xyzw, dtype=float) / np.linalg.norm(quaternion_xyzw)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
 def roll_pitch_yaw(rotation: np.ndarray) -> tuple[float, float, float]:
     """Roll, pitch, yaw [rad] of a rotation (REP-103 fixed-axis x-y-z convention)."""
     pitch = float(np.arcsin(np.clip(-rotation[2, 0], -1.0, 1.0)))

@@ -1,0 +1,119 @@
+"""Wall-collision alarm levels with hysteresis, so that an alarm does not chatter."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..model.plant import CABLE_NAMES, Plant, PlantConfigError
+from ..model.result import Solution, SolveStatus
+from .clearance import Clearance
+
+
+class AlarmLevel(IntEnum):
+    """Levels of the CollisionAlarm message (same numbers)."""
+
+    OK = 0
+    WARNING = 1
+    CRITICAL = 2
+    COLLISION = 3
+
+
+@dataclass(frozen=True)
+class AlarmPolicy:
+    """Clearance margins [m] below which a level is raised, and the hysteresis to clear it.
+
+    slack_tolerance [m]: a cable whose span falls short of its length by more than this
+    hangs visibly loose and raises a WARNING. Rigid ropes leave one cable at zero tension
+    almost everywhere (four taut ropes need l1 + l3 = l2 + l4 to the micrometre); a real
+    rope that is loose by less than its elastic stretch still carries load.
+    """
+
+    warning_margin: float = 0.15
+    critical_margin: float = 0.05
+    hysteresis: float = 0.02
+    slack_tolerance: float = 0.02
+
+    @classmethod
+    def from_plant(cls, plant: Plant) -> "AlarmPolicy":
+        section: Mapping[str, Any] = plant.raw.get("plant", {}).get("alarm", {}) or {}
+        values = {}
+        for key in ("warning_margin", "critical_margin", "hysteresis", "slack_tolerance"):
+            if key in section:
+                try:
+                    values[key] = float(section[key])
+                except (TypeError, ValueError):
+                    raise PlantConfigError(f"plant file: key 'plant.alarm.{key}' must be a number") from None
+        policy = cls(**values)
+        if not (policy.warning_margin > policy.critical_margin > 0.0 and policy.hysteresis >= 0.0
+                and policy.slack_tolerance >= 0.0):
+            raise PlantConfigError("plant file: 'plant.alarm' needs warning_margin > critical_margin > 0 and "
+                                   "hysteresis, slack_tolerance >= 0")
+        return policy
+
+    def thresholds(self) -> dict[AlarmLevel, float]:
+        """Clearance at or below which each level is entered."""
+        return {AlarmLevel.WARNING: self.warning_margin, AlarmLevel.CRITICAL: self.critical_margin,
+                AlarmLevel.COLLISION: 0.0}
+
+
+@dataclass(frozen=True)
+class Alarm:
+    level: AlarmLevel
+    clearance: Clearance | None
+    sync_error_pairs: tuple[str, ...]
+    sync_errors: np.ndarray
+    reason: str
+
+
+SYNC_PAIRS = tuple((i, j) for i in range(4) for j in range(i + 1, 4))
+
+
+def sync_errors(lengths: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """l_i - l_j for every pair of cables."""
+    names = tuple(f"{CABLE_NAMES[i]}-{CABLE_NAMES[j]}" for i, j in SYNC_PAIRS)
+    return names, np.array([lengths[i] - lengths[j] for i, j in SYNC_PAIRS])
+
+
+class AlarmTracker:
+    """Turns each sample's clearance into a level; a level is left only when the clearance
+    has recovered by the hysteresis above the threshold that raised it."""
+
+    def __init__(self, policy: AlarmPolicy):
+        self.policy = policy
+        self.level = AlarmLevel.OK
+
+    def _clearance_level(self, clearance: float) -> AlarmLevel:
+        thresholds = self.policy.thresholds()
+        raised = max((lvl for lvl, limit in thresholds.items() if clearance <= limit), default=AlarmLevel.OK)
+        if raised >= self.level:
+            return raised
+        held = max((lvl for lvl, limit in thresholds.items()
+                    if lvl <= self.level and clearance <= limit + self.policy.hysteresis), default=AlarmLevel.OK)
+        return max(raised, held)
+
+    def update(self, solution: Solution, clearance: Clearance | None) -> Alarm:
+        """The alarm for one solved sample."""
+        pairs, errors = sync_errors(solution.lengths)
+        reasons = []
+        level = AlarmLevel.OK
+        if clearance is not None:
+            level = self._clearance_level(clearance.value)
+            if level > AlarmLevel.OK:
+                reasons.append(f"clearance {clearance.value:.3f} m at {clearance.point_name}")
+        if solution.status is SolveStatus.SINGLE_CABLE_INDETERMINATE:
+            level = max(level, AlarmLevel.WARNING)
+            reasons.append(f"platform hangs from {CABLE_NAMES[solution.single_cable]} alone and can turn")
+        elif solution.ok:
+            loose = np.flatnonzero(solution.lengths - solution.spans > self.policy.slack_tolerance)
+            if loose.size:
+                level = max(level, AlarmLevel.WARNING)
+                reasons.append("slack: " + ", ".join(
+                    f"{CABLE_NAMES[i]} loose by {solution.lengths[i] - solution.spans[i]:.3f} m" for i in loose))
+        else:
+            level = max(level, AlarmLevel.WARNING)
+            reasons.append(f"no pose: {solution.tension_state}")
+        self.level = level
+        return Alarm(level, clearance, pairs, errors, "; ".join(reasons) or "clearance within margins")

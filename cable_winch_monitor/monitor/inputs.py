@@ -1,0 +1,103 @@
+"""Merging the winches' joint states by cable name, with every rejected value accounted for."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from ..model.plant import CABLE_NAMES
+
+
+@dataclass(frozen=True)
+class JointSample:
+    """One sensor_msgs/JointState, as plain values (stamp in seconds)."""
+
+    stamp: float
+    names: Sequence[str]
+    positions: Sequence[float]
+    velocities: Sequence[float] = ()
+    efforts: Sequence[float] = ()
+    topic: str = "/winch/joint_states"
+
+
+@dataclass
+class CableReading:
+    length: float
+    stamp: float
+    velocity: float = float("nan")
+    tension: float = float("nan")
+
+
+@dataclass
+class MergeResult:
+    """What one message did: the cables it updated, or why it was refused; names it ignored."""
+
+    accepted: list[int] = field(default_factory=list)
+    rejected: str = ""
+    ignored: list[str] = field(default_factory=list)
+
+
+class CableLengthMerger:
+    """Latest length of each cable from whichever topic reported it.
+
+    A message is refused whole, with a reason, when its names repeat, its arrays do not
+    match its names, a length is not a finite positive number, or a stamp is not newer
+    than that cable's last reading: a bad sample is skipped, not patched. Names that are
+    not cables (other joints of a winch) are ignored and counted.
+    """
+
+    def __init__(self, staleness: float):
+        self.staleness = staleness
+        self.readings: list[CableReading | None] = [None] * 4
+
+    def _check(self, sample: JointSample) -> tuple[dict[int, int], list[str], str]:
+        """Cable -> index in the message, ignored names, and the reason to refuse ('' if none)."""
+        names = list(sample.names)
+        if len(sample.positions) != len(names):
+            return {}, [], f"malformed message: {len(sample.positions)} positions for {len(names)} names"
+        if len(set(names)) != len(names):
+            repeated = sorted({n for n in names if names.count(n) > 1})
+            return {}, [], f"duplicate cable names: {', '.join(repeated)} in one message"
+        if not np.isfinite(sample.stamp):
+            return {}, [], f"bad stamp: {sample.stamp}"
+        cables = {CABLE_NAMES.index(n): k for k, n in enumerate(names) if n in CABLE_NAMES}
+        ignored = [n for n in names if n not in CABLE_NAMES]
+        for cable, k in cables.items():
+            length = float(sample.positions[k])
+            if not np.isfinite(length) or length <= 0.0:
+                return {}, ignored, f"bad length: {CABLE_NAMES[cable]} = {length}"
+            previous = self.readings[cable]
+            if previous is not None and sample.stamp <= previous.stamp:
+                return {}, ignored, (f"stamp not increasing: {CABLE_NAMES[cable]} at {sample.stamp:.6f} s "
+                                     f"after {previous.stamp:.6f} s")
+        if not cables:
+            return {}, ignored, "no cable in message: " + ", ".join(repr(n) for n in names)
+        return cables, ignored, ""
+
+    def add(self, sample: JointSample) -> MergeResult:
+        cables, ignored, reason = self._check(sample)
+        if reason:
+            return MergeResult(rejected=reason, ignored=ignored)
+        n = len(sample.names)
+        for cable, k in cables.items():
+            self.readings[cable] = CableReading(
+                float(sample.positions[k]), sample.stamp,
+                float(sample.velocities[k]) if len(sample.velocities) == n else float("nan"),
+                float(sample.efforts[k]) if len(sample.efforts) == n else float("nan"))
+        return MergeResult(accepted=sorted(cables), ignored=ignored)
+
+    def complete(self, stamp: float) -> tuple[np.ndarray | None, str]:
+        """The four lengths if all are known and none is older than the staleness limit at `stamp`."""
+        missing = [CABLE_NAMES[i] for i, r in enumerate(self.readings) if r is None]
+        if missing:
+            return None, "waiting for " + ", ".join(missing)
+        stale = [f"{CABLE_NAMES[i]} ({stamp - r.stamp:.3f} s old)" for i, r in enumerate(self.readings)
+                 if stamp - r.stamp > self.staleness]
+        if stale:
+            return None, "stale: " + ", ".join(stale)
+        return np.array([r.length for r in self.readings]), ""
+
+    def measured_tensions(self) -> np.ndarray:
+        """Load-pin tensions of the latest readings [N] (NaN where not measured)."""
+        return np.array([r.tension if r is not None else np.nan for r in self.readings])

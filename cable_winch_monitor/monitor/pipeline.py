@@ -1,0 +1,135 @@
+"""The monitor as one object: winch samples in, solved pose, tensions, alarm and residuals out.
+
+The live node and bag replay both feed this object, so both give the same answers. It
+knows nothing of ROS: messages arrive as plain values with their header stamps.
+"""
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..model.plant import CABLE_NAMES, Plant
+from ..model.result import Solution, SolveStatus
+from ..model.solve import METHODS, solve
+from .alarm import Alarm, AlarmPolicy, AlarmTracker
+from .clearance import Clearance, solution_clearance
+from .inputs import CableLengthMerger, JointSample
+from .residuals import Residuals, imu_channels, position_channels, residuals
+
+
+@dataclass(frozen=True)
+class MonitorOutput:
+    """Everything the monitor publishes for one solved sample, stamped with its input stamp."""
+
+    stamp: float
+    solution: Solution
+    clearance: Clearance | None
+    alarm: Alarm
+    residuals: Residuals | None
+
+
+@dataclass
+class MonitorStats:
+    """Counts for diagnostics and replay summaries.
+
+    Every message read is either used or rejected with a reason: for each topic,
+    messages[topic] == used[topic] + the rejected counts keyed "topic: reason".
+    """
+
+    messages: Counter[str] = field(default_factory=Counter)
+    used: Counter[str] = field(default_factory=Counter)
+    rejected: Counter[str] = field(default_factory=Counter)
+    ignored_names: Counter[str] = field(default_factory=Counter)
+    states: Counter[str] = field(default_factory=Counter)
+    levels: Counter[str] = field(default_factory=Counter)
+    solved: int = 0
+    failures: int = 0
+    last_rejection: str = ""
+    waiting: str = ""
+
+
+class MonitorPipeline:
+    """Merges inputs, solves each complete sample (warm-started), and derives alarm and residuals."""
+
+    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5):
+        if solver not in METHODS:
+            raise ValueError(f"unknown solver {solver!r}; use one of {', '.join(METHODS)}")
+        self.plant, self.solver = plant, solver
+        self.merger = CableLengthMerger(staleness)
+        self.alarms = AlarmTracker(AlarmPolicy.from_plant(plant))
+        self.stats = MonitorStats()
+        self.last: MonitorOutput | None = None
+        self.last_solved: MonitorOutput | None = None
+        self.staleness = staleness
+
+    def _reject(self, topic: str, reason: str) -> None:
+        self.stats.rejected[f"{topic}: {reason.split(':')[0]}"] += 1
+        self.stats.last_rejection = f"{topic}: {reason}"
+
+    def on_joint_state(self, sample: JointSample) -> MonitorOutput | None:
+        """A winch message; returns the solved sample when the four lengths are complete and fresh."""
+        self.stats.messages[sample.topic] += 1
+        merged = self.merger.add(sample)
+        self.stats.ignored_names.update(merged.ignored)
+        if merged.rejected:
+            self._reject(sample.topic, merged.rejected)
+            return None
+        self.stats.used[sample.topic] += 1
+        lengths, waiting = self.merger.complete(sample.stamp)
+        self.stats.waiting = waiting
+        if lengths is None:
+            return None
+        return self._solve(sample.stamp, lengths, merged.accepted)
+
+    def evaluate(self, lengths: object) -> tuple[Solution, Clearance | None, Alarm]:
+        """What proposed cable lengths would give (for plant control), without touching the state."""
+        solution = solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
+        clearance = solution_clearance(self.plant, solution)
+        return solution, clearance, AlarmTracker(self.alarms.policy).update(solution, clearance)
+
+    def _warm_start(self) -> Solution | None:
+        return self.last_solved.solution if self.last_solved is not None and self.solver == "energy" else None
+
+    def _solve(self, stamp: float, lengths: np.ndarray, accepted: list[int]) -> MonitorOutput:
+        solution = solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
+        clearance = solution_clearance(self.plant, solution)
+        alarm = self.alarms.update(solution, clearance)
+        tensions = self.merger.measured_tensions()
+        measured = {f"tension_{CABLE_NAMES[i]}": tensions[i] for i in accepted}
+        resid = residuals(self.plant, solution, stamp, measured) if solution.ok else None
+        output = MonitorOutput(stamp, solution, clearance, alarm, resid)
+        self.stats.solved += int(solution.ok)
+        self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
+        self.stats.states[solution.tension_state] += 1
+        self.stats.levels[alarm.level.name] += 1
+        self.last = output
+        if solution.ok:
+            self.last_solved = output
+        return output
+
+    def _measurement(self, topic: str, stamp: float, channels: dict[str, float]) -> Residuals | None:
+        self.stats.messages[topic] += 1
+        if not all(np.isfinite(v) for k, v in channels.items() if k not in ("x", "y")):
+            self._reject(topic, "bad measurement: not finite")
+            return None
+        last = self.last_solved
+        if last is None or abs(stamp - last.stamp) > self.staleness:
+            self._reject(topic, "no solved pose within the staleness limit")
+            return None
+        self.stats.used[topic] += 1
+        return residuals(self.plant, last.solution, stamp, channels)
+
+    def on_imu(self, stamp: float, quaternion_xyzw: np.ndarray, topic: str = "/platform/imu") -> Residuals | None:
+        """An inclinometer reading: roll and pitch residuals against the latest solved pose."""
+        quaternion = np.asarray(quaternion_xyzw, dtype=float)
+        if not np.all(np.isfinite(quaternion)) or np.linalg.norm(quaternion) < 1e-9:
+            self.stats.messages[topic] += 1
+            self._reject(topic, "bad measurement: orientation is not a unit quaternion")
+            return None
+        return self._measurement(topic, stamp, imu_channels(quaternion))
+
+    def on_position(self, stamp: float, xyz: np.ndarray, topic: str = "/platform/position") -> Residuals | None:
+        """A depth-gauge reading (x, y may be NaN): residuals against the latest solved pose."""
+        return self._measurement(topic, stamp, position_channels(np.asarray(xyz, dtype=float)))

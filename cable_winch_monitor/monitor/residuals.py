@@ -1,0 +1,68 @@
+"""Measured minus model for every measured channel: load pins, inclinometer, depth gauge."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from ..model.geometry import roll_pitch_yaw, rotation_from_quaternion
+from ..model.plant import CABLE_NAMES, Plant
+from ..model.result import Solution
+
+
+@dataclass(frozen=True)
+class Residuals:
+    stamp: float
+    channels: tuple[str, ...]
+    measured: np.ndarray
+    predicted: np.ndarray
+    noise: np.ndarray
+
+    @property
+    def values(self) -> np.ndarray:
+        return self.measured - self.predicted
+
+
+def noise_levels(plant: Plant) -> dict[str, float]:
+    """1-sigma noise per channel family from the plant file's `noise` section (NaN if absent)."""
+    section: Mapping[str, float] = plant.raw.get("plant", {}).get("noise", {}) or {}
+    return {key: float(section.get(key, np.nan)) for key in ("tension", "roll", "pitch", "depth", "x", "y")}
+
+
+def predicted_channels(solution: Solution) -> dict[str, float]:
+    """What each sensor should read for a solved pose under the rigid-rope model.
+
+    Load pins at the head sheave read the rope tension, equal to the tension at the
+    platform for a weightless rope; the inclinometer reads roll and pitch of `platform`;
+    the depth gauge reads the platform origin.
+    """
+    roll, pitch, _ = roll_pitch_yaw(solution.rotation)
+    channels = {f"tension_{name}": float(t) for name, t in zip(CABLE_NAMES, solution.tensions)}
+    channels.update(roll=roll, pitch=pitch, x=float(solution.position[0]), y=float(solution.position[1]),
+                    depth=float(solution.position[2]))
+    return channels
+
+
+def residuals(plant: Plant, solution: Solution, stamp: float, measured: Mapping[str, float]) -> Residuals | None:
+    """Residuals of the finite measured channels against a solved pose; None if nothing to compare."""
+    predicted = predicted_channels(solution)
+    noise = noise_levels(plant)
+    names = tuple(k for k, v in measured.items() if k in predicted and np.isfinite(v))
+    if not names:
+        return None
+    return Residuals(
+        stamp=stamp, channels=names, measured=np.array([measured[k] for k in names]),
+        predicted=np.array([predicted[k] for k in names]),
+        noise=np.array([noise["tension" if k.startswith("tension_") else k] for k in names]))
+
+
+def imu_channels(quaternion_xyzw: np.ndarray) -> dict[str, float]:
+    """Roll and pitch of an inclinometer's orientation (yaw is not measured)."""
+    roll, pitch, _ = roll_pitch_yaw(rotation_from_quaternion(quaternion_xyzw))
+    return {"roll": roll, "pitch": pitch}
+
+
+def position_channels(xyz: np.ndarray) -> dict[str, float]:
+    """Depth gauge (z) and, where measured, x and y of the platform origin."""
+    return {"x": float(xyz[0]), "y": float(xyz[1]), "depth": float(xyz[2])}
