@@ -90,3 +90,19 @@ def test_plant_given_by_points(plant):
         solution = solve_energy(other, lengths)
         assert solution.ok, solution.message
         assert check_physics(other, solution).passes()
+
+
+def test_physics_check_catches_what_it_must(plant):
+    """The check fails on unbalanced tensions, a mirror image and an overstretched cable."""
+    from dataclasses import replace
+
+    good = solve_energy(plant, [20.3, 20.1, 20.5, 20.2])
+    assert check_physics(plant, good).passes()
+    unbalanced = replace(good, tensions=good.tensions * 1.01)
+    assert not check_physics(plant, unbalanced).passes()
+    mirror = np.diag([1.0, 1.0, -1.0])
+    mirrored = replace(good, points_b=good.points_b @ mirror, point_c=good.point_c @ mirror)
+    assert check_physics(plant, mirrored).mirrored
+    stretched = replace(good, lengths=good.lengths - np.array([0.01, 0.0, 0.0, 0.0]))
+    assert check_physics(plant, stretched).max_overstretch > 0.009
+    assert not check_physics(plant, stretched).passes()

@@ -31,7 +31,7 @@ METHOD = "energy"
 NEWTON_MAX_STEPS = 15
 NEWTON_TOL = 1e-12          # relative force/moment balance and length error [m]
 ACTIVE_BAND = 1e-5          # [m] a cable this close to its length after the global search may be taut
-SLACK_TOL = 1e-10           # [m] a slack cable may exceed its length by rounding only
+SLACK_TOL = 1e-13           # relative to the plant's size: a slack cable may exceed its length by rounding only
 TENSION_TOL = 1e-9          # relative to mg: smaller tensions are zero
 ACTIVE_SET_ROUNDS = 12
 MAX_TURN = 0.3            # [rad] largest turn of the platform the polish may make from its start
@@ -230,7 +230,8 @@ def _admissible(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
     """Tensions of taut cables >= 0 and slack cables within their length."""
     state.mu = _multipliers(plant, state)
     _, _, _, norms = _geometry(plant, state)
-    slack_ok = np.all(norms[~state.active] <= lengths[~state.active] + SLACK_TOL * max(1.0, lengths.max()))
+    rounding = SLACK_TOL * max(lengths.max(), plant.moment_scale)
+    slack_ok = np.all(norms[~state.active] <= lengths[~state.active] + rounding)
     return bool(slack_ok and np.all(state.mu[state.active] >= -TENSION_TOL))
 
 

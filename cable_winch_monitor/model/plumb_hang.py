@@ -19,12 +19,12 @@ SAMPLES = 720
 
 
 def lowest_hang_cable(plant: Plant, lengths: np.ndarray) -> int:
-    """The only cable that can carry the platform alone: the one with the smallest l_i + r_i.
+    """The only cable that can carry the platform alone: the one that lets C hang lowest.
 
-    At any admissible pose z_C >= -(l_k + r_k) for every cable k, so hanging from cable j
-    (z_C = -(l_j + r_j)) is admissible only where l_j + r_j is the smallest.
+    At any admissible pose z_C >= z_Ai - l_i - r_i for every cable i, so hanging from
+    cable j (z_C = z_Aj - l_j - r_j) is admissible only where that depth is the lowest.
     """
-    return int(np.argmin(lengths + plant.cog_distances))
+    return int(np.argmin(lengths + plant.cog_distances - plant.anchors[:, 2]))
 
 
 class PlumbHang:

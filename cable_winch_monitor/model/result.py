@@ -108,7 +108,15 @@ def failed(status: SolveStatus, message: str, method: str, lengths: Sequence[flo
 
 
 def validate_lengths(lengths: Any) -> tuple[np.ndarray | None, str]:
-    """Four finite positive lengths as an array, or None and the reason they are not."""
+    """Four finite positive lengths as an array, or None and the reason they are not.
+
+    Strings are refused even where numpy would parse them: a length is a number.
+    """
+    if lengths is None:
+        return None, "cable lengths missing: need exactly 4 numbers, got None"
+    items = lengths if isinstance(lengths, (list, tuple)) else [lengths]
+    if any(isinstance(item, (str, bytes)) for item in items):
+        return None, f"cable lengths must be numbers, got {lengths!r}"
     try:
         array = np.asarray(lengths, dtype=float)
     except (TypeError, ValueError):
@@ -174,7 +182,8 @@ def check_physics(plant: Plant, solution: Solution) -> PhysicsCheck:
     taut = solution.taut
 
     def handedness(points: np.ndarray) -> float:
-        return float(np.linalg.det(points[1:4] - points[0]))
+        """Signed volume of B1, B2, B3, C: changes sign under a mirror image."""
+        return float(np.linalg.det(points[[1, 2, 4]] - points[0]))
 
     return PhysicsCheck(
         force_residual=force,
