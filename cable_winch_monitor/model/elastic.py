@@ -15,7 +15,7 @@ import numpy as np
 from .energy import solve_energy
 from .geometry import rotation_from_vector, skew
 from .plant import Plant
-from .result import Solution, SolveStatus, failed, solved, validate_lengths
+from .result import Solution, SolveStatus, failed, guarded_solve, solved
 
 METHOD = "elastic"
 MAX_STEPS = 50
@@ -26,20 +26,18 @@ ROUNDING_TOL = 1e-8  # accepted balance once Newton steps reach rounding level (
 def solve_elastic(plant: Plant, lengths: object, axial_stiffness: object,
                   warm_start: Solution | None = None) -> Solution:
     """Equilibrium of the platform on four elastic ropes of axial stiffness EA [N] each (scalar or 4)."""
-    array, reason = validate_lengths(lengths)
-    if array is None:
-        return failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan))
     ea = np.broadcast_to(np.asarray(axial_stiffness, dtype=float), (4,))
     if not np.all(np.isfinite(ea)) or np.any(ea <= 0.0):
         return failed(SolveStatus.INVALID_INPUT, f"rope axial stiffness EA must be finite and positive, got {ea}",
-                      METHOD, array)
-    start = warm_start if warm_start is not None and warm_start.ok else solve_energy(plant, array)
-    if not start.ok:
-        return start  # a single elastic rope leaves the pose as indeterminate as a rigid one
-    try:
+                      METHOD, np.full(4, np.nan))
+
+    def from_rigid(array: np.ndarray) -> Solution:
+        start = warm_start if warm_start is not None and warm_start.ok else solve_energy(plant, array)
+        if not start.ok:
+            return start  # a single elastic rope leaves the pose as indeterminate as a rigid one
         return _newton(plant, array, ea, start)
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as error:
-        return failed(SolveStatus.SOLVER_FAILED, f"elastic solver failed: {error}", METHOD, array)
+
+    return guarded_solve(METHOD, lengths, from_rigid)
 
 
 def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution) -> Solution:

@@ -24,7 +24,7 @@ from scipy.optimize import minimize
 from .geometry import rotation_from_vector, skew, structure_matrix
 from .plant import CABLE_NAMES, Plant
 from .plumb_hang import PlumbHang, lowest_hang_cable
-from .result import Solution, SolveStatus, failed, solved, validate_lengths
+from .result import Solution, SolveStatus, failed, guarded_solve, solved
 from .tensions import balance_tensions
 
 METHOD = "energy"
@@ -50,13 +50,7 @@ class _State:
 
 def solve_energy(plant: Plant, lengths: object, warm_start: Solution | None = None) -> Solution:
     """Equilibrium for four cable lengths; never raises, the status says what happened."""
-    array, reason = validate_lengths(lengths)
-    if array is None:
-        return failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan))
-    try:
-        return _solve(plant, array, warm_start)
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as error:
-        return failed(SolveStatus.SOLVER_FAILED, f"energy solver failed: {error}", METHOD, array)
+    return guarded_solve(METHOD, lengths, lambda array: _solve(plant, array, warm_start))
 
 
 def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> Solution:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -130,6 +130,23 @@ def validate_lengths(lengths: Any) -> tuple[np.ndarray | None, str]:
     if bad:
         return None, "cable lengths must be positive: " + ", ".join(bad)
     return array, ""
+
+
+def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray], Solution]) -> Solution:
+    """Validate the lengths, then solve; a bad input or a numerical failure becomes a status.
+
+    The contract of every solver: whatever the input, a Solution comes back, never an
+    exception (a live monitor must report and go on).
+    """
+    array, reason = validate_lengths(lengths)
+    if array is None:
+        return failed(SolveStatus.INVALID_INPUT, reason, method, np.full(4, np.nan))
+    try:
+        with np.errstate(all="ignore"):
+            return solve_valid(array)
+    except Exception as error:  # noqa: BLE001 -- the contract is a status, never an exception
+        return failed(SolveStatus.SOLVER_FAILED, f"{method} solver failed: {type(error).__name__}: {error}",
+                      method, array)
 
 
 def solved(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,

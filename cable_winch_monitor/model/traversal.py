@@ -39,7 +39,7 @@ from .equal_lengths import even_tensions, level_pose, solve_equal_lengths
 from .geometry import fit_rotation, wrench_residual
 from .planar import solve_planar
 from .plant import CABLE_NAMES, Plant
-from .result import Solution, SolveStatus, failed, solved, validate_lengths
+from .result import Solution, SolveStatus, failed, guarded_solve, solved
 
 EQUAL_LENGTH_TOL = 1e-9  # [m] lengths (or adjacent pairs) this close count as equal
 LENGTH_TOL = 1e-13  # distance residual or overstretch allowed, relative to max(l_i, |CB_i|): rounding level
@@ -194,12 +194,4 @@ def solve_traversal(plant: Plant, lengths: Any, *, method_name: str = "traversal
     is accepted, SOLVER_FAILED on a numerical exception. `iterations` counts the residual
     and Jacobian evaluations of every hybr run.
     """
-    array, reason = validate_lengths(lengths)
-    if array is None:
-        return failed(SolveStatus.INVALID_INPUT, reason, method_name, np.full(4, np.nan))
-    try:
-        with np.errstate(all="ignore"):
-            return _traverse(plant, array, method_name)
-    except Exception as error:  # noqa: BLE001 -- the contract is a status, never an exception
-        return failed(SolveStatus.SOLVER_FAILED, f"traversal failed numerically: {type(error).__name__}: {error}",
-                      method_name, array)
+    return guarded_solve(method_name, lengths, lambda array: _traverse(plant, array, method_name))
