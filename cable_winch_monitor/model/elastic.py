@@ -32,10 +32,14 @@ def solve_elastic(plant: Plant, lengths: object, axial_stiffness: object,
                       METHOD, np.full(4, np.nan))
 
     def from_rigid(array: np.ndarray) -> Solution:
-        start = warm_start if warm_start is not None and warm_start.ok else solve_energy(plant, array)
-        if not start.ok:
-            return start  # a single elastic rope leaves the pose as indeterminate as a rigid one
-        return _newton(plant, array, ea, start)
+        if warm_start is not None and warm_start.ok:
+            warm = _newton(plant, array, ea, warm_start)
+            if warm.ok:
+                return warm
+        rigid = solve_energy(plant, array)  # cold, or where the warm start failed (Newton across a kink)
+        if not rigid.ok:
+            return rigid  # a single elastic rope leaves the pose as indeterminate as a rigid one
+        return _newton(plant, array, ea, rigid)
 
     return guarded_solve(METHOD, lengths, from_rigid)
 

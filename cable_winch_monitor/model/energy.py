@@ -58,7 +58,9 @@ def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> So
         state = _State(warm_start.rotation, warm_start.position, warm_start.taut.copy(),
                        warm_start.tensions / plant.weight)
         if _settle_active_set(plant, lengths, state):
-            return _result(plant, lengths, state)
+            result = _result(plant, lengths, state)
+            if len(result.taut_set) > 1:  # one taut cable: the single-cable test below decides
+                return result
     single = _single_cable(plant, lengths)
     if single is not None:
         return single
