@@ -37,6 +37,15 @@ def test_per_winch_messages_merge_by_name_in_any_order(plant, pipeline):
     np.testing.assert_allclose(output.solution.lengths, [20.0, 20.1, 20.2, 20.3])
 
 
+def test_readings_are_carried_to_the_sample_stamp_with_their_speed(pipeline):
+    """Winch 4 reports last, 0.06 s after winch 1: the others moved on at 0.5 m/s meanwhile."""
+    for cable in range(4):
+        stamp = 1.0 + 0.02 * cable
+        output = pipeline.on_joint_state(JointSample(stamp, [CABLE_NAMES[cable]], [30.0 + 0.5 * (stamp - 1.0)],
+                                                     velocities=[0.5], topic=f"/winch_{cable + 1}/joint_states"))
+    np.testing.assert_allclose(output.solution.lengths, 30.03, atol=1e-12)
+
+
 @pytest.mark.parametrize("sample, reason", [
     (all_cables(1.0, [np.nan, 20, 20, 20]), "bad length"),
     (all_cables(1.0, [np.inf, 20, 20, 20]), "bad length"),

@@ -88,7 +88,12 @@ class CableLengthMerger:
         return MergeResult(accepted=sorted(cables), ignored=ignored)
 
     def complete(self, stamp: float) -> tuple[np.ndarray | None, str]:
-        """The four lengths if all are known and none is older than the staleness limit at `stamp`."""
+        """The four lengths at `stamp` if all are known and none is older than the staleness limit.
+
+        Winches that report separately are not sampled at the same instant: 0.1 s apart at
+        0.5 m/s payout is a 5 cm synchronisation error that is not there. Each reading is
+        carried forward to `stamp` with its reported payout speed, where it has one.
+        """
         missing = [CABLE_NAMES[i] for i, r in enumerate(self.readings) if r is None]
         if missing:
             return None, "waiting for " + ", ".join(missing)
@@ -96,7 +101,8 @@ class CableLengthMerger:
                  if stamp - r.stamp > self.staleness]
         if stale:
             return None, "stale: " + ", ".join(stale)
-        return np.array([r.length for r in self.readings]), ""
+        return np.array([r.length + (r.velocity * (stamp - r.stamp) if np.isfinite(r.velocity) else 0.0)
+                         for r in self.readings]), ""
 
     def measured_tensions(self) -> np.ndarray:
         """Load-pin tensions of the latest readings [N] (NaN where not measured)."""
