@@ -18,3 +18,8 @@ def config_dir() -> Path:
 def default_plant_file() -> Path:
     """The bundled seed-002 plant."""
     return config_dir() / "seed002_plant.yaml"
+
+
+def demo_bag() -> Path:
+    """The bundled all-channels bag of the source checkout (`bags/all_channels`)."""
+    return Path(__file__).resolve().parent.parent / "bags" / "all_channels"

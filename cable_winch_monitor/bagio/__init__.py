@@ -1,0 +1,1 @@
+"""Bags without a ROS runtime: the message type store, robust MCAP reading, rosbag2 writing."""

@@ -1,0 +1,67 @@
+"""The monitor's outputs as rosbags message objects, from the plain field values of monitor.fields.
+
+`build` turns any nested mapping of field values into a message of the type store, so
+this module holds no field mapping of its own: that lives in monitor/fields.py, shared
+with the live node.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+from rosbags.interfaces import Nodetype
+from rosbags.typesys.store import Typestore
+
+from ..monitor import fields
+from ..monitor.pipeline import MonitorOutput
+from ..monitor.residuals import Residuals
+from .typestore import typestore
+
+MSGS = "cable_winch_monitor_msgs/msg"
+POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
+OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/TensionDistribution",
+                ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals"}
+NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
+
+Record = tuple[str, str, Any]  # topic, message type, message
+
+
+def build(msgtype: str, values: Mapping[str, Any], store: Typestore | None = None) -> Any:
+    """A message of `msgtype` from a nested mapping with a value for every field."""
+    store = store or typestore()
+    _, field_defs = store.fielddefs[msgtype]
+    try:
+        return store.types[msgtype](**{name: _value(kind, values[name], store) for name, kind in field_defs})
+    except KeyError as error:
+        raise KeyError(f"{msgtype}: no value for field {error}") from None
+
+
+def _value(kind: tuple[Any, Any], value: Any, store: Typestore) -> Any:
+    node, argument = kind
+    if node == Nodetype.NAME:
+        return build(argument, value, store)
+    if node in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        (inner, inner_argument), _ = argument
+        if inner == Nodetype.NAME:
+            return [build(inner_argument, item, store) for item in value]
+        base = inner_argument[0]
+        return list(value) if base == "string" else np.asarray(value, dtype=NUMPY_TYPES.get(base, base))
+    return value
+
+
+def _record(topic: str, values: Mapping[str, Any]) -> Record:
+    return topic, OUTPUT_TYPES[topic], build(OUTPUT_TYPES[topic], values)
+
+
+def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[Record]:
+    """/model/residuals for a sample's residuals (none if there are none)."""
+    return [] if residuals is None else [_record(RESIDUALS, fields.model_residuals(stamp, residuals))]
+
+
+def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
+    """What the live node publishes for one solved sample, in its order: pose (only if solved),
+    tension distribution, collision alarm, residuals (if any)."""
+    records = [_record(POSE, fields.pose_stamped(stamp, output.solution))] if output.solution.ok else []
+    records += [_record(TENSION, fields.tension_distribution(stamp, output.solution)),
+                _record(ALARM, fields.collision_alarm(stamp, output.alarm))]
+    return records + residual_records(stamp, output.residuals)

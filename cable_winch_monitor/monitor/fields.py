@@ -1,0 +1,111 @@
+"""The monitor's messages as plain field values: one mapping for every adapter.
+
+Inputs are read by attribute (rclpy and rosbags messages have the same field names);
+outputs are nested dicts in the layout of the message definitions (msg_defs/msg and the
+standard types), with a stamp given as (sec, nanosec) so that it is copied exactly. The
+live node and bag replay each turn these values into their own message objects, so the
+two cannot disagree about what goes where.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..model.plant import CABLE_NAMES
+from ..model.result import Solution, SolveStatus
+from .alarm import Alarm
+from .residuals import Residuals
+from .inputs import JointSample
+
+FRAME = "shaft"
+NAN = float("nan")
+Stamp = tuple[int, int]
+Fields = dict[str, Any]
+
+# TensionDistribution.STATUS_* (msg_defs/msg/TensionDistribution.msg)
+STATUS_NUMBERS = {SolveStatus.SOLVED: 0, SolveStatus.SINGLE_CABLE_INDETERMINATE: 1, SolveStatus.NO_EQUILIBRIUM: 2,
+                  SolveStatus.INVALID_INPUT: 3, SolveStatus.SOLVER_FAILED: 4}
+
+
+def seconds(stamp: Any) -> float:
+    """A builtin_interfaces/Time in seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def stamp_of(msg: Any) -> Stamp:
+    """(sec, nanosec) of a message's header stamp."""
+    return int(msg.header.stamp.sec), int(msg.header.stamp.nanosec)
+
+
+def stamp_ns(stamp: Stamp) -> int:
+    return stamp[0] * 1_000_000_000 + stamp[1]
+
+
+def joint_sample(msg: Any, topic: str) -> JointSample:
+    """A sensor_msgs/JointState as plain values (arrays are passed through, not copied)."""
+    return JointSample(seconds(msg.header.stamp), msg.name, msg.position, msg.velocity, msg.effort, topic)
+
+
+def imu_quaternion(msg: Any) -> np.ndarray:
+    """The measured orientation of a sensor_msgs/Imu as (x, y, z, w)."""
+    q = msg.orientation
+    return np.array([q.x, q.y, q.z, q.w])
+
+
+def point_xyz(msg: Any) -> np.ndarray:
+    """The point of a geometry_msgs/PointStamped."""
+    return np.array([msg.point.x, msg.point.y, msg.point.z])
+
+
+def header(stamp: Stamp, frame_id: str = FRAME) -> Fields:
+    return {"stamp": {"sec": stamp[0], "nanosec": stamp[1]}, "frame_id": frame_id}
+
+
+def point(xyz: np.ndarray | None) -> Fields:
+    values = (NAN, NAN, NAN) if xyz is None else (float(v) for v in xyz)
+    return dict(zip("xyz", values))
+
+
+def _element(values: np.ndarray | None, index: int) -> float:
+    return NAN if values is None else float(values[index])
+
+
+def pose(solution: Solution) -> Fields:
+    """geometry_msgs/Pose of `platform` in `shaft` (NaN position, identity orientation without a pose)."""
+    q = solution.quaternion
+    orientation = (0.0, 0.0, 0.0, 1.0) if q is None else (float(v) for v in q)
+    return {"position": point(solution.position), "orientation": dict(zip("xyzw", orientation))}
+
+
+def pose_stamped(stamp: Stamp, solution: Solution) -> Fields:
+    return {"header": header(stamp), "pose": pose(solution)}
+
+
+def tension_distribution(stamp: Stamp, solution: Solution) -> Fields:
+    """Per-cable length, span, tension and taut flag, and the tension state as a whole."""
+    taut = set(solution.taut_set)
+    cables = [{"name": name, "length": _element(solution.lengths, i), "span": _element(solution.spans, i),
+               "tension": _element(solution.tensions, i), "taut": (i + 1) in taut}
+              for i, name in enumerate(CABLE_NAMES)]
+    return {"header": header(stamp), "status": STATUS_NUMBERS[solution.status],
+            "tension_state": solution.tension_state, "cables": cables,
+            "equilibrium_residual": float(np.fmax(solution.force_residual, solution.moment_residual)),
+            "solver": solution.method, "iterations": int(solution.iterations)}
+
+
+def collision_alarm(stamp: Stamp, alarm: Alarm) -> Fields:
+    clearance = alarm.clearance
+    return {"header": header(stamp), "level": int(alarm.level),
+            "clearance": NAN if clearance is None else float(clearance.value),
+            "closest_point_name": "" if clearance is None else clearance.point_name,
+            "closest_point_platform": point(None if clearance is None else clearance.point_platform),
+            "closest_point_shaft": point(None if clearance is None else clearance.point_shaft),
+            "sync_error_pairs": list(alarm.sync_error_pairs), "sync_errors": [float(v) for v in alarm.sync_errors],
+            "reason": alarm.reason}
+
+
+def model_residuals(stamp: Stamp, residuals: Residuals) -> Fields:
+    return {"header": header(stamp), "channels": list(residuals.channels), "measured": residuals.measured.tolist(),
+            "predicted": residuals.predicted.tolist(), "residuals": residuals.values.tolist(),
+            "noise": residuals.noise.tolist()}

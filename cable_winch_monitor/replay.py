@@ -1,0 +1,150 @@
+"""`replay`: a recorded bag through the monitor, every output into a new bag beside the inputs.
+
+The pipeline object and the field mapping are the live node's own (MonitorPipeline,
+monitor.fields); messages are fed in the bag's log order, one at a time, so a replay
+gives what the node gave. No ROS runtime is needed. Memory stays at about one chunk of
+the input whatever the length of the bag. Outputs carry their input's header stamp, and
+that stamp is their log time; inputs keep their own log time and bytes.
+"""
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .bagio import records
+from .bagio.reader import BagMessage, BagReader, ReadReport
+from .bagio.writer import BagWriter
+from .model.plant import Plant, load_plant
+from .monitor import fields
+from .monitor.alarm import AlarmLevel
+from .monitor.pipeline import MonitorPipeline, MonitorStats
+from .progress import Progress
+
+JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
+INPUT_TOPICS = {"/winch/joint_states": JOINT_STATE, **{f"/winch_{i}/joint_states": JOINT_STATE for i in range(1, 5)},
+                "/platform/imu": IMU, "/platform/position": POINT}
+
+
+@dataclass(frozen=True)
+class TopicCount:
+    """One input topic: read = used + rejected + skipped."""
+
+    topic: str
+    msgtype: str
+    read: int
+    used: int
+    rejected: int
+    skipped: int
+
+    @property
+    def balanced(self) -> bool:
+        return self.read == self.used + self.rejected + self.skipped
+
+
+@dataclass
+class ReplaySummary:
+    bag: Path
+    out: Path
+    report: ReadReport
+    stats: MonitorStats
+    written: Counter[str] = field(default_factory=Counter)
+    errors: Counter[str] = field(default_factory=Counter)  # pipeline exceptions (as the node's callback errors)
+    wall: float = 0.0
+    interrupted: bool = False  # stopped by Ctrl-C: the output bag holds what was replayed until then
+
+    @property
+    def samples(self) -> int:
+        return sum(self.stats.states.values())
+
+    @property
+    def complete(self) -> bool:
+        return self.report.complete and not self.interrupted
+
+    def topics(self) -> list[TopicCount]:
+        rejected: Counter[str] = Counter()
+        for key, count in self.stats.rejected.items():
+            rejected[key.split(": ", 1)[0]] += count
+        skipped: Counter[str] = Counter()
+        for (topic, _), count in self.report.skipped.items():
+            skipped[topic] += count
+        return [TopicCount(topic, self.report.types.get(topic, ""), self.report.read[topic], self.stats.used[topic],
+                           rejected[topic], skipped[topic]) for topic in sorted(self.report.read)]
+
+    def format(self) -> str:
+        report, stats = self.report, self.stats
+        lines = [f"replayed {self.bag} ({len(report.files)} file(s)) -> {self.out}"]
+        lines += [f"  note: {note}" for note in report.notes]
+        rows = self.topics()
+        width = [max([len(name), *(len(getattr(r, name)) + 2 for r in rows)]) for name in ("topic", "msgtype")]
+        lines.append(f"{'topic':<{width[0]}}{'type':<{width[1]}}{'read':>8}{'used':>8}{'rejected':>10}{'skipped':>9}")
+        for row in rows:
+            lines.append(f"{row.topic:<{width[0]}}{row.msgtype:<{width[1]}}{row.read:>8}{row.used:>8}{row.rejected:>10}"
+                         f"{row.skipped:>9}" + ("" if row.balanced else "   <- not all accounted for"))
+        lines += [f"  rejected {reason}: {n}" for reason, n in sorted(stats.rejected.items())]
+        lines += [f"  skipped {topic}: {reason}: {n}" for (topic, reason), n in sorted(report.skipped.items())]
+        lines += [f"  ignored joint name '{name}': {n}" for name, n in sorted(stats.ignored_names.items())]
+        lines += [f"  error {what}: {n}" for what, n in sorted(self.errors.items())]
+        lines.append(f"samples: {self.samples} (solved {stats.solved}, solver failures {stats.failures})")
+        lines.append("tension states: " + (", ".join(f"{s} {n}" for s, n in stats.states.most_common()) or "none"))
+        lines.append("alarm levels: " + ", ".join(f"{level.name} {stats.levels[level.name]}" for level in AlarmLevel))
+        lines.append(f"written: {sum(self.written.values())} messages to {self.out} ("
+                     + ", ".join(f"{t} {n}" for t, n in sorted(self.written.items())) + ")")
+        rate = self.samples / self.wall if self.wall > 0 else float("nan")
+        lines.append(f"wall time {self.wall:.2f} s, {rate:.0f} samples/s")
+        if not report.complete:
+            lines.append("PARTIAL REPLAY: parts of the bag could not be read and were skipped:")
+            lines += [f"  {damage}" for damage in report.damage]
+        if self.interrupted:
+            lines.append(f"INTERRUPTED: replay stopped after {sum(report.read.values())} messages; "
+                         f"{self.out} holds what was replayed until then")
+        return "\n".join(lines)
+
+
+def _outputs(pipeline: MonitorPipeline, item: BagMessage) -> list[records.Record]:
+    """Feed one input message to the pipeline, as the node's callbacks do; the records to publish."""
+    msg = item.message
+    stamp = fields.stamp_of(msg)
+    if item.msgtype == JOINT_STATE:
+        output = pipeline.on_joint_state(fields.joint_sample(msg, item.topic))
+        return [] if output is None else records.output_records(stamp, output)
+    if item.msgtype == IMU:
+        residuals = pipeline.on_imu(fields.seconds(msg.header.stamp), fields.imu_quaternion(msg))
+    else:
+        residuals = pipeline.on_position(fields.seconds(msg.header.stamp), fields.point_xyz(msg))
+    return records.residual_records(stamp, residuals)
+
+
+def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
+           staleness: float = 0.5, progress: bool = True) -> ReplaySummary:
+    """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
+
+    Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
+    while reading is in the summary (`complete` False), never raised.
+    """
+    started = time.perf_counter()
+    reader = BagReader(bag, INPUT_TOPICS)
+    pipeline = MonitorPipeline(plant or load_plant(), solver, staleness)
+    summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
+    bar = Progress("replay", reader.report.expected, enabled=progress)
+    with BagWriter(out) as writer:
+        try:
+            for count, item in enumerate(reader, 1):
+                writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
+                try:
+                    outputs = _outputs(pipeline, item)
+                except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
+                    summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
+                    continue
+                log_time = fields.stamp_ns(fields.stamp_of(item.message))
+                for topic, msgtype, message in outputs:
+                    writer.write(topic, msgtype, log_time, message)
+                bar.update(count)
+        except KeyboardInterrupt:
+            summary.interrupted = True
+        finally:
+            bar.finish()
+            summary.written = Counter({t: n for t, n in writer.counts.items() if t not in INPUT_TOPICS})
+    summary.wall = time.perf_counter() - started
+    return summary

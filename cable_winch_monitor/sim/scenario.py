@@ -1,0 +1,215 @@
+"""Simulation scenarios: YAML files checked against the defaults below, with --set overrides.
+
+Every key has a default here, so a scenario file states only what it changes; a key that
+is not known, or a value of the wrong kind, is an error that names the dotted key.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import yaml
+
+from ..paths import config_dir
+
+# None marks an optional value; its kind is in OPTIONAL.
+DEFAULTS: dict[str, Any] = {
+    "description": "",
+    "plant": None,          # plant YAML; None: the bundled seed-002 plant
+    "seed": 0,              # random seed (--seed overrides)
+    "duration": None,       # [s] None: the end of the profile + 5 s
+    "start_time": 0.0,      # [s] header stamp of t = 0 (sim time)
+    "profile": {
+        "start_length": 50.0,   # [m] payout of every cable at t = 0
+        "segments": [],         # in order: {move: m (+ lower, - hoist), speed: m/s, accel: m/s^2} or {stop: s}
+    },
+    "ropes": {
+        "model": "rigid",       # rigid | elastic
+        "EA": 5.0e8,            # [N] axial stiffness of each rope (elastic)
+    },
+    "sync": {
+        "sigma": 0.0,           # [m] stationary standard deviation of each winch's random drift (Ornstein-Uhlenbeck)
+        "tau": 30.0,            # [s] its correlation time
+        "events": [],           # {winch: 1-4, lag: m, start: s, duration: s, hold: s}: winch pays out `lag` less
+    },
+    "sensors": {
+        "latency": 0.004,       # [s] mean delay of the bag's receive time after the header stamp
+        "jitter": 0.002,        # [s] 1-sigma timing jitter of every sample
+        "joint_states": {
+            "rate": 10.0,           # [Hz]
+            "per_winch": False,     # True: /winch_<i>/joint_states, one name each; False: /winch/joint_states
+            "length_noise": 0.001,  # [m] encoder
+            "velocity": True,       # publish payout speed
+            "velocity_noise": 0.002,  # [m/s]
+            "effort": True,         # publish load-pin tension
+            "tension_noise": 500.0,   # [N]
+        },
+        "imu": {"enabled": False, "rate": 15.0, "noise": 0.0005},        # [Hz], roll/pitch [rad]
+        "position": {"enabled": False, "rate": 1.5, "noise": 0.01},      # [Hz], depth [m]
+    },
+}
+OPTIONAL = {"plant": str, "duration": float}
+MOVE = {"move": float, "speed": float, "accel": float}
+STOP = {"stop": float}
+EVENT = {"winch": int, "lag": float, "start": float, "duration": float, "hold": float}
+EVENT_OPTIONAL = {"hold"}
+ROPE_MODELS = ("rigid", "elastic")
+
+
+class ScenarioError(ValueError):
+    """A scenario file or override is wrong; the message names the key."""
+
+
+def _kind_ok(value: Any, kind: type) -> bool:
+    if kind is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if kind is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, kind)
+
+
+def _check_value(value: Any, kind: type, where: str) -> Any:
+    if kind is float and isinstance(value, str):  # YAML 1.1 reads 7.5e7 (no dot) as a string
+        try:
+            value = float(value)
+        except ValueError:
+            pass
+    if not _kind_ok(value, kind):
+        name = "a number" if kind is float else kind.__name__
+        raise ScenarioError(f"key '{where}' must be {name}, got {value!r}")
+    return float(value) if kind is float else value
+
+
+def _check_item(item: Any, spec: Mapping[str, type], where: str, optional: set[str] = frozenset()) -> dict:
+    if not isinstance(item, Mapping):
+        raise ScenarioError(f"key '{where}' must be a mapping with keys {', '.join(spec)}, got {item!r}")
+    unknown = [k for k in item if k not in spec]
+    if unknown:
+        raise ScenarioError(f"unknown key '{where}.{unknown[0]}' (known: {', '.join(spec)})")
+    missing = [k for k in spec if k not in item and k not in optional]
+    if missing:
+        raise ScenarioError(f"key '{where}' needs '{missing[0]}'")
+    return {k: _check_value(v, spec[k], f"{where}.{k}") for k, v in item.items()}
+
+
+def _segment(item: Any, where: str) -> dict:
+    if isinstance(item, Mapping) and "stop" in item:
+        return _check_item(item, STOP, where)
+    return _check_item(item, MOVE, where)
+
+
+LIST_ITEMS = {"profile.segments": _segment,
+              "sync.events": lambda item, where: _check_item(item, EVENT, where, EVENT_OPTIONAL)}
+
+
+def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any]:
+    """`given` over `defaults`, checking every key and the kind of every value."""
+    if not isinstance(given, Mapping):
+        raise ScenarioError(f"key '{where or 'scenario'}' must be a mapping, got {given!r}")
+    merged = copy.deepcopy(dict(defaults))
+    for key, value in given.items():
+        path = f"{where}.{key}" if where else str(key)
+        if key not in defaults:
+            raise ScenarioError(f"unknown key '{path}' (known: {', '.join(defaults)})")
+        default = defaults[key]
+        if isinstance(default, Mapping):
+            merged[key] = _merge(default, value, path)
+        elif isinstance(default, list):
+            if not isinstance(value, list):
+                raise ScenarioError(f"key '{path}' must be a list, got {value!r}")
+            merged[key] = [LIST_ITEMS[path](item, f"{path}[{i}]") for i, item in enumerate(value)]
+        elif default is None:
+            merged[key] = None if value is None else _check_value(value, OPTIONAL[key], path)
+        else:
+            merged[key] = _check_value(value, type(default), path)
+    return merged
+
+
+def _check_physics(config: dict[str, Any]) -> None:
+    if config["ropes"]["model"] not in ROPE_MODELS:
+        raise ScenarioError(f"key 'ropes.model' must be one of {', '.join(ROPE_MODELS)}, "
+                            f"got {config['ropes']['model']!r}")
+    positive = [("ropes.EA", config["ropes"]["EA"]), ("sync.tau", config["sync"]["tau"]),
+                ("profile.start_length", config["profile"]["start_length"])]
+    positive += [(f"sensors.{name}.rate", config["sensors"][name]["rate"])
+                 for name in ("joint_states", "imu", "position")]
+    for i, segment in enumerate(config["profile"]["segments"]):
+        positive += [(f"profile.segments[{i}].{k}", segment[k]) for k in ("speed", "accel") if k in segment]
+    if config["duration"] is not None:
+        positive.append(("duration", config["duration"]))
+    for where, value in positive:
+        if not value > 0.0:
+            raise ScenarioError(f"key '{where}' must be positive, got {value}")
+    payout = config["profile"]["start_length"]
+    for i, segment in enumerate(config["profile"]["segments"]):
+        payout += segment.get("move", 0.0)
+        if payout <= 0.0:
+            raise ScenarioError(f"key 'profile.segments[{i}].move' hoists the cables to a payout of {payout:g} m")
+    for i, event in enumerate(config["sync"]["events"]):
+        if not 1 <= event["winch"] <= 4:
+            raise ScenarioError(f"key 'sync.events[{i}].winch' must be 1..4, got {event['winch']}")
+
+
+def apply_override(config: dict[str, Any], assignment: str) -> None:
+    """Apply one `dotted.key=value` (value in YAML syntax; list items by index: sync.events.0.lag=0.2)."""
+    key, sep, text = assignment.partition("=")
+    if not sep or not key:
+        raise ScenarioError(f"--set {assignment!r}: expected key=value, e.g. sync.sigma=0.01")
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        value = text
+    parts = key.split(".")
+    target: Any = config
+    for depth, part in enumerate(parts[:-1]):
+        where = ".".join(parts[:depth + 1])
+        if isinstance(target, list):
+            if not part.isdigit() or int(part) >= len(target):
+                raise ScenarioError(f"--set {key}: '{'.'.join(parts[:depth])}' has {len(target)} items, no item {part}")
+            target = target[int(part)]
+        else:
+            target = target.setdefault(part, {})
+        if not isinstance(target, (dict, list)):
+            raise ScenarioError(f"--set {key}: '{where}' is a value, not a section")
+    last = parts[-1]
+    if isinstance(target, list):
+        if not last.isdigit() or int(last) >= len(target):
+            raise ScenarioError(f"--set {key}: the list has {len(target)} items, no item {last}")
+        target[int(last)] = value
+    else:
+        target[last] = value
+
+
+def scenario_path(name: str) -> Path:
+    """A scenario file: the path as given, else the bundled config/scenarios/<name>.yaml."""
+    path = Path(name)
+    bundled = config_dir() / "scenarios" / f"{name}.yaml"
+    return bundled if not path.exists() and bundled.is_file() else path
+
+
+def load_scenario(path: str | Path, overrides: Sequence[str] = (), seed: int | None = None) -> dict[str, Any]:
+    """The checked scenario: file, then `--set` overrides, then `seed` if given."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text()) or {}
+    except OSError as error:
+        raise ScenarioError(f"scenario {path}: cannot be read ({error.strerror})") from None
+    except yaml.YAMLError as error:
+        raise ScenarioError(f"scenario {path}: not valid YAML ({error})") from None
+    try:
+        if not isinstance(raw, dict):
+            raise ScenarioError("the file must hold a mapping of keys")
+        for assignment in overrides:
+            apply_override(raw, assignment)
+        if seed is not None:
+            raw["seed"] = seed
+        config = _merge(DEFAULTS, raw, "")
+        _check_physics(config)
+    except ScenarioError as error:
+        raise ScenarioError(f"scenario {path}: {error}") from None
+    config["name"] = path.stem
+    if config["plant"] is not None and not Path(config["plant"]).is_absolute():
+        beside = path.parent / config["plant"]  # a relative plant file is looked for beside the scenario first
+        config["plant"] = str(beside) if beside.is_file() else config["plant"]
+    return config

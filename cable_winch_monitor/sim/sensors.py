@@ -1,0 +1,115 @@
+"""What the plant's sensors report of the true state: noisy readings at their own, unaligned rates.
+
+- winch encoders and load pins: sensor_msgs/JointState at ~10 Hz, on /winch/joint_states
+  or one topic per winch; position = paid-out length, velocity = payout speed, effort =
+  rope tension at the head sheave (the top of the rope; equal to the tension at the
+  platform for the weightless ropes simulated here);
+- inclinometer: sensor_msgs/Imu, roll and pitch (yaw not measured: covariance huge);
+- depth gauge: geometry_msgs/PointStamped with z only (x, y NaN).
+Every stream starts at a random phase and has timing jitter, so no two are aligned.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..model.geometry import roll_pitch_yaw
+from ..model.plant import CABLE_NAMES
+from ..model.result import Solution
+from ..monitor.fields import Stamp, header
+
+NAN = float("nan")
+UNKNOWN = -1.0  # covariance[0] of a quantity that is not measured (sensor_msgs convention)
+YAW_VARIANCE = 1.0e6  # [rad^2] the inclinometer does not measure yaw
+JOINT_STATE = "sensor_msgs/msg/JointState"
+IMU = "sensor_msgs/msg/Imu"
+POINT = "geometry_msgs/msg/PointStamped"
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One sensor's messages: topic, type, the cables it reports (joint states) and its sample times [s]."""
+
+    name: str
+    topic: str
+    msgtype: str
+    times: np.ndarray
+    cables: tuple[int, ...] = ()
+
+
+def sample_times(rate: float, duration: float, jitter: float, rng: np.random.Generator) -> np.ndarray:
+    """Times in [0, duration) at `rate` from a random phase, with jitter (kept below 0.4 periods: in order)."""
+    period = 1.0 / rate
+    count = int(np.ceil(duration * rate)) + 1
+    times = rng.uniform(0.0, period) + period * np.arange(count)
+    times += np.clip(rng.normal(0.0, jitter, count), -0.4 * period, 0.4 * period)
+    return times[(times >= 0.0) & (times < duration)]
+
+
+def sensor_streams(sensors: Mapping[str, Any], duration: float, rng: np.random.Generator) -> list[Stream]:
+    """The enabled streams of the scenario's `sensors` section."""
+    joints, jitter = sensors["joint_states"], sensors["jitter"]
+    if joints["per_winch"]:
+        streams = [Stream(f"winch_{i + 1}", f"/winch_{i + 1}/joint_states", JOINT_STATE,
+                          sample_times(joints["rate"], duration, jitter, rng), (i,)) for i in range(4)]
+    else:
+        streams = [Stream("joint_states", "/winch/joint_states", JOINT_STATE,
+                          sample_times(joints["rate"], duration, jitter, rng), tuple(range(4)))]
+    for name, topic, msgtype in (("imu", "/platform/imu", IMU), ("position", "/platform/position", POINT)):
+        if sensors[name]["enabled"]:
+            streams.append(Stream(name, topic, msgtype, sample_times(sensors[name]["rate"], duration, jitter, rng)))
+    return streams
+
+
+def quaternion_from_roll_pitch(roll: float, pitch: float) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of the rotation with this roll and pitch and zero yaw (REP-103 x-y-z)."""
+    cr, sr, cp, sp = np.cos(roll / 2), np.sin(roll / 2), np.cos(pitch / 2), np.sin(pitch / 2)
+    return float(sr * cp), float(cr * sp), float(-sr * sp), float(cr * cp)
+
+
+class Sensors:
+    """Noisy readings of the true state, as message field values (None: nothing to report)."""
+
+    def __init__(self, sensors: Mapping[str, Any], rng: np.random.Generator):
+        self.config, self.rng = sensors, rng
+
+    def _noisy(self, values: np.ndarray, sigma: float) -> np.ndarray:
+        return np.asarray(values, dtype=float) + self.rng.normal(0.0, sigma, np.shape(values))
+
+    def joint_state(self, stamp: Stamp, stream: Stream, lengths: np.ndarray, speeds: np.ndarray,
+                    truth: Solution) -> dict[str, Any]:
+        joints = self.config["joint_states"]
+        cables = list(stream.cables)
+        tensions = truth.tensions[cables] if truth.ok else np.full(len(cables), NAN)
+        return {"header": header(stamp, ""), "name": [CABLE_NAMES[i] for i in cables],
+                "position": self._noisy(lengths[cables], joints["length_noise"]),
+                "velocity": self._noisy(speeds[cables], joints["velocity_noise"]) if joints["velocity"] else [],
+                "effort": self._noisy(tensions, joints["tension_noise"]) if joints["effort"] else []}
+
+    def imu(self, stamp: Stamp, truth: Solution) -> dict[str, Any] | None:
+        if not truth.ok:
+            return None
+        sigma = self.config["imu"]["noise"]
+        roll, pitch, _ = roll_pitch_yaw(truth.rotation)
+        roll, pitch = self._noisy(np.array([roll, pitch]), sigma)
+        unknown = [UNKNOWN] + [0.0] * 8
+        return {"header": header(stamp, "platform"),
+                "orientation": dict(zip("xyzw", quaternion_from_roll_pitch(roll, pitch))),
+                "orientation_covariance": np.diag([sigma ** 2, sigma ** 2, YAW_VARIANCE]).ravel(),
+                "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular_velocity_covariance": unknown,
+                "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 0.0}, "linear_acceleration_covariance": unknown}
+
+    def position(self, stamp: Stamp, truth: Solution) -> dict[str, Any] | None:
+        if not truth.ok:
+            return None
+        depth = float(self._noisy(truth.position[2], self.config["position"]["noise"]))
+        return {"header": header(stamp, "shaft"), "point": {"x": NAN, "y": NAN, "z": depth}}
+
+    def reading(self, stamp: Stamp, stream: Stream, lengths: np.ndarray, speeds: np.ndarray,
+                truth: Solution) -> dict[str, Any] | None:
+        """The message fields of one sample of `stream`."""
+        if stream.msgtype == JOINT_STATE:
+            return self.joint_state(stamp, stream, lengths, speeds, truth)
+        return self.imu(stamp, truth) if stream.msgtype == IMU else self.position(stamp, truth)
