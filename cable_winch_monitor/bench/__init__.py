@@ -1,0 +1,1 @@
+"""Benchmarks run by hand (not tests): figures for the README."""

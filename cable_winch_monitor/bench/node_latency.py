@@ -1,0 +1,176 @@
+"""End-to-end latency of the winch_monitor node: winch sample published -> /platform/pose received.
+
+Starts the node in its own process (DDS on loopback, a domain of its own), publishes a
+platform being lowered at 50 Hz with small synchronisation errors between the winches,
+and prints the latency percentiles and the node process's CPU share. Not a test: run
+
+    .venv/bin/python -m cable_winch_monitor.bench.node_latency [--samples 2000] [--rate 50]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+
+from cable_winch_monitor_msgs.msg import TensionDistribution
+
+from ..model.plant import CABLE_NAMES
+
+LOWERING_SPEED = 0.2        # [m/s] payout speed of all four winches
+SYNC_AMPLITUDE = 2e-3       # [m] slow drift of each winch against the others
+ENCODER_NOISE = 3e-4        # [m] 1-sigma jitter of each length reading
+START_LENGTH = 20.0         # [m]
+CONNECT_TIMEOUT = 20.0      # [s]
+
+
+def lowering(samples: int, rate: float, seed: int = 2) -> np.ndarray:
+    """Cable lengths (samples, 4): a steady lowering, per-winch drifts and encoder jitter."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(samples)[:, None] / rate
+    drift = SYNC_AMPLITUDE * np.sin(2 * np.pi * t / 8.0 + rng.uniform(0, 2 * np.pi, 4))
+    return START_LENGTH + LOWERING_SPEED * t + drift + rng.normal(0.0, ENCODER_NOISE, (samples, 4))
+
+
+def cpu_seconds(pid: int) -> float:
+    """utime + stime of a process from /proc/<pid>/stat."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def start_node(domain_id: int, solver: str, log: Path) -> subprocess.Popen:
+    """`winch_monitor` in its own process, output to `log`."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    command = [str(Path(sys.executable).parent / "winch_monitor"), "--ros-args", "-p", f"solver:={solver}"]
+    with log.open("w") as output:
+        return subprocess.Popen(command, env=env, stdout=output, stderr=subprocess.STDOUT)
+
+
+class Probe:
+    """The benchmark's own node: publishes winch samples, time-stamps the poses and tension states."""
+
+    def __init__(self, domain_id: int):
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node("winch_monitor_latency_probe", context=self.context)
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        self.publisher = self.node.create_publisher(JointState, "/winch/joint_states", qos)
+        self.received: dict[tuple[int, int], int] = {}
+        self.taut: dict[tuple[int, int], tuple[bool, ...]] = {}
+        self.subscriptions = [
+            self.node.create_subscription(PoseStamped, "/platform/pose", self._on_pose, qos),
+            self.node.create_subscription(TensionDistribution, "/cables/tension", self._on_tension, qos)]
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _on_pose(self, msg) -> None:
+        self.received[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = time.perf_counter_ns()
+
+    def _on_tension(self, msg) -> None:
+        self.taut[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = tuple(c.taut for c in msg.cables)
+
+    def connected(self) -> bool:
+        return self.publisher.get_subscription_count() > 0 and all(
+            s.get_publisher_count() > 0 for s in self.subscriptions)
+
+    def publish(self, lengths: np.ndarray) -> tuple[tuple[int, int], int]:
+        """One sample stamped now; its stamp key and the send time [ns, perf_counter]."""
+        msg = JointState(name=list(CABLE_NAMES), position=[float(v) for v in lengths])
+        now = time.time_ns()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = now // 1_000_000_000, now % 1_000_000_000
+        msg.header.frame_id = "shaft"
+        sent = time.perf_counter_ns()
+        self.publisher.publish(msg)
+        return (msg.header.stamp.sec, msg.header.stamp.nanosec), sent
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def connect(probe: Probe, node: subprocess.Popen) -> None:
+    """Wait for matching, then warm up for 2 s (hoisting towards the benchmark's start length)."""
+    deadline = time.monotonic() + CONNECT_TIMEOUT
+    while not probe.connected():
+        if node.poll() is not None or time.monotonic() > deadline:
+            raise SystemExit("node_latency: the winch_monitor node did not come up")
+        time.sleep(0.05)
+    for lengths in lowering(100, 50.0, seed=1)[::-1]:
+        probe.publish(lengths)
+        time.sleep(0.02)
+    time.sleep(0.2)
+    if not probe.received:
+        raise SystemExit("node_latency: no pose came back during the warm-up")
+
+
+def percentiles(values_ms: np.ndarray) -> str:
+    if values_ms.size == 0:
+        return "n/a"
+    p50, p99 = np.percentile(values_ms, [50, 99])
+    return f"p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {values_ms.max():.2f} ms (n={values_ms.size})"
+
+
+def run(samples: int, rate: float, domain_id: int, solver: str) -> int:
+    lengths = lowering(samples, rate)
+    with tempfile.TemporaryDirectory() as scratch:
+        node = start_node(domain_id, solver, Path(scratch) / "node.log")
+        probe = Probe(domain_id)
+        try:
+            connect(probe, node)
+            probe.received.clear()
+            sent: dict[tuple[int, int], int] = {}
+            cpu0, wall0 = cpu_seconds(node.pid), time.monotonic()
+            for k, sample in enumerate(lengths):
+                time.sleep(max(0.0, wall0 + k / rate - time.monotonic()))
+                key, at = probe.publish(sample)
+                sent[key] = at
+            time.sleep(0.5)
+            cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
+        finally:
+            probe.close()
+            node.send_signal(signal.SIGINT)
+            node.wait(timeout=10)
+    latency = {key: (probe.received[key] - at) / 1e6 for key, at in sent.items() if key in probe.received}
+    keys = list(sent)
+    switched = {b for a, b in zip(keys, keys[1:]) if probe.taut.get(a, ()) != probe.taut.get(b, ())}
+    steady = np.array([v for k, v in latency.items() if k not in switched])
+    changed = np.array([v for k, v in latency.items() if k in switched])
+    print(f"winch_monitor end-to-end latency ({solver} solver), {samples} samples at {rate:g} Hz, "
+          f"lowering {LOWERING_SPEED} m/s, sync drift {SYNC_AMPLITUDE * 1e3:g} mm, jitter {ENCODER_NOISE * 1e3:g} mm")
+    print(f"  poses received      {len(latency)} of {samples}")
+    print(f"  all samples         {percentiles(np.array(list(latency.values())))}")
+    print(f"  taut set unchanged  {percentiles(steady)}")
+    print(f"  taut set changed    {percentiles(changed)}")
+    print(f"  node CPU share      {100.0 * cpu / wall:.1f} % of one core ({cpu:.2f} s CPU in {wall:.2f} s)")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=int, default=2000)
+    parser.add_argument("--rate", type=float, default=50.0, help="samples per second")
+    parser.add_argument("--domain-id", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", "91")))
+    parser.add_argument("--solver", default="energy", choices=("energy", "traversal"))
+    args = parser.parse_args(argv)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    return run(args.samples, args.rate, args.domain_id, args.solver)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""ROS 2 adapters: messages in, MonitorPipeline calls, messages out (no mechanics here)."""
