@@ -18,8 +18,11 @@ all: test
 setup:
 	@scripts/setup_env.sh
 
+# Replay the bundled all-channels bag through the monitor into build/demo_out (seed 002's
+# Table 2 comparison: cable-winch-monitor paper).
 demo: setup
-	$(VENV)/bin/cable-winch-monitor demo
+	rm -rf build/demo_out
+	$(VENV)/bin/cable-winch-monitor demo --out build/demo_out
 
 test: setup
 	$(VENV)/bin/python -m pytest -q test $(PYTEST_ARGS)

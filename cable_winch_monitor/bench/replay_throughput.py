@@ -1,0 +1,60 @@
+"""Benchmark: replay throughput on a 10,000-sample bag (config/scenarios/benchmark.yaml).
+
+The bag is simulated into a temporary directory, then replayed by the CLI in a child
+process so that its peak RSS is the replay's alone. A quarter-length bag is replayed
+too: equal peak RSS for both shows that replay streams (memory independent of length).
+"""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from ..sim.scenario import load_scenario, scenario_path
+from ..sim.simulate import simulate
+
+CLI = Path(sys.executable).parent / "cable-winch-monitor"
+
+
+def replay_child(bag: Path, out: Path) -> tuple[int, float, float]:
+    """Samples, wall time [s] and peak RSS [MiB] of `cable-winch-monitor replay` in a child process."""
+    started = time.perf_counter()
+    child = subprocess.Popen([str(CLI), "replay", str(bag), "--out", str(out), "--quiet"], stdout=subprocess.PIPE,
+                             text=True)
+    stdout = child.stdout.read()
+    _, status, usage = os.wait4(child.pid, 0)  # the rusage of this child alone
+    wall = time.perf_counter() - started
+    child.stdout.close()
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode != 0:
+        raise RuntimeError(f"replay of {bag} failed:\n{stdout}")
+    samples = int(re.search(r"^samples: (\d+)", stdout, re.M).group(1))
+    return samples, wall, usage.ru_maxrss / 1024.0
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        directory = Path(tmp)
+        rows = []
+        for name, duration in (("short", 250.0), ("full", 1000.0)):
+            config = load_scenario(scenario_path("benchmark"), [f"duration={duration}"])
+            started = time.perf_counter()
+            result = simulate(config, directory / name)
+            simulated = time.perf_counter() - started
+            size = sum(f.stat().st_size for f in (directory / name).glob("*.mcap")) / 2 ** 20
+            samples, wall, rss = replay_child(directory / name, directory / f"{name}_out")
+            rows.append((name, sum(result.messages.values()), size, simulated, samples, wall, rss))
+    print("replay throughput (cable-winch-monitor replay, one core; seed-002 plant, energy solver)")
+    print(f"{'bag':<8}{'messages':>10}{'MiB':>7}{'simulate [s]':>14}{'samples':>9}{'replay [s]':>12}"
+          f"{'samples/s':>11}{'peak RSS [MiB]':>16}")
+    for name, messages, size, simulated, samples, wall, rss in rows:
+        print(f"{name:<8}{messages:>10}{size:>7.1f}{simulated:>14.1f}{samples:>9}{wall:>12.1f}"
+              f"{samples / wall:>11.0f}{rss:>16.1f}")
+
+
+if __name__ == "__main__":
+    main()
