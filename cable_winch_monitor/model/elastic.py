@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .energy import solve_energy
-from .geometry import rotation_from_vector, skew
+from .geometry import cross, rotation_from_vector, skew
 from .plant import Plant
 from .result import Solution, SolveStatus, failed, guarded_solve, solved
 
@@ -59,7 +59,7 @@ def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution) 
         stretch = np.maximum(norms - lengths, 0.0)
         tensions = stiffness * stretch
         force = (units.T @ tensions) / weight + ez
-        moment = np.cross(levers, units).T @ tensions / (weight * scale)
+        moment = cross(levers, units).T @ tensions / (weight * scale)
         residual = np.concatenate([force, moment])
         if np.abs(residual).max() < TOL or (step_size < 1e-13 and np.abs(residual).max() < ROUNDING_TOL):
             return solved(plant, METHOD, lengths, rotation, position, tensions, tensions > 0.0, step,
@@ -72,7 +72,7 @@ def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution) 
             d_tension = stiffness[i] * u @ d_span
             jacobian[0:3] += (np.outer(u, d_tension) + tensions[i] * d_unit) / weight
             d_lever = np.hstack([np.zeros((3, 3)), -skew(q)])
-            jacobian[3:6] += (np.outer(np.cross(q, u), d_tension) + tensions[i] * (
+            jacobian[3:6] += (np.outer(cross(q, u), d_tension) + tensions[i] * (
                 -skew(u) @ d_lever + skew(q) @ d_unit)) / (weight * scale)
         if not np.any(stretch > 0.0):
             position = position - np.array([0.0, 0.0, 1e-3 * lengths.min()])

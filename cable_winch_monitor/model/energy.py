@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .geometry import rotation_from_vector, skew, structure_matrix
+from .geometry import cross, rotation_from_vector, skew, structure_matrix
 from .plant import CABLE_NAMES, Plant
 from .plumb_hang import PlumbHang, lowest_hang_cable
 from .result import Solution, SolveStatus, failed, guarded_solve, solved
@@ -80,16 +80,18 @@ def _settle_active_set(plant: Plant, lengths: np.ndarray, state: _State) -> bool
     """
     start_rotation, start_position = state.rotation, state.position
     visited: set[tuple[bool, ...]] = set()
+    pending: list[np.ndarray] = []
     for _ in range(ACTIVE_SET_ROUNDS):
         visited.add(tuple(state.active))
         converged = _newton(plant, lengths, state)
         turn = np.arccos(np.clip((np.trace(state.rotation @ start_rotation.T) - 1.0) / 2.0, -1.0, 1.0))
         if converged and turn < MAX_TURN and _admissible(plant, lengths, state):
             return True
-        candidates = [c for c in _next_active_sets(plant, lengths, state, converged) if tuple(c) not in visited]
-        if not candidates:
+        fresh = _next_active_sets(plant, lengths, state, converged)
+        pending = list({tuple(c): c for c in fresh + pending if tuple(c) not in visited}.values())
+        if not pending:
             return False
-        state.rotation, state.position, state.active = start_rotation, start_position, candidates[0]
+        state.rotation, state.position, state.active = start_rotation, start_position, pending.pop(0)
         state.mu = _multipliers(plant, state)
     return False
 
@@ -135,7 +137,7 @@ def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
 
     def height_gradient(x: np.ndarray) -> np.ndarray:
         rotation = rotation_from_vector(x[3:])
-        return np.concatenate([[0.0, 0.0, 1.0], left_jacobian(x[3:]).T @ np.cross(rotation @ plant.cog, [0.0, 0.0, 1.0])])
+        return np.concatenate([[0.0, 0.0, 1.0], left_jacobian(x[3:]).T @ cross(rotation @ plant.cog, [0.0, 0.0, 1.0])])
 
     def slack(x: np.ndarray) -> np.ndarray:
         rotation, position = pose(x)
@@ -146,7 +148,7 @@ def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
         arms = plant.attachments @ rotation.T
         spans = position + arms - plant.anchors
         units = spans / np.linalg.norm(spans, axis=1, keepdims=True)
-        return -np.hstack([units, np.cross(arms, units) @ left_jacobian(x[3:])])
+        return -np.hstack([units, cross(arms, units) @ left_jacobian(x[3:])])
 
     result = minimize(height, start, jac=height_gradient, method="SLSQP",
                       constraints={"type": "ineq", "fun": slack, "jac": slack_jacobian},
@@ -195,7 +197,7 @@ def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
         levers = arms - arm_c
         mu = state.mu[idx]
         force = units[idx].T @ mu + ez
-        moment = np.cross(levers[idx], units[idx]).T @ mu / scale
+        moment = cross(levers[idx], units[idx]).T @ mu / scale
         length_error = norms[idx] - lengths[idx]
         residual = np.concatenate([force, moment, length_error])
         if np.abs(residual).max() < NEWTON_TOL * max(1.0, lengths.max() * 1e-2):
@@ -209,9 +211,9 @@ def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
             jacobian[3:6, 0:3] += m_i * skew(q) @ projector / scale
             jacobian[3:6, 3:6] += m_i * (skew(u) @ skew(q) - skew(q) @ projector @ skew(r)) / scale
             jacobian[0:3, 6 + column] = u
-            jacobian[3:6, 6 + column] = np.cross(q, u) / scale
+            jacobian[3:6, 6 + column] = cross(q, u) / scale
             jacobian[6 + column, 0:3] = u
-            jacobian[6 + column, 3:6] = np.cross(r, u)
+            jacobian[6 + column, 3:6] = cross(r, u)
         step = np.linalg.lstsq(jacobian, -residual, rcond=1e-13)[0]
         largest = max(np.abs(step[3:6]).max() / 0.2, np.abs(step[0:3]).max() / (0.2 * scale), 1.0)
         step /= largest
@@ -235,28 +237,42 @@ def _next_active_sets(plant: Plant, lengths: np.ndarray, state: _State, converge
     """Taut sets to try next, best guess first.
 
     Converged with a negative tension: release that cable. Converged with a slack cable
-    overstretched: take it up, alone or in exchange for one of the taut cables (least
-    loaded first). Not converged (the set cannot reach all its lengths at once): release
-    one cable, the least loaded first.
+    overstretched: take it up in exchange for one of the taut cables, ranked by how well
+    each set balances the weight with tensions >= 0 at the current pose (a linear check,
+    far cheaper than a Newton run on a set that cannot hold), or in addition to them
+    (first when fewer than three are taut). Not
+    converged (the set cannot reach all its lengths at once): release one cable, the
+    least loaded first.
     """
     _, _, _, norms = _geometry(plant, state)
     active = np.flatnonzero(state.active)
     by_load = active[np.argsort(state.mu[active])]
 
-    def toggled(base: np.ndarray, *cables: int) -> np.ndarray:
-        candidate = base.copy()
+    def toggled(*cables: int) -> np.ndarray:
+        candidate = state.active.copy()
         candidate[list(cables)] = ~candidate[list(cables)]
         return candidate
 
     if not converged:
-        return [toggled(state.active, k) for k in by_load] if active.size > 1 else []
+        return [toggled(k) for k in by_load] if active.size > 1 else []
     if state.mu[active].min() < -TENSION_TOL and active.size > 1:
-        return [toggled(state.active, by_load[0])]
+        return [toggled(by_load[0])]
     overstretch = np.where(state.active, -np.inf, norms - lengths)
     if overstretch.max() <= 0.0:
         return []
     cable = int(np.argmax(overstretch))
-    return [toggled(state.active, cable)] + [toggled(state.active, cable, k) for k in by_load]
+    structure = structure_matrix(plant, state.position + plant.attachments @ state.rotation.T,
+                                 state.position + state.rotation @ plant.cog)
+    swaps = sorted((toggled(cable, k) for k in by_load), key=lambda c: _balance_misfit(structure[:, c], plant.wrench))
+    # Four taut rigid ropes need l1 + l3 = l2 + l4 to the micrometre: from three, exchange first.
+    return swaps + [toggled(cable)] if active.size >= 3 else [toggled(cable)] + swaps
+
+
+def _balance_misfit(structure: np.ndarray, wrench: np.ndarray) -> float:
+    """How far these cables are from holding the wrench at this pose with tensions >= 0."""
+    tensions = np.linalg.lstsq(structure, wrench, rcond=None)[0]
+    scale = float(np.linalg.norm(wrench))
+    return float(np.linalg.norm(structure @ tensions - wrench)) / scale + max(0.0, -tensions.min()) / scale
 
 
 def _result(plant: Plant, lengths: np.ndarray, state: _State) -> Solution:

@@ -36,7 +36,7 @@ from scipy.optimize import root
 
 from .critical_lengths import describe, rotation_range
 from .equal_lengths import even_tensions, level_pose, solve_equal_lengths
-from .geometry import fit_rotation, wrench_residual
+from .geometry import cross, fit_rotation, wrench_residual
 from .planar import solve_planar
 from .plant import CABLE_NAMES, Plant
 from .result import Solution, SolveStatus, failed, guarded_solve, solved
@@ -80,7 +80,7 @@ class TautModel:
             (np.einsum("ij,ij->i", gaps, gaps) - self.distances ** 2) / (2.0 * self.distances),
             (np.einsum("ij,ij->i", spans, spans) - self.lengths ** 2) / (2.0 * self.lengths),
             t @ units + E_Z,
-            t @ np.cross(arms, units) / self.scale,
+            t @ cross(arms, units) / self.scale,
         ])
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
@@ -100,7 +100,7 @@ class TautModel:
         moment = np.einsum("ik,iab->akb", mix, turn)
         moment[:, 3, :] += np.einsum("i,iab->ab", t / self.scale, _skew(units))
         out[9 + n:, :12] = moment.reshape(3, 12)
-        out[9 + n:, 12:] = np.cross(arms, units).T / self.scale
+        out[9 + n:, 12:] = cross(arms, units).T / self.scale
         return out
 
     def solve(self, guess: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
