@@ -39,6 +39,8 @@ def test_example1_single_cable(plant, method):
     solution = solve(plant, seed002.TABLE_1[1], method)
     assert solution.status is SolveStatus.SINGLE_CABLE_INDETERMINATE
     assert solution.single_cable == 0 and solution.points_b is None
+    assert solution.taut_set == (1,)
+    np.testing.assert_allclose(solution.tensions, [plant.weight, 0.0, 0.0, 0.0])  # a plumb line carries mg
     assert "cable_1" in solution.message and "alone" in solution.message
     (lo1, hi1), (lo2, hi2) = solution.rotation_range
     (_, paper_hi1), (paper_lo2, _) = seed002.EXAMPLE_1_RANGE

@@ -22,9 +22,9 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .geometry import cross, rotation_from_vector, skew, structure_matrix
-from .plant import CABLE_NAMES, Plant
+from .plant import Plant
 from .plumb_hang import PlumbHang, lowest_hang_cable
-from .result import Solution, SolveStatus, failed, guarded_solve, solved
+from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
 from .tensions import balance_tensions
 
 METHOD = "energy"
@@ -106,13 +106,10 @@ def _single_cable(plant: Plant, lengths: np.ndarray) -> Solution | None:
     intervals = hang.rotation_range(lengths)
     if sum(hi - lo for lo, hi in intervals) <= 1e-9:
         return None
-    degrees = ", ".join(f"[{lo:.3f}, {hi:.3f}]" for lo, hi in intervals)
     rotation, position = hang.pose(0.0)
-    return failed(SolveStatus.SINGLE_CABLE_INDETERMINATE,
-                  f"platform hangs from {CABLE_NAMES[cable]} alone: pose indeterminate, it can turn through "
-                  f"{degrees} rad about the cable", METHOD, lengths, single_cable=cable, rotation_range=intervals,
-                  extras={"B_hanging": position + rotation @ plant.attachments[cable],
-                          "C": position + rotation @ plant.cog})
+    return single_cable_result(plant, METHOD, lengths, cable, intervals,
+                               {"B_hanging": position + rotation @ plant.attachments[cable],
+                                "C": position + rotation @ plant.cog})
 
 
 def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:

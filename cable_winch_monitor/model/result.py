@@ -56,7 +56,7 @@ class Solution:
     def taut_set(self) -> tuple[int, ...]:
         """1-based numbers of the taut cables, as the paper writes them."""
         if self.taut is None:
-            return (self.single_cable + 1,) if self.single_cable is not None else ()
+            return ()
         return tuple(int(i) + 1 for i in np.flatnonzero(self.taut))
 
     @property
@@ -130,6 +130,18 @@ def validate_lengths(lengths: Any) -> tuple[np.ndarray | None, str]:
     if bad:
         return None, "cable lengths must be positive: " + ", ".join(bad)
     return array, ""
+
+
+def single_cable_result(plant: Plant, method: str, lengths: np.ndarray, cable: int,
+                        intervals: tuple[tuple[float, float], ...], extras: dict[str, Any]) -> Solution:
+    """The platform hangs from `cable` alone: that rope carries mg (A, B and C on a plumb
+    line), the others are slack, and the pose is known only up to a turn within `intervals`."""
+    ranges = " U ".join(f"[{lo:.3f}, {hi:.3f}]" for lo, hi in intervals)
+    return failed(SolveStatus.SINGLE_CABLE_INDETERMINATE,
+                  f"platform hangs from {CABLE_NAMES[cable]} alone: pose indeterminate, it can turn through "
+                  f"{ranges} rad about the cable", method, lengths, taut=np.arange(4) == cable,
+                  tensions=np.where(np.arange(4) == cable, plant.weight, 0.0), single_cable=cable,
+                  rotation_range=intervals, extras=extras)
 
 
 def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray], Solution]) -> Solution:

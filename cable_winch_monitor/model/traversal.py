@@ -38,8 +38,8 @@ from .critical_lengths import describe, rotation_range
 from .equal_lengths import even_tensions, level_pose, solve_equal_lengths
 from .geometry import cross, fit_rotation, wrench_residual
 from .planar import solve_planar
-from .plant import CABLE_NAMES, Plant
-from .result import Solution, SolveStatus, failed, guarded_solve, solved
+from .plant import Plant
+from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
 
 EQUAL_LENGTH_TOL = 1e-9  # [m] lengths (or adjacent pairs) this close count as equal
 LENGTH_TOL = 1e-13  # distance residual or overstretch allowed, relative to max(l_i, |CB_i|): rounding level
@@ -145,11 +145,8 @@ def _traverse(plant: Plant, lengths: np.ndarray, method: str) -> Solution:
     for cable in dict.fromkeys((shortest, lowest)):  # (iii)
         phi, critical = rotation_range(plant, lengths, cable)
         if phi:
-            ranges = " U ".join(f"[{lo:.3f}, {hi:.3f}]" for lo, hi in phi)
-            return failed(SolveStatus.SINGLE_CABLE_INDETERMINATE,
-                          f"platform suspended by {CABLE_NAMES[cable]} alone: pose indeterminate "
-                          f"(rotation range {ranges} rad)", method, lengths, single_cable=cable,
-                          rotation_range=phi, extras={"critical_lengths": describe(critical, lengths)})
+            return single_cable_result(plant, method, lengths, cable, phi,
+                                       {"critical_lengths": describe(critical, lengths)})
     rotation, position = level_pose(plant, float(np.mean(lengths)))  # (i)
     guess_b, guess_c = position + plant.attachments @ rotation.T, position + rotation @ plant.cog
     even = even_tensions(plant, guess_b, guess_c)
