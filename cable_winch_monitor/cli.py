@@ -7,6 +7,7 @@ import sys
 from typing import Sequence
 
 from .bagio.reader import BagError
+from .effects.base import EffectError
 from .formatting import format_solution
 from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
 from .model.solve import METHODS, solve
@@ -42,6 +43,10 @@ def _simulate(args: argparse.Namespace) -> int:
     from .sim.scenario import load_scenario, scenario_path
     from .sim.simulate import simulate
 
+    from .effects import load_module
+
+    for path in args.effect_module:
+        load_module(path)
     print(simulate(load_scenario(scenario_path(args.scenario), args.set, args.seed), args.out).format())
     return 0
 
@@ -55,7 +60,14 @@ def _replay_summary(bag: str, args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    return _replay_summary(args.bag, args)
+    from .fleet import find_bags, is_fleet, replay_job, run_fleet
+
+    if not is_fleet(args.bag):
+        return _replay_summary(args.bag, args)
+    job = replay_job(load_plant(args.config), args.solver, args.staleness)
+    summary = run_fleet(find_bags(args.bag), args.out, job, args.workers, args.scheduler)
+    print(summary.format())
+    return 0 if summary.ok else 1
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -68,6 +80,12 @@ def _record(args: argparse.Namespace) -> int:
     from .nodes.recorder import record
 
     return record(args.out, args.topics)
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from .bench.suite import run_suite
+
+    return run_suite(args.samples, args.large_mb, args.fleet_bags)
 
 
 def _limits(args: argparse.Namespace) -> int:
@@ -83,6 +101,88 @@ def _limits(args: argparse.Namespace) -> int:
     else:
         print(format_limits(plant, args.length, limits))
     return 0
+
+
+def _analysis_inputs(args: argparse.Namespace):
+    """The plant model (with its effects) and the bag's measurements for compare, diagnose and fit."""
+    from .analysis.data import read_bag
+    from .effects import PlantModel, load_module
+
+    for path in args.effect_module:
+        load_module(path)
+    return PlantModel.from_plant(load_plant(args.config)), read_bag(args.bag)
+
+
+def _write_json(path: str | None, content: dict) -> None:
+    if path:
+        with open(path, "w") as file:
+            json.dump(content, file, indent=2, default=float)
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from .analysis import report
+    from .analysis.compare import compare
+    from .analysis.html import write_report
+
+    model, data = _analysis_inputs(args)
+    result = compare(model, data)
+    print(report.compare_text(result))
+    _write_json(args.json, report.compare_json(result))
+    if args.html:
+        write_report(result, args.html)
+        print(f"report: {args.html}")
+    return 0
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from .analysis import report
+    from .analysis.diagnose import diagnose
+    from .analysis.evaluate import noise
+
+    model, data = _analysis_inputs(args)
+    result = diagnose(model, data, noise(model.plant, data)[0], args.candidates.split(",") if args.candidates else None)
+    print(report.diagnose_text(result))
+    _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
+    return 0
+
+
+def _fit(args: argparse.Namespace) -> int:
+    from .analysis import report
+    from .analysis.refit import fit_command, write_plant
+
+    model, data = _analysis_inputs(args)
+    result = fit_command(model, data, [n.strip() for n in args.effects.split(",") if n.strip()])
+    print(report.fit_text(result))
+    _write_json(args.json, report.fit_json(result, data.bag, len(data)))
+    if args.write_config:
+        write_plant(result.fit.model, args.write_config)
+        print(f"plant file with the effects on: {args.write_config}")
+    return 0
+
+
+def _add_analysis(sub: argparse._SubParsersAction) -> None:
+    """compare, diagnose and fit: the model-versus-measurement loop (cable_winch_monitor.analysis)."""
+    commands = (("compare", _compare, "compare the model with a bag's measurements: per-channel errors, score, "
+                 "failure regions"),
+                ("diagnose", _diagnose, "find the physical effect the model lacks: fit each candidate on training "
+                 "data, rank on held-out data, add forward-stepwise"),
+                ("fit", _fit, "fit chosen effects, show before/after on training and held-out data, write a plant "
+                 "file with them on"))
+    for name, run, what in commands:
+        p = sub.add_parser(name, help=what, description=what[0].upper() + what[1:] + ".")
+        p.add_argument("bag", help="rosbag2 directory or .mcap file")
+        p.add_argument("--config", help="plant YAML with its `effects:` (default: the bundled seed-002 plant)")
+        p.add_argument("--json", metavar="PATH", help="write the result as JSON (interface.md)")
+        p.add_argument("--effect-module", action="append", default=[], metavar="PATH",
+                       help="a Python file defining Effect subclasses to use like the built-ins (repeatable)")
+        if name == "compare":
+            p.add_argument("--html", metavar="PATH", help="write a standalone HTML report with plots")
+        if name == "diagnose":
+            p.add_argument("--candidates", help="comma-separated effects to consider (default: every known one)")
+        if name == "fit":
+            p.add_argument("--effects", required=True, help="comma-separated effect names, e.g. rope_weight,cog_offset")
+            p.add_argument("--write-config", metavar="NEW.yaml", help="write the plant file with the fitted effects on")
+        p.set_defaults(run=run)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -116,6 +216,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="random seed (default: the scenario's, else 0)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set sync.sigma=0.01 --set sync.events.0.lag=0.2 (repeatable)")
+    p.add_argument("--effect-module", action="append", default=[], metavar="PATH",
+                   help="a Python file defining effects the scenario's `effects:` may hide in the truth (repeatable)")
     p.set_defaults(run=_simulate)
 
     replay_help = ("Exit status: 0 when the whole bag was read, 1 when parts of it could not be read (a partial "
@@ -127,7 +229,12 @@ def build_parser() -> argparse.ArgumentParser:
                            "outputs are stamped with their input's stamp. Prints a summary: messages read, used, "
                            "rejected and skipped per topic, samples solved, tension states, alarm levels, wall time.")
         if name == "replay":
-            p.add_argument("bag", help="rosbag2 directory or .mcap file")
+            p.add_argument("bag", help="rosbag2 directory or .mcap file, or a folder of them (fleet replay: --out "
+                           "is then a new folder with one output bag per input bag)")
+            p.add_argument("--workers", type=int, default=1, help="fleet replay: bags replayed in parallel processes")
+            p.add_argument("--scheduler", metavar="ADDRESS",
+                           help="fleet replay on a Dask cluster (e.g. tcp://10.0.0.5:8786); workers must see the "
+                           "bags and --out at the same paths")
         p.add_argument("--out", required=True, help="output bag directory to create (must not exist)")
         p.add_argument("--config", help="plant YAML (default: the bundled seed-002 plant)")
         p.add_argument("--solver", choices=METHODS, default="energy", help="solver (default: energy, as the node)")
@@ -145,6 +252,14 @@ def build_parser() -> argparse.ArgumentParser:
                    "/winch_<i>/joint_states, /platform/imu, /platform/position)")
     p.add_argument("--out", required=True, help="bag directory to create (must not exist)")
     p.set_defaults(run=_record)
+
+    p = sub.add_parser("bench", help="benchmark solvers, replay, memory and fleet replay in one run, with ratios")
+    p.add_argument("--samples", type=int, default=1000, help="solver samples (the same for every solver)")
+    p.add_argument("--large-mb", type=float, default=64.0,
+                   help="size of the large bag for peak memory [MiB] (acceptance run: 1024)")
+    p.add_argument("--fleet-bags", type=int, default=4, help="bags in the fleet benchmark (1 vs 2 workers)")
+    p.set_defaults(run=_bench)
+    _add_analysis(sub)
     return parser
 
 
@@ -152,7 +267,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
-    except (PlantConfigError, ScenarioError, BagError) as error:
+    except (PlantConfigError, ScenarioError, BagError, EffectError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
 

@@ -153,4 +153,12 @@ else
     fi
 fi
 
+# --- 5. headless Chromium for the HTML report test ---------------------------------------
+# Installed from Debian when missing, only as root with apt-get (a clean CI machine).
+if ! command -v chromium >/dev/null 2>&1 && [[ "$(id -u)" == 0 ]] && command -v apt-get >/dev/null 2>&1; then
+    log "installing chromium (Debian) for the HTML report test"
+    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; } >/dev/null 2>&1 \
+        || log "warning: apt-get could not install chromium; the HTML report test will fail"
+fi
+
 log "ready: .venv ($("$VENV/bin/python" -V 2>&1))"

@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..effects import Conditions, PlantModel
+from ..effects.sheave import motion_direction
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution, SolveStatus
 from ..model.solve import METHODS, solve
@@ -63,6 +65,11 @@ class MonitorPipeline:
         self.last: MonitorOutput | None = None
         self.last_solved: MonitorOutput | None = None
         self.staleness = staleness
+        # The plant file's physical effects (effects/): None keeps the plain rigid path and its speed.
+        model = PlantModel.from_plant(plant)
+        self.model = model if model.effects else None
+        self.direction = np.zeros(4)
+        self.last_predicted: dict[str, float] | None = None
 
     def _reject(self, topic: str, reason: str) -> None:
         self.stats.rejected[f"{topic}: {reason.split(':')[0]}"] += 1
@@ -85,20 +92,40 @@ class MonitorPipeline:
 
     def evaluate(self, lengths: object) -> tuple[Solution, Clearance | None, Alarm]:
         """What proposed cable lengths would give (for plant control), without touching the state."""
-        solution = solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
+        solution = self._equilibrium(lengths)
         clearance = solution_clearance(self.plant, solution)
         return solution, clearance, AlarmTracker(self.alarms.policy).update(solution, clearance)
 
     def _warm_start(self) -> Solution | None:
         return self.last_solved.solution if self.last_solved is not None and self.solver == "energy" else None
 
+    def _equilibrium(self, lengths: object) -> Solution:
+        if self.model is not None:
+            return self.model.solve(lengths, self._warm_start())
+        return solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
+
+    def _solution(self, lengths: np.ndarray) -> Solution:
+        """The equilibrium of one complete sample (replay overrides it with presolved batches)."""
+        return self._equilibrium(lengths)
+
+    def _predicted(self, solution: Solution) -> dict[str, float] | None:
+        """Sensor readings under the plant's measurement effects (None: the rigid-model readings)."""
+        if self.model is None:
+            return None
+        speeds = np.array([r.velocity if r is not None else np.nan for r in self.merger.readings])
+        self.direction = motion_direction(speeds, self.direction)
+        if not solution.ok:
+            return None
+        return self.model.predict(solution, Conditions(speeds, self.direction))
+
     def _solve(self, stamp: float, lengths: np.ndarray, accepted: list[int]) -> MonitorOutput:
-        solution = solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
+        solution = self._solution(lengths)
         clearance = solution_clearance(self.plant, solution)
         alarm = self.alarms.update(solution, clearance)
         tensions = self.merger.measured_tensions()
         measured = {f"tension_{CABLE_NAMES[i]}": tensions[i] for i in accepted}
-        resid = residuals(self.plant, solution, stamp, measured) if solution.ok else None
+        predicted = self._predicted(solution)
+        resid = residuals(self.plant, solution, stamp, measured, predicted) if solution.ok else None
         output = MonitorOutput(stamp, solution, clearance, alarm, resid)
         self.stats.solved += int(solution.ok)
         self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
@@ -106,7 +133,7 @@ class MonitorPipeline:
         self.stats.levels[alarm.level.name] += 1
         self.last = output
         if solution.ok:
-            self.last_solved = output
+            self.last_solved, self.last_predicted = output, predicted
         return output
 
     def _measurement(self, topic: str, stamp: float, channels: dict[str, float]) -> Residuals | None:
@@ -119,7 +146,7 @@ class MonitorPipeline:
             self._reject(topic, "no solved pose within the staleness limit")
             return None
         self.stats.used[topic] += 1
-        return residuals(self.plant, last.solution, stamp, channels)
+        return residuals(self.plant, last.solution, stamp, channels, self.last_predicted)
 
     def on_imu(self, stamp: float, quaternion_xyzw: np.ndarray, topic: str = "/platform/imu") -> Residuals | None:
         """An inclinometer reading: roll and pitch residuals against the latest solved pose."""

@@ -44,9 +44,14 @@ def predicted_channels(solution: Solution) -> dict[str, float]:
     return channels
 
 
-def residuals(plant: Plant, solution: Solution, stamp: float, measured: Mapping[str, float]) -> Residuals | None:
-    """Residuals of the finite measured channels against a solved pose; None if nothing to compare."""
-    predicted = predicted_channels(solution)
+def residuals(plant: Plant, solution: Solution, stamp: float, measured: Mapping[str, float],
+              predicted: Mapping[str, float] | None = None) -> Residuals | None:
+    """Residuals of the finite measured channels against a solved pose; None if nothing to compare.
+
+    `predicted` is what the sensors read under the plant's effects (effects.PlantModel.predict);
+    None means the rigid-model readings of `predicted_channels`.
+    """
+    predicted = predicted if predicted is not None else predicted_channels(solution)
     noise = noise_levels(plant)
     names = tuple(k for k, v in measured.items() if k in predicted and np.isfinite(v))
     if not names:

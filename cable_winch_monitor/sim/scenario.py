@@ -28,6 +28,7 @@ DEFAULTS: dict[str, Any] = {
         "model": "rigid",       # rigid | elastic
         "EA": 5.0e8,            # [N] axial stiffness of each rope (elastic)
     },
+    "effects": {},              # physical effects hidden in the truth: {name: {parameter: value, enabled: bool}}
     "sync": {
         "sigma": 0.0,           # [m] stationary standard deviation of each winch's random drift (Ornstein-Uhlenbeck)
         "tau": 30.0,            # [s] its correlation time
@@ -113,7 +114,11 @@ def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any
         if key not in defaults:
             raise ScenarioError(f"unknown key '{path}' (known: {', '.join(defaults)})")
         default = defaults[key]
-        if isinstance(default, Mapping):
+        if path == "effects":  # free-form: checked against the effect registry in _check_physics
+            if not isinstance(value, Mapping):
+                raise ScenarioError(f"key 'effects' must be a mapping of effect names to parameters, got {value!r}")
+            merged[key] = {str(name): dict(spec or {}) for name, spec in value.items()}
+        elif isinstance(default, Mapping):
             merged[key] = _merge(default, value, path)
         elif isinstance(default, list):
             if not isinstance(value, list):
@@ -127,6 +132,12 @@ def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any
 
 
 def _check_physics(config: dict[str, Any]) -> None:
+    from ..effects import EffectError, effects_from_mapping
+
+    try:
+        effects_from_mapping(config["effects"], "effects")
+    except EffectError as error:
+        raise ScenarioError(str(error)) from None
     if config["ropes"]["model"] not in ROPE_MODELS:
         raise ScenarioError(f"key 'ropes.model' must be one of {', '.join(ROPE_MODELS)}, "
                             f"got {config['ropes']['model']!r}")

@@ -79,10 +79,10 @@ class Sensors:
         return np.asarray(values, dtype=float) + self.rng.normal(0.0, sigma, np.shape(values))
 
     def joint_state(self, stamp: Stamp, stream: Stream, lengths: np.ndarray, speeds: np.ndarray,
-                    truth: Solution) -> dict[str, Any]:
+                    channels: Mapping[str, float]) -> dict[str, Any]:
         joints = self.config["joint_states"]
         cables = list(stream.cables)
-        tensions = truth.tensions[cables] if truth.ok else np.full(len(cables), NAN)
+        tensions = np.array([channels.get(f"tension_{CABLE_NAMES[i]}", NAN) for i in cables])
         return {"header": header(stamp, ""), "name": [CABLE_NAMES[i] for i in cables],
                 "position": self._noisy(lengths[cables], joints["length_noise"]),
                 "velocity": self._noisy(speeds[cables], joints["velocity_noise"]) if joints["velocity"] else [],
@@ -108,8 +108,8 @@ class Sensors:
         return {"header": header(stamp, "shaft"), "point": {"x": NAN, "y": NAN, "z": depth}}
 
     def reading(self, stamp: Stamp, stream: Stream, lengths: np.ndarray, speeds: np.ndarray,
-                truth: Solution) -> dict[str, Any] | None:
-        """The message fields of one sample of `stream`."""
+                truth: Solution, channels: Mapping[str, float]) -> dict[str, Any] | None:
+        """The message fields of one sample of `stream`; load pins read `channels` (the measurement model)."""
         if stream.msgtype == JOINT_STATE:
-            return self.joint_state(stamp, stream, lengths, speeds, truth)
+            return self.joint_state(stamp, stream, lengths, speeds, channels)
         return self.imu(stamp, truth) if stream.msgtype == IMU else self.position(stamp, truth)

@@ -29,7 +29,7 @@ from ..monitor.fields import Stamp, stamp_ns
 from .profile import Profile
 from .sensors import Sensors, Stream, sensor_streams
 from .sync import SyncErrors
-from .truth import TruthModel
+from .truth import TruthModel, truth_model
 
 TRUTH_FILE = "ground_truth.csv"
 SCENARIO_FILE = "scenario.yaml"
@@ -84,7 +84,7 @@ def simulate(config: dict[str, Any], out: str | Path) -> SimResult:
     profile = Profile(config["profile"]["start_length"], config["profile"]["segments"])
     duration = config["duration"] if config["duration"] is not None else profile.end + TAIL
     sync = SyncErrors(config["sync"]["sigma"], config["sync"]["tau"], config["sync"]["events"], sync_rng)
-    truth_model = TruthModel(plant, config["ropes"])
+    truth = TruthModel(truth_model(plant, config))
     sensors = Sensors(config["sensors"], noise_rng)
     streams = sensor_streams(config["sensors"], duration, timing_rng)
     latency = config["sensors"]["latency"]
@@ -99,15 +99,15 @@ def simulate(config: dict[str, Any], out: str | Path) -> SimResult:
             commanded, speed = profile(t)
             errors, rates = sync(t)
             lengths = commanded + errors
-            truth = truth_model(lengths)
-            clearance = solution_clearance(plant, truth)
-            table.writerow(_truth_row(config["start_time"] + t, stream.name, lengths, truth,
+            state, channels = truth(lengths, speed + rates)
+            clearance = solution_clearance(plant, state)
+            table.writerow(_truth_row(config["start_time"] + t, stream.name, lengths, state,
                                       clearance.value if clearance is not None else np.nan))
-            result.states[truth.tension_state] += 1
+            result.states[state.tension_state] += 1
             stamp = _stamp(config["start_time"] + t)
             while pending and pending[0][0] <= stamp_ns(stamp):
                 _flush(writer, pending)
-            values = sensors.reading(stamp, stream, lengths, speed + rates, truth)
+            values = sensors.reading(stamp, stream, lengths, speed + rates, state, channels)
             if values is not None:
                 log_time = stamp_ns(stamp) + int(latency * latency_rng.uniform(0.5, 1.5) * 1e9)
                 heapq.heappush(pending, (log_time, order, stream.topic, stream.msgtype, build(stream.msgtype, values)))

@@ -1,0 +1,1 @@
+"""The model-versus-measurement loop: compare, diagnose, fit, report."""

@@ -1,0 +1,95 @@
+"""`compare`: the model against every measurement at its own stamp; per-channel errors and failure regions.
+
+A failure region is a stretch of time where some channel's error exceeds 3 sigma in most
+samples (isolated 3-sigma samples are noise: 0.3 % of them exceed it by chance),
+described by what the plant was doing: payout, speed and direction, tension state, and
+which channels and cables miss in which direction.
+"""
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..effects import PlantModel
+from ..model.result import Solution
+from .data import CHANNELS, Dataset
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
+
+THRESHOLD = 3.0    # [sigma]
+MERGE_GAP = 1.0    # [s] exceedances closer than this belong to one region
+MIN_SAMPLES = 3    # a region has at least this many exceeding values ...
+MIN_DENSITY = 0.3  # ... and this share of its rows exceeding somewhere
+MAX_REGIONS = 20
+STOPPED = 0.02     # [m/s] mean payout speed below which the plant is standing
+
+
+@dataclass
+class Comparison:
+    bag: str
+    model: PlantModel
+    data: Dataset
+    predicted: np.ndarray
+    noise: np.ndarray
+    noise_source: dict[str, str]
+    solutions: list[Solution]
+    channels: dict[str, ChannelStats] = field(default_factory=dict)
+    score: float = float("nan")
+    regions: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def residuals(self) -> np.ndarray:
+        return self.data.measured - self.predicted
+
+
+def compare(model: PlantModel, data: Dataset) -> Comparison:
+    """Solve the model at every row and compare with what was measured."""
+    sigma, source = noise(model.plant, data)
+    evaluator = Evaluator(data)
+    predicted = evaluator.predicted(model)
+    result = Comparison(data.bag, model, data, predicted, sigma, source, evaluator.solutions(model))
+    result.channels = channel_stats(result.residuals, data.measured, sigma)
+    result.score = score(result.residuals, data.measured, sigma)
+    result.regions = failure_regions(result)
+    return result
+
+
+def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, Any]:
+    data = c.data
+    payout = data.lengths[rows].mean(axis=1)
+    speed = float(np.nanmean(data.speeds[rows]))
+    motion = "standing" if abs(speed) < STOPPED else ("lowering" if speed > 0 else "hoisting")
+    states = Counter(c.solutions[k].tension_state for k in rows)
+    z = c.residuals[rows] / c.noise
+    misses = []
+    for ch, name in enumerate(CHANNELS):
+        hits = exceed[:, ch]
+        if hits.any():
+            sign = "above" if np.nanmean(z[hits, ch]) > 0 else "below"
+            misses.append({"channel": name, "count": int(hits.sum()), "mean_sigma": float(np.nanmean(z[hits, ch])),
+                           "measured": sign + " model"})
+    text = (f"{data.times[rows[0]]:.1f}-{data.times[rows[-1]]:.1f} s: payout {payout.min():.1f}-{payout.max():.1f} m, "
+            f"{motion} ({speed:+.2f} m/s), {states.most_common(1)[0][0]}; "
+            + ", ".join(f"{m['channel']} {m['measured']} by {abs(m['mean_sigma']):.1f} sigma" for m in misses))
+    return {"start": float(data.times[rows[0]]), "end": float(data.times[rows[-1]]),
+            "payout": [float(payout.min()), float(payout.max())], "speed": speed, "motion": motion,
+            "tension_state": states.most_common(1)[0][0], "channels": misses,
+            "severity": float(np.nansum(np.abs(z[exceed]))), "description": text}
+
+
+def failure_regions(c: Comparison) -> list[dict[str, Any]]:
+    """Time intervals where the error exceeds THRESHOLD sigma, most severe first."""
+    z = np.abs(c.residuals) / c.noise
+    measured = np.isfinite(c.data.measured)
+    exceed = measured & ~(z <= THRESHOLD)  # unsolvable rows exceed too
+    hit_rows = np.flatnonzero(exceed.any(axis=1))
+    regions, start = [], 0
+    for k in range(1, len(hit_rows) + 1):
+        if k == len(hit_rows) or c.data.times[hit_rows[k]] - c.data.times[hit_rows[k - 1]] > MERGE_GAP:
+            rows = np.arange(hit_rows[start], hit_rows[k - 1] + 1)
+            if exceed[rows].sum() >= MIN_SAMPLES and exceed[rows].any(axis=1).mean() >= MIN_DENSITY:
+                regions.append(_describe(c, rows, exceed[rows]))
+            start = k
+    return sorted(regions, key=lambda r: -r["severity"])[:MAX_REGIONS]

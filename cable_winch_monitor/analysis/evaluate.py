@@ -1,0 +1,155 @@
+"""The model at every row: predicted channels, residuals, noise levels and the noise-normalised score.
+
+Solving is the cost of the whole loop, so an `Evaluator` keeps each row's last solution
+as the warm start of its next solve (a fit changes parameters a little between calls:
+one or two Newton steps per row), and reuses the solutions outright when only
+measurement effects changed (`solutions` is keyed on everything that affects a solve).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..effects import PlantModel
+from ..model.plant import Plant
+from ..model.result import Solution
+from ..monitor.residuals import noise_levels
+from .data import CHANNELS, KINDS, NOISE_KEYS, Dataset
+
+FAILED_PENALTY = 30.0  # [sigma] residual of a measured channel whose row the model cannot solve
+BLOCKS = 20            # the bag is cut into this many blocks in time for the train / held-out split
+HELD_OUT = (2, 5, 8)   # block k is held out when k % 10 is one of these: 30 %, spread over the whole bag
+MIN_BLOCK = 10.0       # [s] shortest block: longer than the winch drift's correlation over neighbours
+
+
+class Evaluator:
+    """Solutions and predictions for the rows of a dataset, warm-started per row."""
+
+    def __init__(self, data: Dataset):
+        self.data = data
+        self.conditions = data.conditions()
+        self._warm: list[Solution | None] = [None] * len(data)
+        self._cached: tuple[tuple, list[Solution]] | None = None
+        self.solves = 0
+
+    def solutions(self, model: PlantModel) -> list[Solution]:
+        key = model.solve_key()
+        if self._cached is not None and self._cached[0] == key:
+            return self._cached[1]
+        out: list[Solution] = []
+        previous: Solution | None = None
+        for k, lengths in enumerate(self.data.lengths):
+            warm = self._warm[k] if self._warm[k] is not None else previous
+            solution = model.solve(lengths, warm)
+            if not solution.ok and warm is not None:  # a warm start across a kink can fail: retry cold
+                solution = model.solve(lengths)
+            self.solves += 1
+            if solution.ok:
+                self._warm[k] = previous = solution
+            out.append(solution)
+        for k in range(len(out) - 2, -1, -1):  # a failed cold start may succeed from the next row's solution
+            if not out[k].ok and out[k + 1].ok:
+                out[k] = model.solve(self.data.lengths[k], out[k + 1])
+                self._warm[k] = out[k] if out[k].ok else None
+        self._cached = (key, out)
+        return out
+
+    def predicted(self, model: PlantModel) -> np.ndarray:
+        """(rows, channels) of what the model says each sensor reads (NaN where the solve failed)."""
+        out = np.full((len(self.data), len(CHANNELS)), np.nan)
+        for k, (solution, conditions) in enumerate(zip(self.solutions(model), self.conditions)):
+            if solution.ok:
+                channels = model.predict(solution, conditions)
+                out[k] = [channels[c] for c in CHANNELS]
+        return out
+
+    def residuals(self, model: PlantModel) -> np.ndarray:
+        """Measured minus predicted (NaN where not measured)."""
+        return self.data.measured - self.predicted(model)
+
+
+def normalised(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """Residuals in units of sensor noise, flattened over measured values; unsolvable rows count as a
+    FAILED_PENALTY-sigma miss (so a fit cannot improve by making rows unsolvable)."""
+    z = residuals / noise
+    z = np.where(np.isfinite(measured) & ~np.isfinite(z), FAILED_PENALTY, z)
+    return z[np.isfinite(measured)]
+
+
+def score(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray) -> float:
+    """Noise-normalised RMS error: the root of the mean over measured channels of each channel's mean
+    squared normalised error (1.0: the model explains the data down to the sensor noise)."""
+    z = residuals / noise
+    z = np.where(np.isfinite(measured) & ~np.isfinite(z), FAILED_PENALTY, z)
+    per_channel = [np.mean(z[np.isfinite(measured[:, c]), c] ** 2) for c in range(measured.shape[1])
+                   if np.isfinite(measured[:, c]).any()]
+    return float(np.sqrt(np.mean(per_channel))) if per_channel else float("nan")
+
+
+@dataclass(frozen=True)
+class ChannelStats:
+    rms: float
+    max_abs: float
+    noise: float
+    score: float
+    count: int
+    failed: int
+
+    def to_dict(self) -> dict[str, float]:
+        return {"rms": self.rms, "max_abs": self.max_abs, "noise": self.noise, "score": self.score,
+                "count": self.count, "unsolved": self.failed}
+
+
+def channel_stats(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray) -> dict[str, ChannelStats]:
+    """RMS, largest error and noise-normalised RMS of every measured channel."""
+    out = {}
+    for c, name in enumerate(CHANNELS):
+        seen = np.isfinite(measured[:, c])
+        if not seen.any():
+            continue
+        values = residuals[seen, c]
+        ok = values[np.isfinite(values)]
+        rms = float(np.sqrt(np.mean(ok ** 2))) if ok.size else float("nan")
+        out[name] = ChannelStats(rms, float(np.abs(ok).max()) if ok.size else float("nan"), float(noise[c]),
+                                 score(residuals[:, [c]], measured[:, [c]], noise[[c]]), int(seen.sum()),
+                                 int(seen.sum() - ok.size))
+    return out
+
+
+def noise(plant: Plant, data: Dataset) -> tuple[np.ndarray, dict[str, str]]:
+    """1-sigma noise of each channel and where it came from: the plant file's `noise:` section, or an
+    estimate from the data (second differences of consecutive samples, robust: 1.4826 MAD / sqrt 6)."""
+    levels = noise_levels(plant)
+    sigma, source = np.full(len(CHANNELS), np.nan), {}
+    for c, name in enumerate(CHANNELS):
+        value = levels.get(NOISE_KEYS[name], np.nan)
+        if np.isfinite(value) and value > 0.0:
+            sigma[c], source[name] = value, "plant file"
+            continue
+        series = data.measured[np.isfinite(data.measured[:, c]), c]
+        if series.size >= 5:
+            second = np.diff(series, 2)
+            sigma[c] = max(1.4826 * np.median(np.abs(second - np.median(second))) / np.sqrt(6.0), 1e-12)
+            source[name] = "estimated from the data"
+    return sigma, source
+
+
+def split(data: Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """Training and held-out rows: interleaved blocks in time (see HELD_OUT)."""
+    span = data.times[-1] - data.times[0] if len(data) else 0.0
+    length = max(span / BLOCKS, MIN_BLOCK)
+    block = np.floor((data.times - data.times[0]) / length).astype(int) if len(data) else np.zeros(0, int)
+    held = np.isin(block % 10, HELD_OUT)
+    return np.flatnonzero(~held), np.flatnonzero(held)
+
+
+def thin(rows: np.ndarray, kinds: np.ndarray, per_kind: int) -> np.ndarray:
+    """At most `per_kind` rows of each kind (winch, inclinometer, depth gauge), evenly spread in time."""
+    kept = []
+    for kind in range(len(KINDS)):
+        mine = rows[kinds[rows] == kind]
+        if mine.size > per_kind:
+            mine = mine[np.linspace(0, mine.size - 1, per_kind).round().astype(int)]
+        kept.append(mine)
+    return np.sort(np.concatenate(kept))

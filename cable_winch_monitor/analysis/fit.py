@@ -1,0 +1,117 @@
+"""Fitting effect parameters to measurements: scipy least_squares on noise-normalised residuals.
+
+Parameters are fitted in units of their declared `scale` (so a step means the same to
+every parameter), within their bounds. Uncertainties come from the Jacobian at the
+optimum, cov = (J^T J)^-1 scaled by the reduced chi-square where that exceeds 1 (the
+model is not perfect); correlations from the same matrix. A parameter whose 1-sigma
+uncertainty exceeds a quarter of its bounds' range, or that is correlated beyond 0.98
+with another, is reported as not identified by the data, as are the effect's own
+reasons (e.g. sheave friction without motion in both directions).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..effects import Effect, Parameter, PlantModel
+from .evaluate import Evaluator, normalised
+
+MAX_EVALUATIONS = 60
+UNIDENTIFIED_SPREAD = 0.25  # 1-sigma uncertainty / width of the bounds
+UNIDENTIFIED_CORRELATION = 0.98
+
+
+@dataclass
+class FitResult:
+    """The model with fitted values, the free parameters, their 1-sigma uncertainties and correlations."""
+
+    model: PlantModel
+    free: list[tuple[str, Parameter]]
+    values: np.ndarray
+    sigmas: np.ndarray
+    correlation: np.ndarray
+    chi2: float
+    count: int
+    evaluations: int
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion with known noise: chi^2 + k ln n."""
+        return self.chi2 + len(self.free) * np.log(max(self.count, 1))
+
+    def params(self, effect: str) -> dict[str, dict[str, Any]]:
+        """{parameter: {value, sigma, unit}} of one effect (all its parameters; fixed ones without sigma)."""
+        out = {}
+        for name, value in self.model.get(effect).values.items():
+            index = next((k for k, (e, p) in enumerate(self.free) if e == effect and p.name == name), None)
+            unit = next(p.unit for p in type(self.model.get(effect)).parameters if p.name == name)
+            out[name] = {"value": value, "sigma": None if index is None else float(self.sigmas[index]), "unit": unit}
+        return out
+
+    def correlations(self) -> dict[str, float]:
+        """Pairwise correlations above 0.5 in magnitude, as 'effect.a ~ effect.b'."""
+        labels = [f"{e}.{p.name}" for e, p in self.free]
+        return {f"{labels[i]} ~ {labels[j]}": float(self.correlation[i, j]) for i in range(len(labels))
+                for j in range(i + 1, len(labels)) if abs(self.correlation[i, j]) > 0.5}
+
+
+def chi_square(model: PlantModel, evaluator: Evaluator, noise: np.ndarray) -> tuple[float, int]:
+    z = normalised(evaluator.residuals(model), evaluator.data.measured, noise)
+    return float(np.sum(z ** 2)), int(z.size)
+
+
+def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray) -> FitResult:
+    """Fit the fittable parameters of `effects` (added to `base`, others held) from their current values."""
+    free = [(e.name, p) for e in effects for p in e.fitted()]
+    start = np.array([next(e for e in effects if e.name == name)[p.name] for name, p in free])
+    scale = np.array([p.scale for _, p in free])
+    lower = np.array([p.bounds[0] for _, p in free])
+    upper = np.array([p.bounds[1] for _, p in free])
+
+    def model_at(z: np.ndarray) -> PlantModel:
+        values = start + z * scale
+        updated = [e.replaced(**{p.name: float(v) for (name, p), v in zip(free, values) if name == e.name})
+                   for e in effects]
+        return base.with_effects(updated)
+
+    def residual(z: np.ndarray) -> np.ndarray:
+        return normalised(evaluator.residuals(model_at(z)), evaluator.data.measured, noise)
+
+    if not free:
+        chi2, count = chi_square(base.with_effects(effects), evaluator, noise)
+        return FitResult(base.with_effects(effects), [], np.zeros(0), np.zeros(0), np.zeros((0, 0)), chi2, count, 1)
+    result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
+                           method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
+                           max_nfev=MAX_EVALUATIONS)
+    count = result.fun.size
+    chi2 = float(np.sum(result.fun ** 2))
+    information = result.jac.T @ result.jac
+    covariance = np.linalg.pinv(information) * max(1.0, chi2 / max(count - len(free), 1))
+    sigmas_z = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = np.nan_to_num(covariance / np.outer(sigmas_z, sigmas_z))
+    fit = FitResult(model_at(result.x), free, start + result.x * scale, sigmas_z * scale, correlation, chi2, count,
+                    int(result.nfev))
+    fit.warnings = _identifiability(fit, effects, evaluator)
+    return fit
+
+
+def _identifiability(fit: FitResult, effects: Sequence[Effect], evaluator: Evaluator) -> list[str]:
+    warnings = []
+    for effect in effects:
+        warnings += effect.warnings(evaluator.conditions)
+    for k, (name, p) in enumerate(fit.free):
+        width = p.bounds[1] - p.bounds[0]
+        if not np.isfinite(fit.sigmas[k]) or fit.sigmas[k] > UNIDENTIFIED_SPREAD * width:
+            warnings.append(f"{name}.{p.name}: not identified by this bag (uncertainty {fit.sigmas[k]:.3g} {p.unit} "
+                            f"against a range of {width:g} {p.unit})")
+        for j in range(k + 1, len(fit.free)):
+            if abs(fit.correlation[k, j]) > UNIDENTIFIED_CORRELATION:
+                other = fit.free[j]
+                warnings.append(f"{name}.{p.name} and {other[0]}.{other[1].name} cannot be told apart "
+                                f"(correlation {fit.correlation[k, j]:+.3f})")
+    return warnings

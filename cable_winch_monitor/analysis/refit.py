@@ -1,0 +1,67 @@
+"""`fit`: fit chosen effects on the training part, compare before and after on training and held-out data,
+and write a plant file with the effects on (which the live node and replay then use)."""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import yaml
+
+from ..effects import PlantModel, effect_class
+from .data import Dataset
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score, split, thin
+from .fit import FitResult, fit_effects
+
+PER_KIND = 300  # training rows per sensor kind the fit uses
+
+
+@dataclass
+class PartScores:
+    """Per-channel statistics and the score of one part of the bag under one model."""
+
+    channels: dict[str, ChannelStats]
+    score: float
+
+
+@dataclass
+class FitReport:
+    fit: FitResult
+    effects: list[str]
+    before: dict[str, PartScores]  # "training", "held_out"
+    after: dict[str, PartScores]
+    noise_source: dict[str, str]
+
+
+def _scores(model: PlantModel, evaluator: Evaluator, sigma: np.ndarray) -> PartScores:
+    residuals = evaluator.residuals(model)
+    return PartScores(channel_stats(residuals, evaluator.data.measured, sigma),
+                      score(residuals, evaluator.data.measured, sigma))
+
+
+def fit_command(base: PlantModel, data: Dataset, names: Sequence[str]) -> FitReport:
+    """Fit `names` (added to, or refitted within, `base`) and score both models on both parts."""
+    sigma, source = noise(base.plant, data)
+    train_rows, held_rows = split(data)
+    effects = [base.get(n) or effect_class(n)() for n in names]
+    fit = fit_effects(base, effects, Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND))), sigma)
+    parts = {"training": Evaluator(data.subset(train_rows)), "held_out": Evaluator(data.subset(held_rows))}
+    before = {k: _scores(base, e, sigma) for k, e in parts.items()}
+    after = {k: _scores(fit.model, e, sigma) for k, e in parts.items()}
+    return FitReport(fit, list(names), before, after, source)
+
+
+def write_plant(model: PlantModel, path: str | Path) -> None:
+    """The plant file of `model.plant` with `model`'s effects switched on (and their user modules listed)."""
+    config = copy.deepcopy(dict(model.plant.raw))
+    section = dict(config.get("plant", {}))
+    section["effects"] = model.effects_config()
+    modules = model.user_modules()
+    if modules:
+        section["effect_modules"] = modules
+    else:
+        section.pop("effect_modules", None)
+    config["plant"] = section
+    Path(path).write_text("# written by cable-winch-monitor fit\n" + yaml.safe_dump(config, sort_keys=False))

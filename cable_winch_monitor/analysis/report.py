@@ -1,0 +1,112 @@
+"""Text and JSON (interface.md) renderings of compare, diagnose and fit results."""
+from __future__ import annotations
+
+from typing import Any
+
+from .compare import Comparison
+from .diagnose import Diagnosis
+from .evaluate import ChannelStats
+from .refit import FitReport
+
+
+def _channels(stats: dict[str, ChannelStats]) -> dict[str, Any]:
+    return {name: s.to_dict() for name, s in stats.items()}
+
+
+def _table(stats: dict[str, ChannelStats]) -> list[str]:
+    lines = [f"{'channel':<17}{'samples':>8}{'RMS':>12}{'max |err|':>12}{'noise':>10}{'score':>8}"]
+    lines += [f"{n:<17}{s.count:>8}{s.rms:>12.4g}{s.max_abs:>12.4g}{s.noise:>10.3g}{s.score:>8.3f}"
+              for n, s in stats.items()]
+    return lines
+
+
+def _effect_values(model: Any) -> list[dict[str, Any]]:
+    return [{"name": e.name, "params": dict(e.values), "enabled": True} for e in model.effects]
+
+
+def compare_json(c: Comparison) -> dict[str, Any]:
+    return {"bag": c.bag, "samples": len(c.data), "channels": _channels(c.channels), "score": c.score,
+            "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model)}
+
+
+def compare_text(c: Comparison) -> str:
+    sources = sorted(set(c.noise_source.values()))
+    lines = [f"compared {c.bag}: {len(c.data)} measurement samples, model effects: "
+             + (", ".join(repr(e) for e in c.model.effects) or "none (rigid ropes)"),
+             *_table(c.channels), f"score {c.score:.3f} (1.0 = down to the sensor noise; noise: {', '.join(sources)})",
+             f"failure regions (|error| > 3 sigma): {len(c.regions) or 'none'}"]
+    lines += [f"  {r['description']}" for r in c.regions[:10]]
+    return "\n".join(lines)
+
+
+def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
+    final = d.final
+    ranked = [c.to_dict() for c in d.ranking]
+    for entry in ranked:  # selected effects: the values of the final joint fit
+        if final is not None and final.model.get(entry["name"]) is not None and entry["selected"]:
+            params = final.params(entry["name"])
+            entry["params"] = {k: v["value"] for k, v in params.items()}
+            entry["uncertainties"] = {k: v["sigma"] for k, v in params.items()}
+    return {"bag": bag, "samples": samples, "channels": _channels(d.channels), "score": d.ladder[0].score_heldout,
+            "score_after": d.ladder[-1].score_heldout, "selected": d.selected,
+            "split": {"method": "interleaved blocks in time (30 % held out)", "training_rows": d.train_rows,
+                      "held_out_rows": d.heldout_rows},
+            "ladder": [{"added": s.added, "score_train": s.score_train, "score_heldout": s.score_heldout,
+                        "bic": s.bic} for s in d.ladder],
+            "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
+            "effects": ranked}
+
+
+def diagnose_text(d: Diagnosis) -> str:
+    lines = [f"candidates, best first (fitted on {d.train_rows} training rows, scored on {d.heldout_rows} "
+             "held-out rows from interleaved blocks):",
+             f"{'effect':<24}{'held-out score':>15}{'delta BIC':>12}  fitted"]
+    for c in d.ranking:
+        values = ", ".join(f"{k}={v['value']:.4g}+-{v['sigma']:.2g}" for k, v in c.fit.params(c.name).items()
+                           if v["sigma"] is not None)
+        lines.append(f"{c.name:<24}{c.score_before:>7.3f}->{c.score_after:<7.3f}{c.delta_bic:>12.1f}  {values}"
+                     + ("  <- selected" if c.selected else ""))
+    lines.append("ladder: " + " -> ".join(f"{s.added or 'model'} ({s.score_heldout:.3f})" for s in d.ladder))
+    if d.final is not None:
+        for name in d.selected:
+            effect = d.final.model.get(name)
+            values = ", ".join(f"{k} = {v['value']:.5g} +- {v['sigma']:.2g} {v['unit']}"
+                               for k, v in d.final.params(name).items() if v["sigma"] is not None)
+            lines.append(f"found: {type(effect).title} [{name}: {values}]")
+        lines += [f"correlation {k}: {v:+.3f}" for k, v in d.final.correlations().items()]
+        lines += [f"warning: {w}" for w in d.final.warnings]
+    else:
+        lines.append("found: nothing -- no candidate effect explains the data significantly better "
+                     "(held-out error and BIC)")
+    return "\n".join(lines)
+
+
+def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
+    fit = r.fit
+    return {"bag": bag, "samples": samples, "channels": _channels(r.after["held_out"].channels),
+            "score": r.after["held_out"].score,
+            "before": {part: {"score": s.score, "channels": _channels(s.channels)} for part, s in r.before.items()},
+            "after": {part: {"score": s.score, "channels": _channels(s.channels)} for part, s in r.after.items()},
+            "effects": [{"name": n, "params": {k: v["value"] for k, v in fit.params(n).items()},
+                         "uncertainties": {k: v["sigma"] for k, v in fit.params(n).items()},
+                         "score_before": r.before["held_out"].score, "score_after": r.after["held_out"].score,
+                         "delta_bic": None, "selected": True} for n in r.effects],
+            "correlations": fit.correlations(), "warnings": fit.warnings, "noise_source": r.noise_source}
+
+
+def fit_text(r: FitReport) -> str:
+    lines = []
+    for name in r.effects:
+        values = ", ".join(f"{k} = {v['value']:.5g}" + (f" +- {v['sigma']:.2g}" if v["sigma"] is not None else "")
+                           + f" {v['unit']}" for k, v in r.fit.params(name).items())
+        lines.append(f"fitted {name}: {values}")
+    lines.append(f"{'channel':<17}{'train before':>14}{'train after':>13}{'held before':>13}{'held after':>12}")
+    for name in r.after["held_out"].channels:
+        row = [r.before["training"], r.after["training"], r.before["held_out"], r.after["held_out"]]
+        cells = [f"{part.channels[name].score:.3f}" if name in part.channels else "-" for part in row]
+        lines.append(f"{name:<17}{cells[0]:>14}{cells[1]:>13}{cells[2]:>13}{cells[3]:>12}")
+    lines.append(f"{'score':<17}{r.before['training'].score:>14.3f}{r.after['training'].score:>13.3f}"
+                 f"{r.before['held_out'].score:>13.3f}{r.after['held_out'].score:>12.3f}")
+    lines += [f"correlation {k}: {v:+.3f}" for k, v in r.fit.correlations().items()]
+    lines += [f"warning: {w}" for w in r.fit.warnings]
+    return "\n".join(lines)

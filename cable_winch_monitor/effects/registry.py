@@ -1,0 +1,98 @@
+"""Where effects come from: the built-ins, the `cable_winch_monitor.effects` entry points, user modules.
+
+A user module is any Python file defining Effect subclasses with a `name`; it is loaded
+with `load_module(path)` (the CLI's --effect-module, or `effect_modules:` in a plant
+file). An installed package adds effects without a path by declaring an entry point:
+
+    [project.entry-points."cable_winch_monitor.effects"]
+    my_effect = "my_package.effects:MyEffect"
+"""
+from __future__ import annotations
+
+import importlib.util
+import inspect
+import sys
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from .base import ACTS, Effect, EffectError
+from .body import CogOffset, PayloadMass
+from .encoder import EncoderOffset, EncoderScale
+from .rope import RopeElasticity, RopeWeight
+from .sensor import TensionSensorBending
+from .sheave import SheaveFriction, SheaveGeometry
+
+GROUP = "cable_winch_monitor.effects"
+BUILTINS: tuple[type[Effect], ...] = (RopeElasticity, RopeWeight, EncoderScale, EncoderOffset, SheaveFriction,
+                                      CogOffset, PayloadMass, SheaveGeometry, TensionSensorBending)
+_registry: dict[str, type[Effect]] = {}
+_entry_points_loaded = False
+
+
+def register(cls: type[Effect]) -> type[Effect]:
+    """Add an effect class (usable as a decorator); its name must be new, snake_case, its `acts` known."""
+    if not (isinstance(cls, type) and issubclass(cls, Effect)) or not cls.name:
+        raise EffectError(f"{cls!r} is not an Effect subclass with a name")
+    if not cls.name.replace("_", "").isalnum() or cls.name != cls.name.lower():
+        raise EffectError(f"effect name {cls.name!r} must be snake_case")
+    if cls.acts not in ACTS:
+        raise EffectError(f"effect '{cls.name}': acts={cls.acts!r}, must be one of {', '.join(ACTS)}")
+    known = _registry.get(cls.name)
+    if known is not None and known is not cls and known.__qualname__ != cls.__qualname__:
+        raise EffectError(f"effect '{cls.name}' is defined twice ({known.__module__} and {cls.__module__})")
+    _registry[cls.name] = cls
+    return cls
+
+
+def _load_entry_points() -> None:
+    global _entry_points_loaded
+    if _entry_points_loaded:
+        return
+    _entry_points_loaded = True
+    for point in entry_points(group=GROUP):
+        loaded = point.load()
+        classes = [loaded] if isinstance(loaded, type) else _effect_classes(loaded)
+        for cls in classes:
+            register(cls)
+
+
+def _effect_classes(module: object) -> list[type[Effect]]:
+    return [obj for _, obj in inspect.getmembers(module, inspect.isclass)
+            if issubclass(obj, Effect) and obj is not Effect and obj.name and obj.__module__ == module.__name__]
+
+
+def load_module(path: str | Path) -> list[str]:
+    """Import a user's effect module from a file and register its effects; their names."""
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise EffectError(f"effect module {path}: no such file")
+    module_name = f"cable_winch_monitor_user_effects.{path.stem}_{abs(hash(str(path))) % 10**8}"
+    if module_name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[module_name] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception as error:  # noqa: BLE001 - any error in a user's module is reported, not raised raw
+            del sys.modules[module_name]
+            raise EffectError(f"effect module {path}: {type(error).__name__}: {error}") from None
+    classes = _effect_classes(sys.modules[module_name])
+    if not classes:
+        raise EffectError(f"effect module {path}: defines no Effect subclass with a name")
+    return [register(cls).name for cls in classes]
+
+
+def available() -> dict[str, type[Effect]]:
+    """Every known effect by name: built-ins first, then entry points and loaded user modules."""
+    for cls in BUILTINS:
+        _registry.setdefault(cls.name, cls)
+    _load_entry_points()
+    return dict(_registry)
+
+
+def effect_class(name: str) -> type[Effect]:
+    known = available()
+    if name not in known:
+        raise EffectError(f"unknown effect '{name}' (known: {', '.join(known)}; a user effect needs --effect-module "
+                          "or an entry point)")
+    return known[name]

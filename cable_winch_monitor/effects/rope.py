@@ -1,0 +1,59 @@
+"""Rope-law effects: elastic stretch and the rope's own weight."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.plant import CABLE_NAMES, Plant
+from ..model.result import Solution
+from .base import Conditions, Effect, Parameter, RopeLaw
+
+
+class RopeElasticity(Effect):
+    """Hooke stretch of each rope: tau_i = EA / l_i * max(0, s_i - l_i) (seeds 000 and 004).
+
+    Seeds 000 and 004 model a steel rope as a linear spring of axial stiffness EA (the
+    free-length stiffness K = EA / L of seed 000, eq. 22). With it the tension
+    distribution of four taut ropes is determinate: all four share the load, where rigid
+    ropes leave one slack. Residual signature (missing from a rigid model): the rigid
+    model predicts one rope slack (zero tension) and the other three overloaded, while
+    every load pin reads a share; the error flips with the winches' synchronisation
+    errors and the depth reads deeper than predicted by l * mg / (4 EA).
+    """
+
+    name = "rope_elasticity"
+    title = "the ropes stretch elastically (Hooke, axial stiffness EA)"
+    acts = "rope_law"
+    parameters = (Parameter("EA", "N", 1.0e8, (1.0e6, 1.0e11), 2.0e7, "axial stiffness of each rope"),)
+    signature = "one rope predicted slack and the others overloaded while all four pins read a share"
+    source = "seeds 000 (eq. 22, K = EA/L) and 004 (eqs. 14-28)"
+
+    def rope(self, law: RopeLaw) -> RopeLaw:
+        return RopeLaw(EA=self["EA"], weight=law.weight)
+
+
+class RopeWeight(Effect):
+    """The rope's own weight w per metre: the load pin at the head sheave carries it too.
+
+    Tension grows along a hanging rope: at the top it is the platform's share plus the
+    weight of the rope below, T_top = T_platform + w * (z_A - z_B) (the vertical span;
+    a slack rope still hangs from its sheave). An elastic rope also stretches under its
+    own weight by w l^2 / (2 EA), as if it were l + w l^2 / (2 EA) long. Residual
+    signature: every load pin reads more than predicted, by an amount growing in
+    proportion to the payout, the same for all four cables.
+    """
+
+    name = "rope_weight"
+    title = "the ropes' own weight (the load pins read more than the platform carries)"
+    acts = "rope_law"
+    order = 10
+    parameters = (Parameter("w", "N/m", 50.0, (0.0, 1000.0), 20.0, "rope weight per metre"),)
+    signature = "all load pins read high by an amount proportional to the payout"
+    source = "statics of a hanging rope; stretch as in seeds 000/004 with a linearly growing tension"
+
+    def rope(self, law: RopeLaw) -> RopeLaw:
+        return RopeLaw(EA=law.EA, weight=law.weight + self["w"])
+
+    def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
+        drop = plant.anchors[:, 2] - solution.points_b[:, 2]
+        for name, height in zip(CABLE_NAMES, np.maximum(drop, 0.0)):
+            channels[f"tension_{name}"] += self["w"] * float(height)

@@ -1,0 +1,49 @@
+"""Measurement effect of a three-point-bending tension sensor that ignores the rope's bending rigidity."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.plant import CABLE_NAMES, Plant
+from ..model.result import Solution
+from .base import Conditions, Effect, Parameter
+
+MAX_BENDING = 0.5  # 3 sqrt(B/T)/l beyond this the sensor is outside its range: reading capped at 2 T
+
+
+def bending_reading(tension: np.ndarray, rigidity: float, span: float) -> np.ndarray:
+    """Tension a three-point-bending sensor reports with T = P l / (4 delta) for a true tension T.
+
+    Seed 001, eqs. (12)-(15): the bending moments M_A + M_C = (3P/4) sqrt(B/T) enter the
+    moment balance T delta + M_A + M_C = P l / 4, so P = 4 T delta / (l - 3 sqrt(B/T)) and
+    the plain formula (16) reports T l / (l - 3 sqrt(B/T)) -- too high, by a relative
+    amount falling as 1/sqrt(T). The deflection delta cancels.
+    """
+    tension = np.asarray(tension, dtype=float)
+    safe = np.where(tension > 0.0, tension, 1.0)
+    x = np.minimum(3.0 * np.sqrt(rigidity / safe) / span, MAX_BENDING)
+    return np.where(tension > 0.0, tension / (1.0 - x), tension)
+
+
+class TensionSensorBending(Effect):
+    """The load pins are three-point-bending sensors evaluated with T = P l / 4 delta (seed 001).
+
+    The plain formula misses the rope's bending rigidity B (EI): the reading is
+    T l / (l - 3 sqrt(B/T)) for a sensor span l (seed 001, eqs. 15-18, solved for the
+    reading). Residual signature: every tension reads high, relatively more at low
+    tension (excess 3 sqrt(B T) / l, roughly).
+    """
+
+    name = "tension_sensor_bending"
+    title = "the tension sensors ignore the rope's bending rigidity (three-point bending, T = Pl/4d)"
+    acts = "measurement"
+    order = 30
+    parameters = (Parameter("B", "N m^2", 100.0, (0.0, 1.0e4), 20.0, "rope bending rigidity EI"),
+                  Parameter("span", "m", 2.0, (0.05, 20.0), 0.1, "sensor span l between the outer rollers",
+                            fit=False))
+    signature = "all tensions read high, relatively more at low tension (excess ~ 3 sqrt(B T) / l)"
+    source = "seed 001, eqs. (12)-(18)"
+
+    def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
+        keys = [f"tension_{name}" for name in CABLE_NAMES]
+        readings = bending_reading(np.array([channels[k] for k in keys]), self["B"], self["span"])
+        channels.update({k: float(v) for k, v in zip(keys, readings)})
