@@ -19,6 +19,7 @@ from .bagio.writer import BagWriter
 from .model.plant import Plant, load_plant
 from .monitor import fields
 from .monitor.alarm import AlarmLevel
+from .monitor.lookahead import LookaheadPipeline
 from .monitor.pipeline import MonitorPipeline, MonitorStats
 from .progress import Progress
 
@@ -117,20 +118,25 @@ def _outputs(pipeline: MonitorPipeline, item: BagMessage) -> list[records.Record
 
 
 def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
-           staleness: float = 0.5, progress: bool = True) -> ReplaySummary:
+           staleness: float = 0.5, progress: bool = True, batched: bool = True) -> ReplaySummary:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
+
+    With the energy solver and `batched`, the samples of each window of messages are
+    solved at once (monitor.lookahead); the outputs are the per-sample pipeline's.
 
     Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
     while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
     reader = BagReader(bag, INPUT_TOPICS)
-    pipeline = MonitorPipeline(plant or load_plant(), solver, staleness)
+    plant = plant or load_plant()
+    lookahead = batched and solver == "energy"
+    pipeline = LookaheadPipeline(plant, staleness) if lookahead else MonitorPipeline(plant, solver, staleness)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer:
         try:
-            for count, item in enumerate(reader, 1):
+            for count, item in enumerate(pipeline.feed(reader) if lookahead else reader, 1):
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
                 try:
                     outputs = _outputs(pipeline, item)
@@ -138,8 +144,8 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue
                 log_time = fields.stamp_ns(fields.stamp_of(item.message))
-                for topic, msgtype, message in outputs:
-                    writer.write(topic, msgtype, log_time, message)
+                for topic, msgtype, data in outputs:
+                    writer.write_raw(topic, msgtype, log_time, data)
                 bar.update(count)
         except KeyboardInterrupt:
             summary.interrupted = True

@@ -1,8 +1,9 @@
-"""The monitor's outputs as rosbags message objects, from the plain field values of monitor.fields.
+"""The monitor's outputs as CDR bytes, and messages of the type store, from the plain field values of monitor.fields.
 
-`build` turns any nested mapping of field values into a message of the type store, so
-this module holds no field mapping of its own: that lives in monitor/fields.py, shared
-with the live node.
+`build` turns any nested mapping of field values into a message of the type store, and
+the output records are those mappings encoded straight to the bytes that serialising
+the built message gives (bagio.cdr). This module holds no field mapping of its own:
+that lives in monitor/fields.py, shared with the live node.
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from rosbags.typesys.store import Typestore
 from ..monitor import fields
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
+from .cdr import encoder
 from .typestore import typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
@@ -23,7 +25,7 @@ OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/Tension
                 ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals"}
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
-Record = tuple[str, str, Any]  # topic, message type, message
+Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
 
 
 def build(msgtype: str, values: Mapping[str, Any], store: Typestore | None = None) -> Any:
@@ -50,7 +52,8 @@ def _value(kind: tuple[Any, Any], value: Any, store: Typestore) -> Any:
 
 
 def _record(topic: str, values: Mapping[str, Any]) -> Record:
-    return topic, OUTPUT_TYPES[topic], build(OUTPUT_TYPES[topic], values)
+    msgtype = OUTPUT_TYPES[topic]
+    return topic, msgtype, encoder(msgtype)(values)
 
 
 def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[Record]:

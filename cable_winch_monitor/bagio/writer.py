@@ -1,20 +1,27 @@
 """Write a rosbag2 directory (MCAP storage, format version 9, metadata.yaml) through rosbags.
 
 Connections are added on a topic's first message; message definitions come from the
-type store, so the bag carries the schemas that other tools decode it with.
+type store, so the bag carries the schemas that other tools decode it with. Messages go
+into rosbags' MCAP chunk by `_append`, which does what rosbags' `Writer.write` does for an
+uncompressed bag (the same bytes, the same bookkeeping), in one step.
 """
 from __future__ import annotations
 
+import struct
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
 from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.errors import WriterError
 from rosbags.typesys.store import Typestore
 
 from .reader import BagError
 from .typestore import typestore
+
+MESSAGE = struct.Struct("<BQHIQQ")  # opcode 0x05, record length, channel, sequence, log time, publish time
+CHUNK_SIZE = 2 ** 20  # rosbags closes a chunk past this many bytes
 
 
 class BagWriter:
@@ -32,14 +39,34 @@ class BagWriter:
             self._writer.open()
         except (WriterError, OSError) as error:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
+        self._storage: McapWriter = self._writer.storage
 
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes) -> None:
         """CDR bytes as they are, at `log_time` [ns]."""
         connection = self._connections.get(topic)
         if connection is None:
             connection = self._connections[topic] = self._writer.add_connection(topic, msgtype, typestore=self.store)
-        self._writer.write(connection, max(0, log_time), data)
+        self._append(connection.id, max(0, log_time), data)
         self.counts[topic] += 1
+
+    def _append(self, channel: int, time: int, data: bytes) -> None:
+        """rosbags' Writer.write and McapWriter.write (rosbags 0.11.9, no compression) in one step."""
+        writer, storage = self._writer, self._storage
+        writer.counts[channel] += 1
+        storage.channel_stats[channel] += 1
+        if time < writer.min_timestamp:
+            writer.min_timestamp = storage.message_start_time = time
+        if time > writer.max_timestamp:
+            writer.max_timestamp = storage.message_end_time = time
+        chunk = storage.chunk
+        chunk.message_start_time = min(time, chunk.message_start_time)
+        chunk.message_end_time = max(time, chunk.message_end_time)
+        bio = chunk.bio
+        chunk.msgs[channel].append((time, bio.tell()))
+        bio.write(MESSAGE.pack(0x05, MESSAGE.size - 9 + len(data), channel, 0, time, time))
+        bio.write(data)
+        if bio.tell() > CHUNK_SIZE:
+            storage.close_chunk()
 
     def write(self, topic: str, msgtype: str, log_time: int, message: Any) -> None:
         """A rosbags message object, serialised to CDR."""

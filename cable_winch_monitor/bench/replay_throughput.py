@@ -20,8 +20,9 @@ from ..sim.simulate import simulate
 CLI = Path(sys.executable).parent / "cable-winch-monitor"
 
 
-def replay_child(bag: Path, out: Path) -> tuple[int, float, float]:
-    """Samples, wall time [s] and peak RSS [MiB] of `cable-winch-monitor replay` in a child process."""
+def replay_child(bag: Path, out: Path) -> tuple[int, float, float, float]:
+    """Samples, wall time [s], peak RSS [MiB] of `cable-winch-monitor replay` in a child process, and
+    the replay's own wall time [s] (without interpreter start-up)."""
     started = time.perf_counter()
     child = subprocess.Popen([str(CLI), "replay", str(bag), "--out", str(out), "--quiet"], stdout=subprocess.PIPE,
                              text=True)
@@ -33,7 +34,8 @@ def replay_child(bag: Path, out: Path) -> tuple[int, float, float]:
     if child.returncode != 0:
         raise RuntimeError(f"replay of {bag} failed:\n{stdout}")
     samples = int(re.search(r"^samples: (\d+)", stdout, re.M).group(1))
-    return samples, wall, usage.ru_maxrss / 1024.0
+    replay_wall = float(re.search(r"^wall time ([\d.]+) s", stdout, re.M).group(1))
+    return samples, wall, usage.ru_maxrss / 1024.0, replay_wall
 
 
 def main() -> None:
@@ -46,7 +48,7 @@ def main() -> None:
             result = simulate(config, directory / name)
             simulated = time.perf_counter() - started
             size = sum(f.stat().st_size for f in (directory / name).glob("*.mcap")) / 2 ** 20
-            samples, wall, rss = replay_child(directory / name, directory / f"{name}_out")
+            samples, wall, rss, _ = replay_child(directory / name, directory / f"{name}_out")
             rows.append((name, sum(result.messages.values()), size, simulated, samples, wall, rss))
     print("replay throughput (cable-winch-monitor replay, one core; seed-002 plant, energy solver)")
     print(f"{'bag':<8}{'messages':>10}{'MiB':>7}{'simulate [s]':>14}{'samples':>9}{'replay [s]':>12}"

@@ -1,0 +1,151 @@
+"""Compiled little-endian CDR encoders: a message's nested field mapping straight to bytes.
+
+`encoder(msgtype)` generates, once per type, a function that packs the mapping that
+`records.build` would turn into a message object, giving the bytes that rosbags'
+`serialize_cdr` gives for that object (on a little-endian host) without building it.
+Nested messages are inlined; runs of scalars whose alignment is known when the code is
+generated become one `struct` call, and padding is computed at run time only after
+strings and sequences, whose lengths vary.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+from struct import Struct, pack
+from typing import Any, Callable, Mapping
+
+from rosbags.interfaces import Nodetype
+from rosbags.typesys.store import Typestore
+
+from .typestore import typestore
+
+HEADER = b"\x00\x01\x00\x00"  # CDR_LE encapsulation
+SCALAR = {"bool": "?", "byte": "b", "char": "B", "int8": "b", "uint8": "B", "int16": "h", "uint16": "H",
+          "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q", "float32": "f", "float64": "d"}
+ELEMENT = {**SCALAR, "byte": "B"}  # rosbags packs byte arrays as uint8
+SIZE = {name: Struct("<" + code).size for name, code in SCALAR.items()}
+
+Encoder = Callable[[Mapping[str, Any]], bytes]
+
+
+class _Generator:
+    """Source of one encoder; the offset is known modulo `base` to be `rem` (0 = after the header)."""
+
+    def __init__(self, store: Typestore):
+        self.store = store
+        self.lines: list[str] = []
+        self.structs: dict[str, str] = {}  # struct format -> name in the generated code
+        self.fmt, self.args = "", []
+        self.base, self.rem, self.indent, self.names = 8, 0, 1, 0
+
+    def emit(self, line: str) -> None:
+        self.lines.append("    " * self.indent + line)
+
+    def fresh(self) -> str:
+        self.names += 1
+        return f"v{self.names}"
+
+    def local(self, expr: str) -> str:
+        """A new local variable holding `expr`."""
+        name = self.fresh()
+        self.emit(f"{name} = {expr}")
+        return name
+
+    def flush(self) -> None:
+        """Pack the pending run of scalars."""
+        if self.fmt:
+            name = self.structs.setdefault("<" + self.fmt, f"S{len(self.structs)}")
+            self.emit(f"out += {name}.pack({', '.join(self.args)})")
+            self.fmt, self.args = "", []
+
+    def unknown(self, align: int = 1) -> None:
+        """After variable-length data: the offset is known only modulo `align`."""
+        self.flush()
+        self.base, self.rem = align, 0
+
+    def align(self, size: int) -> None:
+        if size <= self.base:
+            pad = -self.rem % size
+            self.fmt += "x" * pad
+            self.rem = (self.rem + pad) % self.base
+        else:
+            self.flush()
+            self.emit(f"out += bytes((4 - len(out)) % {size})")
+            self.base, self.rem = size, 0
+
+    def scalar(self, code: str, size: int, arg: str, count: int = 1) -> None:
+        """`count` values of `size` bytes each, packed with `code` from the argument expression `arg`."""
+        self.align(size)
+        self.fmt += code if count == 1 else f"{count}{code}"
+        self.args.append(arg)
+        self.rem = (self.rem + size * count) % self.base
+
+    def string(self, expr: str) -> None:
+        encoded = self.local(f"{expr}.encode()")
+        self.scalar("I", 4, f"len({encoded}) + 1")
+        self.flush()
+        self.emit(f"out += {encoded}")
+        self.emit("out.append(0)")
+        self.unknown()
+
+    def message(self, msgtype: str, expr: str) -> None:
+        for name, (node, argument) in self.store.fielddefs[msgtype][1]:
+            self.field(node, argument, f"{expr}[{name!r}]")
+
+    def field(self, node: int, argument: Any, expr: str) -> None:
+        if node == Nodetype.NAME:
+            self.message(argument, expr)
+        elif node == Nodetype.BASE:
+            self.base_value(argument[0], expr)
+        else:
+            (inner, inner_argument), length = argument
+            value = self.local(expr)
+            if node == Nodetype.SEQUENCE:
+                self.scalar("I", 4, f"len({value})")
+            elif inner == Nodetype.BASE and inner_argument[0] in ELEMENT:
+                self.scalar(ELEMENT[inner_argument[0]], SIZE[inner_argument[0]], f"*{value}", length)
+                return
+            self.items(inner, inner_argument, value)
+
+    def base_value(self, name: str, expr: str) -> None:
+        if name == "string":
+            self.string(expr)
+        elif name in SCALAR:
+            self.scalar(SCALAR[name], SIZE[name], expr)
+        else:
+            raise TypeError(f"CDR encoder: type {name} is not supported")
+
+    def items(self, inner: int, inner_argument: Any, value: str) -> None:
+        """The elements of a sequence (after its count) or of an array of strings or messages."""
+        self.flush()
+        if inner == Nodetype.BASE and inner_argument[0] in ELEMENT:
+            size = SIZE[inner_argument[0]]
+            self.emit(f"if len({value}):")
+            if size > 4:  # rosbags aligns the elements only when there are any
+                self.emit(f"    out += bytes((4 - len(out)) % {size})")
+            self.emit(f"    out += pack(f'<{{len({value})}}{ELEMENT[inner_argument[0]]}', *{value})")
+            self.unknown(min(size, 4))
+            return
+        item = self.fresh()
+        self.emit(f"for {item} in {value}:")
+        self.indent += 1
+        self.unknown()
+        self.field(inner, inner_argument, item)
+        self.flush()
+        self.indent -= 1
+        self.unknown()
+
+    def source(self, msgtype: str) -> str:
+        self.message(msgtype, "v")
+        self.flush()
+        return "\n".join(["def encode(v):", f"    out = bytearray({HEADER!r})", *self.lines, "    return bytes(out)"])
+
+
+@lru_cache(maxsize=None)
+def encoder(msgtype: str, store: Typestore | None = None) -> Encoder:
+    """The compiled encoder of `msgtype` (values as for `records.build`)."""
+    generator = _Generator(store or typestore())
+    source = generator.source(msgtype)
+    namespace: dict[str, Any] = {"pack": pack}
+    namespace.update({name: Struct(fmt) for fmt, name in generator.structs.items()})
+    exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)  # noqa: S102 - generated above
+    return namespace["encode"]

@@ -1,0 +1,284 @@
+"""Many equilibria at once: Newton on the KKT conditions with numpy batched linear algebra.
+
+Replay and fitting solve thousands of samples whose answers are known to the monitor's
+per-sample solver (`energy.py`); here the same KKT system, force and moment balance
+about C and |A_i B_i| = l_i on the taut cables, is solved for a whole chunk of samples
+per numpy call: samples are grouped by taut set, each group's stacked (n, 6+k, 6+k)
+Jacobians go to one `np.linalg.solve`. A chunk starts from the previous chunk's last
+solution (warm start along the trajectory). The taut set is changed by the per-sample
+solver's rules, batched; a sample that does not settle on an admissible set of two or
+three taut cables (no convergence, four taut, single cable, bad input) is handed to
+`solve_energy`, warm-started from its predecessor. The answers are the same.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTON_TOL, SLACK_TOL, TENSION_TOL, \
+    solve_energy
+from .plant import Plant
+from .result import Solution, SolveStatus, solved
+
+CHUNK = 1024              # samples solved together from one warm start
+EZ = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass
+class BatchSolution:
+    """Equilibria of N samples as arrays; `solution(i)` gives sample i as a `Solution`.
+
+    Rows solved by the per-sample fallback keep their `Solution` in `fallback` (a
+    single-cable state, a failure, four taut cables); their arrays hold what it says.
+    """
+
+    plant: Plant
+    lengths: np.ndarray                 # (N, 4) [m]
+    status: np.ndarray                  # (N,) SolveStatus values
+    taut: np.ndarray                    # (N, 4) bool
+    tensions: np.ndarray                # (N, 4) [N]
+    rotation: np.ndarray                # (N, 3, 3)
+    position: np.ndarray                # (N, 3) [m]
+    iterations: np.ndarray              # (N,) Newton steps
+    fallback: dict[int, Solution] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.lengths)
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.status == SolveStatus.SOLVED.value
+
+    def solution(self, i: int) -> Solution:
+        """Sample i as the per-sample solver's result type."""
+        if i in self.fallback:
+            return self.fallback[i]
+        return solved(self.plant, METHOD, self.lengths[i], self.rotation[i], self.position[i], self.tensions[i],
+                      self.taut[i], int(self.iterations[i]))
+
+    def solutions(self) -> list[Solution]:
+        return [self.solution(i) for i in range(len(self))]
+
+
+def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None = None) -> BatchSolution:
+    """Equilibria for the rows of `lengths` (N, 4), in order along a trajectory; never raises."""
+    lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
+    count = len(lengths)
+    out = BatchSolution(plant, lengths, np.full(count, SolveStatus.SOLVER_FAILED.value, dtype=object),
+                        np.zeros((count, 4), bool), np.full((count, 4), np.nan), np.full((count, 3, 3), np.nan),
+                        np.full((count, 3), np.nan), np.zeros(count, int))
+    seed = warm_start if warm_start is not None and warm_start.ok else None
+    for start in range(0, count, CHUNK):
+        rows = np.arange(start, min(start + CHUNK, count))
+        valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0), axis=1)]
+        if seed is None and valid.size:
+            seed = _fallback(plant, out, int(valid[0]), None)
+        if seed is not None and seed.ok:
+            with np.errstate(all="ignore"):
+                _solve_chunk(plant, out, valid, seed)
+        for i in rows[out.status[rows] != SolveStatus.SOLVED.value]:
+            _fallback(plant, out, int(i), _previous(out, int(i), seed))
+        last = rows[out.ok[rows]]
+        seed = out.solution(int(last[-1])) if last.size else seed
+    return out
+
+
+def _previous(out: BatchSolution, i: int, seed: Solution | None) -> Solution | None:
+    """The solved predecessor of row i (warm start of the fallback), else the chunk's seed."""
+    return out.solution(i - 1) if i > 0 and out.ok[i - 1] else seed
+
+
+def _fallback(plant: Plant, out: BatchSolution, i: int, warm: Solution | None) -> Solution:
+    """Row i by the per-sample solver, recorded in `out`."""
+    solution = solve_energy(plant, out.lengths[i], warm_start=warm)
+    out.fallback[i] = solution
+    out.status[i] = solution.status.value
+    out.iterations[i] = solution.iterations
+    for name in ("taut", "tensions", "rotation", "position"):
+        value = getattr(solution, name)
+        if value is not None:
+            getattr(out, name)[i] = value
+    return solution
+
+
+@dataclass
+class _Group:
+    """Samples being solved on one taut set: pose, multipliers mu = tau / mg, steps."""
+
+    rows: np.ndarray
+    active: np.ndarray   # (4,) bool, the taut set
+    rotation: np.ndarray
+    position: np.ndarray
+    mu: np.ndarray       # (n, 4)
+    steps: np.ndarray
+
+
+def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:
+    """Batched Newton on the rows of one chunk, every taut set from the same start pose (as `energy`)."""
+    lengths = out.lengths[rows]
+    start_rotation = np.broadcast_to(seed.rotation, (rows.size, 3, 3)).copy()
+    start_position = seed.position + np.outer(seed.lengths.mean() - lengths.mean(axis=1), EZ)
+    active = np.broadcast_to(seed.taut, (rows.size, 4)).copy()
+    mu = np.broadcast_to(seed.tensions / plant.weight, (rows.size, 4)).copy()
+    pending = np.arange(rows.size)
+    steps = np.zeros(rows.size, int)
+    tried: list[np.ndarray] = []
+    for _ in range(ACTIVE_SET_ROUNDS):
+        tried.append(active.copy())
+        for pattern in np.unique(active[pending], axis=0):
+            local = pending[np.all(active[pending] == pattern, axis=1)]
+            if pattern.sum() not in (2, 3):
+                continue  # four taut (nearly singular) or one taut (single-cable test): per sample
+            group = _Group(local, pattern, start_rotation[local], start_position[local], mu[local], steps[local])
+            converged = _newton(plant, lengths[local], group)
+            steps[local] = group.steps
+            mu[local] = group.mu
+            done, nxt = _verdict(plant, lengths[local], group, converged, start_rotation[local])
+            _store(plant, out, rows[local[done]], group, done)
+            active[local[~done]] = nxt[~done]
+            mu[local[~done]] = np.where(nxt[~done], mu[local[~done]], 0.0)
+        pending = pending[out.status[rows[pending]] != SolveStatus.SOLVED.value]
+        repeated = np.any([np.all(active[pending] == t[pending], axis=1) for t in tried], axis=0)
+        pending = pending[~repeated & (active[pending].sum(axis=1) > 0)]
+        if not pending.size:
+            return
+
+
+def _geometry(plant: Plant, rotation: np.ndarray, position: np.ndarray):
+    """Arms R b_i (n, 4, 3), lever arms about C, unit spans and span lengths (n, 4)."""
+    arms = np.einsum("nij,cj->nci", rotation, plant.attachments)
+    levers = arms - np.einsum("nij,j->ni", rotation, plant.cog)[:, None, :]
+    spans = position[:, None, :] + arms - plant.anchors
+    norms = np.linalg.norm(spans, axis=2)
+    return arms, levers, spans / norms[..., None], norms
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """[v]x for stacked 3-vectors (..., 3) -> (..., 3, 3)."""
+    zero = np.zeros(v.shape[:-1])
+    return np.stack([np.stack([zero, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], zero, -v[..., 0]], -1),
+                     np.stack([-v[..., 1], v[..., 0], zero], -1)], -2)
+
+
+def _rotations(omega: np.ndarray) -> np.ndarray:
+    """exp([omega]x) for stacked rotation vectors (Rodrigues)."""
+    angle = np.linalg.norm(omega, axis=1)
+    small = angle < 1e-12
+    axis = omega / np.where(small, 1.0, angle)[:, None]
+    k = _skew(axis)
+    sin, cos = np.sin(angle)[:, None, None], (1.0 - np.cos(angle))[:, None, None]
+    exact = np.eye(3) + sin * k + cos * (k @ k)
+    return np.where(small[:, None, None], np.eye(3) + _skew(omega), exact)
+
+
+def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
+    """Newton steps on the group's taut set until every sample converges; True where converged.
+
+    The equations, unknowns and step limits are those of `energy._newton`, with an exact
+    solve in place of least squares (two or three taut cables are never redundant).
+    """
+    idx = np.flatnonzero(group.active)
+    k, scale = idx.size, plant.moment_scale
+    tolerance = NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2)
+    converged = np.zeros(len(lengths), bool)
+    live = np.arange(len(lengths))
+    for _ in range(NEWTON_MAX_STEPS + 1):
+        arms, levers, units, norms = _geometry(plant, group.rotation[live], group.position[live])
+        r, q, u, mu = arms[:, idx], levers[:, idx], units[:, idx], group.mu[live][:, idx]
+        moments = np.cross(q, u)
+        residual = np.concatenate([np.einsum("nc,nci->ni", mu, u) + EZ,
+                                   np.einsum("nc,nci->ni", mu, moments) / scale,
+                                   norms[:, idx] - lengths[live][:, idx]], axis=1)
+        ok = np.abs(residual).max(axis=1) < tolerance[live]
+        converged[live[ok]] = True
+        live, residual = live[~ok], residual[~ok]
+        if not live.size or _ == NEWTON_MAX_STEPS:
+            break
+        r, q, u, mu, moments, norms = r[~ok], q[~ok], u[~ok], mu[~ok], moments[~ok], norms[~ok][:, idx]
+        projector = (np.eye(3) - u[..., :, None] * u[..., None, :]) / norms[..., None, None]
+        sr, sq = _skew(r), _skew(q)
+        weight = mu[..., None, None]
+        jacobian = np.zeros((live.size, 6 + k, 6 + k))
+        jacobian[:, 0:3, 0:3] = np.sum(weight * projector, axis=1)
+        jacobian[:, 0:3, 3:6] = -np.sum(weight * projector @ sr, axis=1)
+        jacobian[:, 3:6, 0:3] = np.sum(weight * sq @ projector, axis=1) / scale
+        jacobian[:, 3:6, 3:6] = np.sum(weight * (_skew(u) @ sq - sq @ projector @ sr), axis=1) / scale
+        jacobian[:, 0:3, 6:] = u.transpose(0, 2, 1)
+        jacobian[:, 3:6, 6:] = moments.transpose(0, 2, 1) / scale
+        jacobian[:, 6:, 0:3] = u
+        jacobian[:, 6:, 3:6] = np.cross(r, u)
+        try:
+            step = np.linalg.solve(jacobian, -residual[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            break  # a singular system in the stack: these samples go to the per-sample solver
+        largest = np.maximum.reduce([np.abs(step[:, 3:6]).max(axis=1) / 0.2,
+                                     np.abs(step[:, 0:3]).max(axis=1) / (0.2 * scale), np.ones(live.size)])
+        step /= largest[:, None]
+        group.position[live] += step[:, 0:3]
+        group.rotation[live] = _rotations(step[:, 3:6]) @ group.rotation[live]
+        group.mu[live[:, None], idx] += step[:, 6:]
+        group.steps[live] += 1
+    return converged
+
+
+def _verdict(plant: Plant, lengths: np.ndarray, group: _Group, converged: np.ndarray,
+             start_rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which samples are done (converged, admissible, not turned away), and the taut set to try next.
+
+    Next, as `energy._next_active_sets` ranks first: a negative tension releases the least
+    loaded cable; an overstretched slack cable is taken up, in exchange for the taut cable
+    whose set balances the weight best at this pose (added when fewer than three are taut).
+    """
+    _, _, units, norms = _geometry(plant, group.rotation, group.position)
+    active, mu = group.active, group.mu
+    cosine = (np.einsum("nij,nij->n", group.rotation, start_rotation) - 1.0) / 2.0
+    turned = np.arccos(np.clip(cosine, -1.0, 1.0)) >= MAX_TURN
+    rounding = SLACK_TOL * np.maximum(lengths.max(axis=1), plant.moment_scale)
+    overstretch = np.where(active, -np.inf, norms - lengths)
+    negative = mu[:, active].min(axis=1) < -TENSION_TOL
+    stretched = overstretch.max(axis=1) > rounding
+    done = converged & ~turned & ~negative & ~stretched
+    nxt = np.broadcast_to(active, mu.shape).copy()
+    taut = np.flatnonzero(active)
+    loaded = np.where(active, mu, np.inf)
+    release = converged & negative
+    nxt[release, np.argmin(loaded[release], axis=1)] = False
+    take = converged & ~negative & (overstretch.max(axis=1) > 0.0) & ~done
+    cable = np.argmax(overstretch, axis=1)
+    nxt[take, cable[take]] = True
+    if taut.size >= 3 and take.any():
+        nxt[take, _best_exchange(plant, group, units, take, cable, taut)] = False
+    nxt[~converged] = False  # no convergence: left to the per-sample solver
+    return done, nxt
+
+
+def _best_exchange(plant: Plant, group: _Group, units: np.ndarray, rows: np.ndarray, cable: np.ndarray,
+                   taut: np.ndarray) -> np.ndarray:
+    """For each row, the taut cable to release so that the set with `cable` best holds the weight."""
+    arms = np.einsum("nij,cj->nci", group.rotation[rows], plant.attachments)
+    levers = arms - np.einsum("nij,j->ni", group.rotation[rows], plant.cog)[:, None, :]
+    structure = np.concatenate([units[rows], np.cross(levers, units[rows])], axis=2)  # (n, 4, 6)
+    wrench, norm = plant.wrench, float(np.linalg.norm(plant.wrench))
+    misfits = []
+    for out in taut:
+        keep = np.stack([np.where(c == out, cable[rows], c) for c in taut], axis=1)  # (n, k)
+        columns = np.take_along_axis(structure, keep[..., None], axis=1).transpose(0, 2, 1)  # (n, 6, k)
+        tensions = np.linalg.pinv(columns) @ wrench
+        residual = np.linalg.norm(np.einsum("nij,nj->ni", columns, tensions) - wrench, axis=1)
+        misfits.append(residual / norm + np.maximum(0.0, -tensions.min(axis=1)) / norm)
+    return taut[np.argmin(np.stack(misfits, axis=1), axis=1)]
+
+
+def _store(plant: Plant, out: BatchSolution, rows: np.ndarray, group: _Group, done: np.ndarray) -> None:
+    """Record the admissible samples as `energy._result` does (tensions below TENSION_TOL mg are zero)."""
+    tensions = np.where(group.active, group.mu[done], 0.0) * plant.weight
+    taut = tensions > TENSION_TOL * plant.weight
+    few = taut.sum(axis=1) < 2  # one taut cable: the single-cable test of the per-sample solver decides
+    rows, tensions, taut = rows[~few], tensions[~few], taut[~few]
+    out.status[rows] = SolveStatus.SOLVED.value
+    out.taut[rows] = taut
+    out.tensions[rows] = np.where(taut, tensions, 0.0)
+    out.rotation[rows] = group.rotation[done][~few]
+    out.position[rows] = group.position[done][~few]
+    out.iterations[rows] = group.steps[done][~few]

@@ -1,0 +1,108 @@
+"""The fast output path (compiled CDR encoders, direct MCAP append) gives the generic path's bytes.
+
+The generic path is rosbags' own: `records.build` -> `Typestore.serialize_cdr` -> `Writer.write`.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from cable_winch_monitor.bagio import records
+from cable_winch_monitor.bagio.cdr import encoder
+from cable_winch_monitor.bagio.typestore import typestore
+from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.paths import demo_bag
+from cable_winch_monitor.replay import replay
+
+BAG = demo_bag()  # bags/all_channels
+NAN = float("nan")
+
+
+def generic_encoder(msgtype: str) -> Any:
+    store = typestore()
+    return lambda values: bytes(store.serialize_cdr(records.build(msgtype, values), msgtype))
+
+
+def generic_append(self: BagWriter, channel: int, time: int, data: bytes) -> None:
+    writer = self._writer
+    writer.write(next(c for c in writer.connections if c.id == channel), time, data)
+
+
+def mcap_messages(bag: Path) -> list[tuple[str, int, bytes]]:
+    """(topic, log time, CDR bytes) of every message, read with mcap; each one decoded by mcap-ros2."""
+    (file,) = bag.glob("*.mcap")
+    with file.open("rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        return [(channel.topic, message.log_time, message.data)
+                for _, channel, message, _ in reader.iter_decoded_messages(log_time_order=False)]
+
+
+@pytest.fixture(scope="module")
+def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """bags/all_channels replayed by the generic path and by the fast path (as `out`, in two directories)."""
+    generic, fast = (tmp_path_factory.mktemp(name) / "out" for name in ("generic", "fast"))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(records, "encoder", generic_encoder)
+        patch.setattr(BagWriter, "_append", generic_append)
+        replay(BAG, generic, progress=False)
+    replay(BAG, fast, progress=False)
+    return generic, fast
+
+
+def test_every_output_message_identical(replays: tuple[Path, Path]) -> None:
+    generic, fast = (mcap_messages(bag) for bag in replays)
+    outputs = [m for m in fast if m[0] in records.OUTPUT_TYPES]
+    assert len(outputs) > 1000 and {m[0] for m in outputs} == set(records.OUTPUT_TYPES)
+    assert len(fast) == len(generic)
+    for index, (want, got) in enumerate(zip(generic, fast)):
+        assert got == want, f"message {index} ({want[0]}) differs"
+
+
+def test_bag_files_identical(replays: tuple[Path, Path]) -> None:
+    generic, fast = replays
+    for name in ("metadata.yaml", "out.mcap"):
+        assert (fast / name).read_bytes() == (generic / name).read_bytes(), name
+
+
+def header(sec: int = 12, nanosec: int = 345_678_901, frame_id: str = "shaft") -> dict[str, Any]:
+    return {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": frame_id}
+
+
+def xyz(*values: float) -> dict[str, float]:
+    return dict(zip("xyz", values))
+
+
+EDGE_CASES = [
+    ("cable_winch_monitor_msgs/msg/ModelResiduals",
+     {"header": header(frame_id=""), "channels": [], "measured": [], "predicted": [], "residuals": [], "noise": []}),
+    ("cable_winch_monitor_msgs/msg/ModelResiduals",
+     {"header": header(-1, 0, "shäft"), "channels": ["a", "roll", ""], "measured": [1.0, -0.0, NAN],
+      "predicted": [float("inf"), 2.5, 1e-300], "residuals": [0.1], "noise": [NAN, NAN]}),
+    ("cable_winch_monitor_msgs/msg/CollisionAlarm",
+     {"header": header(frame_id="ab"), "level": 3, "clearance": -0.25, "closest_point_name": "deck_1/p3",
+      "closest_point_platform": xyz(1, 2, 3), "closest_point_shaft": xyz(NAN, NAN, NAN),
+      "sync_error_pairs": ["cable_1-cable_2"], "sync_errors": [], "reason": "clearance"}),
+    ("cable_winch_monitor_msgs/msg/TensionDistribution",
+     {"header": header(frame_id="abc"), "status": 4, "tension_state": "", "cables": [
+         {"name": f"cable_{i}" * i, "length": 1.0 * i, "span": NAN, "tension": 0.0, "taut": i % 2 == 0}
+         for i in range(1, 4)], "equilibrium_residual": 1e-9, "solver": "energy", "iterations": 2 ** 32 - 1}),
+    ("geometry_msgs/msg/PoseStamped",
+     {"header": header(frame_id="abcd"), "pose": {"position": xyz(NAN, 0.5, -7), "orientation": {
+         "x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}),
+    ("sensor_msgs/msg/Imu",
+     {"header": header(frame_id="x"), "orientation": {"x": 0.1, "y": 0.2, "z": 0.3, "w": 0.9},
+      "orientation_covariance": [0.5] * 9, "angular_velocity": xyz(1, 2, 3),
+      "angular_velocity_covariance": list(range(9)), "linear_acceleration": xyz(0, 0, 9.81),
+      "linear_acceleration_covariance": [-1.0] * 9}),
+    ("sensor_msgs/msg/JointState",
+     {"header": header(), "name": ["cable_1", "cable_2"], "position": [1.0, 2.0], "velocity": [], "effort": [3.0]}),
+]
+
+
+@pytest.mark.parametrize(("msgtype", "values"), EDGE_CASES, ids=[f"{t}-{i}" for i, (t, _) in enumerate(EDGE_CASES)])
+def test_encoder_matches_rosbags(msgtype: str, values: dict[str, Any]) -> None:
+    assert encoder(msgtype)(values) == generic_encoder(msgtype)(values)
