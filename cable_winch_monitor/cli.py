@@ -83,9 +83,10 @@ def _record(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
+    from .analysis.diagnose import diagnose_bag
     from .bench.suite import run_suite
 
-    return run_suite(args.samples, args.large_mb, args.fleet_bags)
+    return run_suite(args.samples, args.large_mb, args.fleet_bags, diagnose=diagnose_bag)
 
 
 def _limits(args: argparse.Namespace) -> int:

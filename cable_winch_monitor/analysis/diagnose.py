@@ -20,13 +20,15 @@ further rounds only while the held-out score is above the sensor-noise floor.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
 
 from ..effects import PlantModel, available
-from .data import Dataset
-from .evaluate import ChannelStats, Evaluator, channel_stats, score, split, thin
+from ..model.plant import Plant, load_plant
+from .data import Dataset, read_bag
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score, split, thin
 from .fit import FitResult, chi_square, fit_effects
 
 PER_KIND_SCREEN = 50   # training rows per sensor kind to screen candidates on
@@ -138,3 +140,10 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     channels = channel_stats(held.residuals(base), held.data.measured, noise)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
                      screen.solves + train.solves + held.solves, channels)
+
+
+def diagnose_bag(bag: str | Path, plant: Plant | None = None) -> Diagnosis:
+    """Read a bag and diagnose it against a plant (the bundled one by default), its effects included."""
+    data = read_bag(bag)
+    model = PlantModel.from_plant(plant or load_plant())
+    return diagnose(model, data, noise(model.plant, data)[0])
