@@ -9,16 +9,14 @@ solution of J^T tau = F; that form serves plants that are not the paper's rectan
 """
 from __future__ import annotations
 
-from itertools import combinations
-
 import numpy as np
 
 from .geometry import structure_matrix
 from .plant import Plant
 from .result import Solution, solved
+from .tensions import least_norm_tensions
 
 PLUMB_TOL = 1e-9  # [m] attachments must repeat the anchors' layout for a level, plumb hang
-BALANCE_TOL = 1e-9  # relative residual of J^T tau = F for a subset to count as balancing
 
 
 def plumb_when_level(plant: Plant) -> bool:
@@ -58,27 +56,6 @@ def rectangle_tensions(k1: float, k2: float) -> np.ndarray:
     _, low, high = tau4_interval(k1, k2)
     tau4 = min(max(tau4_star(k1, k2), low), high)  # the three rules: tau4L, tau4* or tau4R
     return np.array([(1.0 + k1) / 2.0, (k2 - k1) / 2.0, (1.0 - k2) / 2.0, 0.0]) + tau4 * np.array([-1.0, 1.0, -1.0, 1.0])
-
-
-def least_norm_tensions(structure: np.ndarray, wrench: np.ndarray) -> np.ndarray | None:
-    """The least-norm tau >= 0 with structure @ tau = wrench, or None if there is none.
-
-    At the optimum the positive tensions are the least-norm solution on their own columns
-    (KKT), so trying every subset of columns and keeping the smallest feasible one is exact.
-    """
-    best: np.ndarray | None = None
-    scale = float(np.linalg.norm(wrench))
-    for size in range(1, structure.shape[1] + 1):
-        for subset in combinations(range(structure.shape[1]), size):
-            columns = structure[:, subset]
-            part = np.linalg.lstsq(columns, wrench, rcond=None)[0]
-            if np.linalg.norm(columns @ part - wrench) > BALANCE_TOL * scale or part.min() < -BALANCE_TOL * scale:
-                continue
-            tau = np.zeros(structure.shape[1])
-            tau[list(subset)] = np.maximum(part, 0.0)
-            if best is None or tau @ tau < best @ best:
-                best = tau
-    return best
 
 
 def even_tensions(plant: Plant, points_b: np.ndarray, point_c: np.ndarray) -> np.ndarray | None:
