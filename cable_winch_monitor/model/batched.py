@@ -18,6 +18,7 @@ import numpy as np
 
 from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTON_TOL, SLACK_TOL, TENSION_TOL, \
     solve_energy
+from .geometry import skew
 from .plant import Plant
 from .result import Solution, SolveStatus, solved
 
@@ -154,22 +155,15 @@ def _geometry(plant: Plant, rotation: np.ndarray, position: np.ndarray):
     return arms, levers, spans / norms[..., None], norms
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    """[v]x for stacked 3-vectors (..., 3) -> (..., 3, 3)."""
-    zero = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([zero, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], zero, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], zero], -1)], -2)
-
-
 def _rotations(omega: np.ndarray) -> np.ndarray:
     """exp([omega]x) for stacked rotation vectors (Rodrigues)."""
     angle = np.linalg.norm(omega, axis=1)
     small = angle < 1e-12
     axis = omega / np.where(small, 1.0, angle)[:, None]
-    k = _skew(axis)
+    k = skew(axis)
     sin, cos = np.sin(angle)[:, None, None], (1.0 - np.cos(angle))[:, None, None]
     exact = np.eye(3) + sin * k + cos * (k @ k)
-    return np.where(small[:, None, None], np.eye(3) + _skew(omega), exact)
+    return np.where(small[:, None, None], np.eye(3) + skew(omega), exact)
 
 
 def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
@@ -197,13 +191,13 @@ def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
             break
         r, q, u, mu, moments, norms = r[~ok], q[~ok], u[~ok], mu[~ok], moments[~ok], norms[~ok][:, idx]
         projector = (np.eye(3) - u[..., :, None] * u[..., None, :]) / norms[..., None, None]
-        sr, sq = _skew(r), _skew(q)
+        sr, sq = skew(r), skew(q)
         weight = mu[..., None, None]
         jacobian = np.zeros((live.size, 6 + k, 6 + k))
         jacobian[:, 0:3, 0:3] = np.sum(weight * projector, axis=1)
         jacobian[:, 0:3, 3:6] = -np.sum(weight * projector @ sr, axis=1)
         jacobian[:, 3:6, 0:3] = np.sum(weight * sq @ projector, axis=1) / scale
-        jacobian[:, 3:6, 3:6] = np.sum(weight * (_skew(u) @ sq - sq @ projector @ sr), axis=1) / scale
+        jacobian[:, 3:6, 3:6] = np.sum(weight * (skew(u) @ sq - sq @ projector @ sr), axis=1) / scale
         jacobian[:, 0:3, 6:] = u.transpose(0, 2, 1)
         jacobian[:, 3:6, 6:] = moments.transpose(0, 2, 1) / scale
         jacobian[:, 6:, 0:3] = u

@@ -36,7 +36,7 @@ from scipy.optimize import root
 
 from .critical_lengths import describe, rotation_range
 from .equal_lengths import even_tensions, level_pose, solve_equal_lengths
-from .geometry import cross, fit_rotation, wrench_residual
+from .geometry import cross, fit_rotation, skew, wrench_residual
 from .planar import solve_planar
 from .plant import Plant
 from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
@@ -48,13 +48,6 @@ TWO_CABLE_STATES = tuple(combinations(range(4), 2))
 THREE_CABLE_STATES = tuple(combinations(range(4), 3))
 PAIRS = tuple(combinations(range(4), 2))
 E_Z = np.array([0.0, 0.0, 1.0])
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """[v]x for each row of v, shape (n, 3, 3)."""
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    return out - np.swapaxes(out, -1, -2)
 
 
 class TautModel:
@@ -96,9 +89,9 @@ class TautModel:
         out[6:6 + n, :12] = (mix[:, :, None] * units[:, None, :]).reshape(n, 12)
         out[6 + n:9 + n, :12] = np.kron((t / self.lengths) @ mix, np.eye(3))
         out[6 + n:9 + n, 12:] = units.T
-        turn = (t / self.scale)[:, None, None] * (_skew(arms) / self.lengths[:, None, None] - _skew(units))
+        turn = (t / self.scale)[:, None, None] * (skew(arms) / self.lengths[:, None, None] - skew(units))
         moment = np.einsum("ik,iab->akb", mix, turn)
-        moment[:, 3, :] += np.einsum("i,iab->ab", t / self.scale, _skew(units))
+        moment[:, 3, :] += np.einsum("i,iab->ab", t / self.scale, skew(units))
         out[9 + n:, :12] = moment.reshape(3, 12)
         out[9 + n:, 12:] = cross(arms, units).T / self.scale
         return out
