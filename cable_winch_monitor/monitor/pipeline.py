@@ -18,7 +18,7 @@ from ..model.solve import METHODS, solve
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
 from .inputs import CableLengthMerger, JointSample
-from .residuals import Residuals, imu_channels, position_channels, residuals
+from .residuals import Residuals, imu_channels, noise_levels, position_channels, predicted_channels, residuals
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,7 @@ class MonitorPipeline:
         self.model = model if model.effects else None
         self.direction = np.zeros(4)
         self.last_predicted: dict[str, float] | None = None
+        self.noise = noise_levels(plant)
 
     def _reject(self, topic: str, reason: str) -> None:
         self.stats.rejected[f"{topic}: {reason.split(':')[0]}"] += 1
@@ -109,9 +110,10 @@ class MonitorPipeline:
         return self._equilibrium(lengths)
 
     def _predicted(self, solution: Solution) -> dict[str, float] | None:
-        """Sensor readings under the plant's measurement effects (None: the rigid-model readings)."""
+        """What the sensors should read for a solved sample (None without a pose), under the
+        plant's measurement effects if it has any; kept for the measurements that follow."""
         if self.model is None:
-            return None
+            return predicted_channels(solution) if solution.ok else None
         speeds = np.array([r.velocity if r is not None else np.nan for r in self.merger.readings])
         self.direction = motion_direction(speeds, self.direction)
         if not solution.ok:
@@ -125,7 +127,7 @@ class MonitorPipeline:
         tensions = self.merger.measured_tensions()
         measured = {f"tension_{CABLE_NAMES[i]}": tensions[i] for i in accepted}
         predicted = self._predicted(solution)
-        resid = residuals(self.plant, solution, stamp, measured, predicted) if solution.ok else None
+        resid = residuals(self.noise, stamp, measured, predicted) if predicted is not None else None
         output = MonitorOutput(stamp, solution, clearance, alarm, resid)
         self.stats.solved += int(solution.ok)
         self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
@@ -146,7 +148,7 @@ class MonitorPipeline:
             self._reject(topic, "no solved pose within the staleness limit")
             return None
         self.stats.used[topic] += 1
-        return residuals(self.plant, last.solution, stamp, channels, self.last_predicted)
+        return residuals(self.noise, stamp, channels, self.last_predicted)
 
     def on_imu(self, stamp: float, quaternion_xyzw: np.ndarray, topic: str = "/platform/imu") -> Residuals | None:
         """An inclinometer reading: roll and pitch residuals against the latest solved pose."""

@@ -44,15 +44,13 @@ def predicted_channels(solution: Solution) -> dict[str, float]:
     return channels
 
 
-def residuals(plant: Plant, solution: Solution, stamp: float, measured: Mapping[str, float],
-              predicted: Mapping[str, float] | None = None) -> Residuals | None:
-    """Residuals of the finite measured channels against a solved pose; None if nothing to compare.
+def residuals(noise: Mapping[str, float], stamp: float, measured: Mapping[str, float],
+              predicted: Mapping[str, float]) -> Residuals | None:
+    """Residuals of the finite measured channels; None if nothing to compare.
 
-    `predicted` is what the sensors read under the plant's effects (effects.PlantModel.predict);
-    None means the rigid-model readings of `predicted_channels`.
+    `predicted` is what the sensors read for the solved pose (`predicted_channels`, or
+    effects.PlantModel.predict under the plant's effects); `noise` is `noise_levels(plant)`.
     """
-    predicted = predicted if predicted is not None else predicted_channels(solution)
-    noise = noise_levels(plant)
     names = tuple(k for k, v in measured.items() if k in predicted and np.isfinite(v))
     if not names:
         return None
