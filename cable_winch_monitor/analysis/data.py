@@ -58,10 +58,6 @@ class Dataset:
         return Dataset(self.bag, self.times[rows], self.kinds[rows], self.lengths[rows], self.speeds[rows],
                        self.measured[rows])
 
-    @property
-    def channels_present(self) -> list[int]:
-        return [c for c in range(len(CHANNELS)) if np.isfinite(self.measured[:, c]).any()]
-
 
 def read_bag(bag: str | Path) -> Dataset:
     """Every usable measurement of a bag as a Dataset (BagError if it is not a bag)."""

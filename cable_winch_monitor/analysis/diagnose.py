@@ -52,10 +52,6 @@ class Candidate:
     heldout_delta_bic: float = 0.0
     selected: bool = False
 
-    @property
-    def gain(self) -> float:
-        return self.score_before - self.score_after
-
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "title": type(self.fit.model.get(self.name)).title,
                 "params": {k: v["value"] for k, v in self.fit.params(self.name).items()},

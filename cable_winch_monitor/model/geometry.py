@@ -101,16 +101,6 @@ def fit_rotation(body: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.nd
     return rotation, world_centre - rotation @ body_centre
 
 
-def attachment_points(plant: Plant, rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
-    """B_i in `shaft` for a platform pose, shape (4, 3)."""
-    return position + plant.attachments @ rotation.T
-
-
-def cog_point(plant: Plant, rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
-    """C in `shaft` for a platform pose."""
-    return position + rotation @ plant.cog
-
-
 def structure_matrix(plant: Plant, points_b: np.ndarray, point_c: np.ndarray) -> np.ndarray:
     """J^T of eq. (8): column i is (u_i, CB_i x u_i), u_i the unit vector of A_i B_i. Shape (6, 4).
 
