@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .geometry import cross, rotation_from_vector, skew, structure_matrix
 from .plant import Plant
@@ -147,6 +146,7 @@ def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
         units = spans / np.linalg.norm(spans, axis=1, keepdims=True)
         return -np.hstack([units, cross(arms, units) @ left_jacobian(x[3:])])
 
+    from scipy.optimize import minimize  # imported on first use: scipy.optimize takes 0.4 s to load
     result = minimize(height, start, jac=height_gradient, method="SLSQP",
                       constraints={"type": "ineq", "fun": slack, "jac": slack_jacobian},
                       options={"maxiter": 500, "ftol": 1e-10})

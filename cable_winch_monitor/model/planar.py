@@ -13,7 +13,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import root
 
 from .equal_lengths import even_tensions, level_pose
 from .geometry import structure_matrix
@@ -79,6 +78,7 @@ def solve_planar(plant: Plant, lengths: np.ndarray, tol: float) -> PlanarResult 
     even = even_tensions(plant, guess_b, guess_c)
     start = np.concatenate([guess_b[plus[0], plane], guess_b[minus[0], plane], guess_c[plane],
                             [even[list(plus)].sum() / plant.weight, even[list(minus)].sum() / plant.weight]])
+    from scipy.optimize import root  # imported on first use: scipy.optimize takes 0.4 s to load
     result = root(equations, start, method="hybr", options={"xtol": 1e-14})
     if not np.all(np.isfinite(result.x)):
         return None

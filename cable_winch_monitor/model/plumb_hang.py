@@ -9,7 +9,6 @@ it serves as an independent check of the paper's closed-form critical lengths.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .geometry import rotation_about_z, rotation_aligning
 from .plant import Plant
@@ -69,6 +68,8 @@ class PlumbHang:
         def margin(theta: float) -> float:
             spans = self.spans(theta)
             return float(max(spans[k] - lengths[k] for k in others))
+
+        from scipy.optimize import brentq  # imported on first use: scipy.optimize takes 0.4 s to load
 
         grid = np.linspace(0.0, TWO_PI, SAMPLES + 1)
         values = np.array([margin(t) for t in grid])

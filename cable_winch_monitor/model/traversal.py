@@ -32,7 +32,6 @@ from itertools import combinations
 from typing import Any
 
 import numpy as np
-from scipy.optimize import root
 
 from .critical_lengths import describe, rotation_range
 from .equal_lengths import even_tensions, level_pose, solve_equal_lengths
@@ -98,6 +97,7 @@ class TautModel:
 
     def solve(self, guess: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         """hybr (trust-region dogleg) from the guess: B (4, 3), C, tau_S per mg, evaluations."""
+        from scipy.optimize import root  # imported on first use: scipy.optimize takes 0.4 s to load
         result = root(self.residual, guess, jac=self.jacobian, method="hybr", options={"xtol": 1e-13})
         points = result.x[:12].reshape(4, 3)
         return self.mix @ points, points[3], result.x[12:], int(result.nfev + result.njev)

@@ -6,6 +6,7 @@ never raise: bad input is counted (diagnostics), logged with a throttle and skip
 """
 from __future__ import annotations
 
+import importlib
 import sys
 from typing import Any, Callable, Sequence
 
@@ -75,6 +76,7 @@ class WinchMonitorNode(Node):
         value = self._parameter
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
         self.pipeline = MonitorPipeline(plant, value("solver"), value("staleness"))
+        importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0
 
