@@ -20,7 +20,7 @@ from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTO
     solve_energy
 from .geometry import skew
 from .plant import Plant
-from .result import Solution, SolveStatus, solved
+from .result import Solution, SolveStatus, solved, solved_rows
 
 CHUNK = 1024              # samples solved together from one warm start
 EZ = np.array([0.0, 0.0, 1.0])
@@ -59,7 +59,13 @@ class BatchSolution:
                       self.taut[i], int(self.iterations[i]))
 
     def solutions(self) -> list[Solution]:
-        return [self.solution(i) for i in range(len(self))]
+        """Every sample as a `Solution`; the solved rows are filled in together (`solved_rows`)."""
+        rows = np.array([i for i in range(len(self)) if i not in self.fallback], dtype=int)
+        out = dict(self.fallback)
+        out.update(zip(rows.tolist(), solved_rows(self.plant, METHOD, self.lengths[rows], self.rotation[rows],
+                                                  self.position[rows], self.tensions[rows], self.taut[rows],
+                                                  self.iterations[rows])))
+        return [out[i] for i in range(len(self))]
 
 
 def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None = None) -> BatchSolution:

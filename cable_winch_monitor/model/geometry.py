@@ -1,6 +1,8 @@
 """Rigid-body geometry of the platform: poses, cable spans and the structure matrix of eq. (8)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .plant import Plant
@@ -54,23 +56,24 @@ def rotation_aligning(source: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 
 def quaternion_from_rotation(rotation: np.ndarray) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) of a rotation matrix, w >= 0."""
-    m = rotation
-    trace = np.trace(m)
+    """Unit quaternion (x, y, z, w) of a rotation matrix, w >= 0 (Shepperd's method, on Python floats:
+    a pose is converted for every published sample)."""
+    m = rotation.tolist()
+    trace = m[0][0] + m[1][1] + m[2][2]
     if trace > 0.0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = [(m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s, 0.25 * s]
     else:
-        i = int(np.argmax(np.diag(m)))
+        i = max(range(3), key=lambda k: m[k][k])
         j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = np.empty(4)
+        s = 2.0 * math.sqrt(1.0 + m[i][i] - m[j][j] - m[k][k])
+        q = [0.0] * 4
         q[i] = 0.25 * s
-        q[j] = (m[j, i] + m[i, j]) / s
-        q[k] = (m[k, i] + m[i, k]) / s
-        q[3] = (m[k, j] - m[j, k]) / s
-    q /= np.linalg.norm(q)
-    return q if q[3] >= 0.0 else -q
+        q[j] = (m[j][i] + m[i][j]) / s
+        q[k] = (m[k][i] + m[i][k]) / s
+        q[3] = (m[k][j] - m[j][k]) / s
+    norm = math.sqrt(sum(v * v for v in q)) * (1.0 if q[3] >= 0.0 else -1.0)
+    return np.array([v / norm for v in q])
 
 
 def rotation_from_quaternion(quaternion_xyzw: np.ndarray) -> np.ndarray:
@@ -85,10 +88,17 @@ def rotation_from_quaternion(quaternion_xyzw: np.ndarray) -> np.ndarray:
 
 def roll_pitch_yaw(rotation: np.ndarray) -> tuple[float, float, float]:
     """Roll, pitch, yaw [rad] of a rotation (REP-103 fixed-axis x-y-z convention)."""
-    pitch = float(np.arcsin(np.clip(-rotation[2, 0], -1.0, 1.0)))
-    roll = float(np.arctan2(rotation[2, 1], rotation[2, 2]))
-    yaw = float(np.arctan2(rotation[1, 0], rotation[0, 0]))
-    return roll, pitch, yaw
+    (r00, _, _), (r10, _, _), (r20, r21, r22) = rotation.tolist()
+    return math.atan2(r21, r22), math.asin(min(1.0, max(-1.0, -r20))), math.atan2(r10, r00)
+
+
+def roll_pitch_of_quaternion(quaternion_xyzw: np.ndarray) -> tuple[float, float]:
+    """Roll and pitch [rad] of a quaternion (x, y, z, w), as `roll_pitch_yaw` of its rotation
+    matrix gives them (the quaternion is normalised first)."""
+    x, y, z, w = (float(v) for v in quaternion_xyzw)
+    n2 = x * x + y * y + z * z + w * w
+    return (math.atan2(2.0 * (y * z + x * w) / n2, 1.0 - 2.0 * (x * x + y * y) / n2),
+            math.asin(min(1.0, max(-1.0, -2.0 * (x * z - y * w) / n2))))
 
 
 def fit_rotation(body: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -102,20 +112,29 @@ def fit_rotation(body: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def structure_matrix(plant: Plant, points_b: np.ndarray, point_c: np.ndarray) -> np.ndarray:
-    """J^T of eq. (8): column i is (u_i, CB_i x u_i), u_i the unit vector of A_i B_i. Shape (6, 4).
+    """J^T of eq. (8): column i is (u_i, CB_i x u_i), u_i the unit vector of A_i B_i. Shape (6, 4),
+    or (..., 6, 4) for stacked points (..., 4, 3) and (..., 3).
 
     A cable pulls B_i towards A_i with tau_i (-u_i); the balance with gravity then reads
     J^T tau = F, F = (0, 0, -mg, 0, 0, 0), as in eq. (7). Moments are taken about C.
     """
     spans = points_b - plant.anchors
-    units = spans / np.linalg.norm(spans, axis=1, keepdims=True)
-    moments = cross(points_b - point_c, units)
-    return np.vstack([units.T, moments.T])
+    units = spans / np.linalg.norm(spans, axis=-1, keepdims=True)
+    moments = cross(points_b - point_c[..., None, :], units)
+    return np.swapaxes(np.concatenate([units, moments], axis=-1), -1, -2)
+
+
+def wrench_residuals(plant: Plant, points_b: np.ndarray, point_c: np.ndarray,
+                     tensions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Force and moment imbalance of J^T tau = F, relative to mg and mg * max|CB_i|, for stacked
+    samples: points (..., 4, 3) and (..., 3), tensions (..., 4)."""
+    imbalance = (structure_matrix(plant, points_b, point_c) @ tensions[..., None])[..., 0] - plant.wrench
+    force = np.linalg.norm(imbalance[..., :3], axis=-1) / plant.weight
+    moment = np.linalg.norm(imbalance[..., 3:], axis=-1) / (plant.weight * plant.moment_scale)
+    return force, moment
 
 
 def wrench_residual(plant: Plant, points_b: np.ndarray, point_c: np.ndarray, tensions: np.ndarray) -> tuple[float, float]:
-    """Force and moment imbalance of J^T tau = F, relative to mg and mg * max|CB_i|."""
-    imbalance = structure_matrix(plant, points_b, point_c) @ tensions - plant.wrench
-    force = float(np.linalg.norm(imbalance[:3])) / plant.weight
-    moment = float(np.linalg.norm(imbalance[3:])) / (plant.weight * plant.moment_scale)
-    return force, moment
+    """`wrench_residuals` of one sample, as floats."""
+    force, moment = wrench_residuals(plant, points_b, point_c, tensions)
+    return float(force), float(moment)

@@ -8,6 +8,7 @@ at the centroid of the attachment points B1..B4 and coincides in orientation wit
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -69,10 +70,15 @@ class Plant:
         """r_i = |C B_i| (seed 002, after eq. 2) [m]."""
         return np.linalg.norm(self.attachments - self.cog, axis=1)
 
-    @property
+    @cached_property
     def moment_scale(self) -> float:
         """A lever arm [m] to make moment residuals relative: max |C B_i|."""
         return float(self.cog_distances.max())
+
+    @cached_property
+    def outline_array(self) -> np.ndarray:
+        """The outline points in `platform` as one (n, 3) array [m], in the order of `outline`."""
+        return np.array([p.position for p in self.outline]).reshape(-1, 3)
 
     def with_changes(self, **changes: Any) -> "Plant":
         """A copy with some fields replaced (for effects and fits)."""

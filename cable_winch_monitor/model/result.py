@@ -3,11 +3,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import cached_property
 from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .geometry import quaternion_from_rotation, roll_pitch_yaw, wrench_residual
+from .geometry import quaternion_from_rotation, roll_pitch_yaw, wrench_residual, wrench_residuals
 from .plant import CABLE_NAMES, Plant
 
 
@@ -52,14 +53,14 @@ class Solution:
     def ok(self) -> bool:
         return self.status is SolveStatus.SOLVED
 
-    @property
+    @cached_property
     def taut_set(self) -> tuple[int, ...]:
         """1-based numbers of the taut cables, as the paper writes them."""
         if self.taut is None:
             return ()
-        return tuple(int(i) + 1 for i in np.flatnonzero(self.taut))
+        return tuple(i + 1 for i, taut in enumerate(self.taut.tolist()) if taut)
 
-    @property
+    @cached_property
     def tension_state(self) -> str:
         """Plain words: 'taut {1,2,4}', 'single cable 1: pose indeterminate', ..."""
         if self.status is SolveStatus.SOLVED:
@@ -68,7 +69,7 @@ class Solution:
             return f"single cable {self.single_cable + 1}: pose indeterminate"
         return self.status.value.replace("_", " ")
 
-    @property
+    @cached_property
     def quaternion(self) -> np.ndarray | None:
         return None if self.rotation is None else quaternion_from_rotation(self.rotation)
 
@@ -165,15 +166,25 @@ def solved(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray,
            tensions: np.ndarray, taut: np.ndarray, iterations: int, message: str = "static equilibrium found",
            **extras: Any) -> Solution:
     """A SOLVED Solution with its points, spans and equilibrium residuals filled in."""
-    points_b = position + plant.attachments @ rotation.T
+    return solved_rows(plant, method, lengths[None], rotation[None], position[None], np.asarray(tensions)[None],
+                       np.asarray(taut)[None], [iterations], message, extras)[0]
+
+
+def solved_rows(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
+                tensions: np.ndarray, taut: np.ndarray, iterations: Sequence[int],
+                message: str = "static equilibrium found", extras: dict[str, Any] | None = None) -> list[Solution]:
+    """`solved` for N stacked samples (lengths (N, 4), rotation (N, 3, 3), ...): the points, spans
+    and residuals of all rows are computed together."""
+    points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
     point_c = position + rotation @ plant.cog
-    force, moment = wrench_residual(plant, points_b, point_c, tensions)
-    return Solution(
-        status=SolveStatus.SOLVED, message=message, method=method, lengths=lengths, taut=np.asarray(taut, dtype=bool),
-        tensions=np.asarray(tensions, dtype=float), rotation=rotation, position=position, points_b=points_b,
-        point_c=point_c, spans=np.linalg.norm(points_b - plant.anchors, axis=1), force_residual=force,
-        moment_residual=moment, iterations=iterations, extras=dict(extras),
-    )
+    force, moment = wrench_residuals(plant, points_b, point_c, tensions)
+    spans = np.linalg.norm(points_b - plant.anchors, axis=-1)
+    taut, tensions = np.asarray(taut, dtype=bool), np.asarray(tensions, dtype=float)
+    return [Solution(status=SolveStatus.SOLVED, message=message, method=method, lengths=lengths[i], taut=taut[i],
+                     tensions=tensions[i], rotation=rotation[i], position=position[i], points_b=points_b[i],
+                     point_c=point_c[i], spans=spans[i], force_residual=float(force[i]),
+                     moment_residual=float(moment[i]), iterations=int(iterations[i]), extras=dict(extras or {}))
+            for i in range(len(lengths))]
 
 
 @dataclass(frozen=True)

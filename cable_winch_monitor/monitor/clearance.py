@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -22,32 +23,44 @@ class Clearance:
     point_shaft: np.ndarray
 
 
-def _outline(plant: Plant) -> tuple[np.ndarray, list[str]]:
+def clearances_at_poses(plant: Plant, rotations: np.ndarray, positions: np.ndarray) -> list[Clearance]:
+    """Clearance of the outline at each of N poses (rotations (N, 3, 3), positions (N, 3)), computed together."""
     if not plant.outline:
         raise ValueError("the plant file has no 'outline': clearance needs the platform's deck points")
-    return np.array([p.position for p in plant.outline]), [p.name for p in plant.outline]
+    body = plant.outline_array
+    world = positions[:, None, :] + body @ np.swapaxes(rotations, -1, -2)
+    offset = world[..., :2] - plant.shaft_centre
+    gaps = plant.shaft_radius - np.hypot(offset[..., 0], offset[..., 1])
+    nearest = np.argmin(gaps, axis=1).tolist()
+    values = gaps[np.arange(len(nearest)), nearest].tolist()
+    return [Clearance(value, plant.outline[k].name, body[k], world[i, k])
+            for i, (k, value) in enumerate(zip(nearest, values))]
 
 
 def clearance_at_pose(plant: Plant, rotation: np.ndarray, position: np.ndarray) -> Clearance:
     """Clearance of the outline at one platform pose."""
-    body, names = _outline(plant)
-    world = position + body @ rotation.T
-    gaps = plant.shaft_radius - np.linalg.norm(world[:, :2] - plant.shaft_centre, axis=1)
-    k = int(np.argmin(gaps))
-    return Clearance(float(gaps[k]), names[k], body[k], world[k])
+    return clearances_at_poses(plant, rotation[None], position[None])[0]
 
 
 def swing_clearance(plant: Plant, solution: Solution) -> Clearance:
     """Worst clearance over every pose a single-cable platform can turn to (its range phi)."""
     hang = PlumbHang(plant, solution.single_cable, float(solution.lengths[solution.single_cable]))
-    worst: Clearance | None = None
-    for lo, hi in solution.rotation_range:
-        for theta in np.linspace(lo, hi, max(2, int((hi - lo) * SWING_SAMPLES_PER_RAD) + 1)):
-            rotation, position = hang.pose(theta)
-            candidate = clearance_at_pose(plant, rotation, position)
-            if worst is None or candidate.value < worst.value:
-                worst = candidate
-    return worst
+    thetas = np.concatenate([np.linspace(lo, hi, max(2, int((hi - lo) * SWING_SAMPLES_PER_RAD) + 1))
+                             for lo, hi in solution.rotation_range])
+    rotations, positions = zip(*(hang.pose(theta) for theta in thetas))
+    return min(clearances_at_poses(plant, np.array(rotations), np.array(positions)), key=lambda c: c.value)
+
+
+def solution_clearances(plant: Plant, solutions: Sequence[Solution]) -> list[Clearance | None]:
+    """`solution_clearance` of each solution, the solved poses computed together."""
+    posed = [i for i, s in enumerate(solutions) if s.ok]
+    out: list[Clearance | None] = [solution_clearance(plant, s) if not s.ok else None for s in solutions]
+    if posed:
+        batch = clearances_at_poses(plant, np.array([solutions[i].rotation for i in posed]),
+                                    np.array([solutions[i].position for i in posed]))
+        for i, clearance in zip(posed, batch):
+            out[i] = clearance
+    return out
 
 
 def solution_clearance(plant: Plant, solution: Solution) -> Clearance | None:

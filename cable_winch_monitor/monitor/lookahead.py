@@ -20,6 +20,7 @@ from ..model.batched import solve_batch
 from ..model.plant import Plant
 from ..model.result import Solution
 from . import fields
+from .clearance import Clearance, solution_clearances
 from .pipeline import MonitorPipeline
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -34,11 +35,11 @@ class LookaheadPipeline(MonitorPipeline):
     def __init__(self, plant: Plant, staleness: float = 0.5, window: int = WINDOW):
         super().__init__(plant, "energy", staleness)
         self.window = window
-        self._presolved: deque[tuple[np.ndarray, Solution]] = deque()
+        self._presolved: deque[tuple[np.ndarray, Solution, Clearance | None]] = deque()
 
-    def _solution(self, lengths: np.ndarray) -> Solution:
+    def _solution(self, lengths: np.ndarray) -> tuple[Solution, Clearance | None]:
         if self._presolved and np.array_equal(self._presolved[0][0], lengths):
-            return self._presolved.popleft()[1]
+            return self._presolved.popleft()[1:]
         self._presolved.clear()  # not foreseen: the rest of the window would be out of step
         return super()._solution(lengths)
 
@@ -70,5 +71,5 @@ class LookaheadPipeline(MonitorPipeline):
             if complete is not None:
                 lengths.append(complete)
         if lengths and self.model is None:  # the batch solver is the rigid model: not with physical effects
-            batch = solve_batch(self.plant, np.array(lengths), warm_start=self._warm_start())
-            self._presolved = deque(zip(lengths, batch.solutions()))
+            solutions = solve_batch(self.plant, np.array(lengths), warm_start=self._warm_start()).solutions()
+            self._presolved = deque(zip(lengths, solutions, solution_clearances(self.plant, solutions)))

@@ -105,9 +105,11 @@ class MonitorPipeline:
             return self.model.solve(lengths, self._warm_start())
         return solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
 
-    def _solution(self, lengths: np.ndarray) -> Solution:
-        """The equilibrium of one complete sample (replay overrides it with presolved batches)."""
-        return self._equilibrium(lengths)
+    def _solution(self, lengths: np.ndarray) -> tuple[Solution, Clearance | None]:
+        """The equilibrium of one complete sample and its wall clearance (replay overrides it with
+        presolved batches)."""
+        solution = self._equilibrium(lengths)
+        return solution, solution_clearance(self.plant, solution)
 
     def _predicted(self, solution: Solution) -> dict[str, float] | None:
         """What the sensors should read for a solved sample (None without a pose), under the
@@ -121,8 +123,7 @@ class MonitorPipeline:
         return self.model.predict(solution, Conditions(speeds, self.direction))
 
     def _solve(self, stamp: float, lengths: np.ndarray, accepted: list[int]) -> MonitorOutput:
-        solution = self._solution(lengths)
-        clearance = solution_clearance(self.plant, solution)
+        solution, clearance = self._solution(lengths)
         alarm = self.alarms.update(solution, clearance)
         tensions = self.merger.measured_tensions()
         measured = {f"tension_{CABLE_NAMES[i]}": tensions[i] for i in accepted}
