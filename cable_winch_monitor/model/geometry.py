@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 
@@ -76,23 +77,13 @@ def quaternion_from_rotation(rotation: np.ndarray) -> np.ndarray:
     return np.array([v / norm for v in q])
 
 
-def rotation_from_quaternion(quaternion_xyzw: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a unit quaternion (x, y, z, w); it is normalised first."""
-    x, y, z, w = np.asarray(quaternion_xyzw, dtype=float) / np.linalg.norm(quaternion_xyzw)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
 def roll_pitch_yaw(rotation: np.ndarray) -> tuple[float, float, float]:
     """Roll, pitch, yaw [rad] of a rotation (REP-103 fixed-axis x-y-z convention)."""
     (r00, _, _), (r10, _, _), (r20, r21, r22) = rotation.tolist()
     return math.atan2(r21, r22), math.asin(min(1.0, max(-1.0, -r20))), math.atan2(r10, r00)
 
 
-def roll_pitch_of_quaternion(quaternion_xyzw: np.ndarray) -> tuple[float, float]:
+def roll_pitch_of_quaternion(quaternion_xyzw: Sequence[float]) -> tuple[float, float]:
     """Roll and pitch [rad] of a quaternion (x, y, z, w), as `roll_pitch_yaw` of its rotation
     matrix gives them (the quaternion is normalised first)."""
     x, y, z, w = (float(v) for v in quaternion_xyzw)

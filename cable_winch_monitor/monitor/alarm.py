@@ -69,12 +69,13 @@ class Alarm:
 
 
 SYNC_PAIRS = tuple((i, j) for i in range(4) for j in range(i + 1, 4))
+SYNC_PAIR_NAMES = tuple(f"{CABLE_NAMES[i]}-{CABLE_NAMES[j]}" for i, j in SYNC_PAIRS)
+_FIRST, _SECOND = (np.array(side) for side in zip(*SYNC_PAIRS))
 
 
 def sync_errors(lengths: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
     """l_i - l_j for every pair of cables."""
-    names = tuple(f"{CABLE_NAMES[i]}-{CABLE_NAMES[j]}" for i, j in SYNC_PAIRS)
-    return names, np.array([lengths[i] - lengths[j] for i, j in SYNC_PAIRS])
+    return SYNC_PAIR_NAMES, lengths[_FIRST] - lengths[_SECOND]
 
 
 class AlarmTracker:
@@ -84,9 +85,10 @@ class AlarmTracker:
     def __init__(self, policy: AlarmPolicy):
         self.policy = policy
         self.level = AlarmLevel.OK
+        self._thresholds = policy.thresholds()
 
     def _clearance_level(self, clearance: float) -> AlarmLevel:
-        thresholds = self.policy.thresholds()
+        thresholds = self._thresholds
         raised = max((lvl for lvl, limit in thresholds.items() if clearance <= limit), default=AlarmLevel.OK)
         if raised >= self.level:
             return raised
@@ -107,11 +109,11 @@ class AlarmTracker:
             level = max(level, AlarmLevel.WARNING)
             reasons.append(f"platform hangs from {CABLE_NAMES[solution.single_cable]} alone and can turn")
         elif solution.ok:
-            loose = np.flatnonzero(solution.lengths - solution.spans > self.policy.slack_tolerance)
-            if loose.size:
+            looseness = (solution.lengths - solution.spans).tolist()
+            loose = [i for i, by in enumerate(looseness) if by > self.policy.slack_tolerance]
+            if loose:
                 level = max(level, AlarmLevel.WARNING)
-                reasons.append("slack: " + ", ".join(
-                    f"{CABLE_NAMES[i]} loose by {solution.lengths[i] - solution.spans[i]:.3f} m" for i in loose))
+                reasons.append("slack: " + ", ".join(f"{CABLE_NAMES[i]} loose by {looseness[i]:.3f} m" for i in loose))
         else:
             level = max(level, AlarmLevel.WARNING)
             reasons.append(f"no pose: {solution.tension_state}")

@@ -47,15 +47,15 @@ def joint_sample(msg: Any, topic: str) -> JointSample:
     return JointSample(seconds(msg.header.stamp), msg.name, msg.position, msg.velocity, msg.effort, topic)
 
 
-def imu_quaternion(msg: Any) -> np.ndarray:
+def imu_quaternion(msg: Any) -> tuple[float, float, float, float]:
     """The measured orientation of a sensor_msgs/Imu as (x, y, z, w)."""
     q = msg.orientation
-    return np.array([q.x, q.y, q.z, q.w])
+    return q.x, q.y, q.z, q.w
 
 
-def point_xyz(msg: Any) -> np.ndarray:
+def point_xyz(msg: Any) -> tuple[float, float, float]:
     """The point of a geometry_msgs/PointStamped."""
-    return np.array([msg.point.x, msg.point.y, msg.point.z])
+    return msg.point.x, msg.point.y, msg.point.z
 
 
 def header(stamp: Stamp, frame_id: str = FRAME) -> Fields:

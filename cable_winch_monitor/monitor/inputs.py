@@ -1,16 +1,19 @@
 """Merging the winches' joint states by cable name, with every rejected value accounted for."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from ..model.plant import CABLE_NAMES
 
+CABLE_INDEX = {name: i for i, name in enumerate(CABLE_NAMES)}
+NAN = float("nan")
 
-@dataclass(frozen=True)
-class JointSample:
+
+class JointSample(NamedTuple):
     """One sensor_msgs/JointState, as plain values (stamp in seconds)."""
 
     stamp: float
@@ -21,12 +24,11 @@ class JointSample:
     topic: str = "/winch/joint_states"
 
 
-@dataclass
-class CableReading:
+class CableReading(NamedTuple):
     length: float
     stamp: float
-    velocity: float = float("nan")
-    tension: float = float("nan")
+    velocity: float = NAN
+    tension: float = NAN
 
 
 @dataclass
@@ -59,13 +61,13 @@ class CableLengthMerger:
         if len(set(names)) != len(names):
             repeated = sorted({n for n in names if names.count(n) > 1})
             return {}, [], f"duplicate cable names: {', '.join(repeated)} in one message"
-        if not np.isfinite(sample.stamp):
+        if not math.isfinite(sample.stamp):
             return {}, [], f"bad stamp: {sample.stamp}"
-        cables = {CABLE_NAMES.index(n): k for k, n in enumerate(names) if n in CABLE_NAMES}
-        ignored = [n for n in names if n not in CABLE_NAMES]
+        cables = {CABLE_INDEX[n]: k for k, n in enumerate(names) if n in CABLE_INDEX}
+        ignored = [n for n in names if n not in CABLE_INDEX]
         for cable, k in cables.items():
             length = float(sample.positions[k])
-            if not np.isfinite(length) or length <= 0.0:
+            if not math.isfinite(length) or length <= 0.0:
                 return {}, ignored, f"bad length: {CABLE_NAMES[cable]} = {length}"
             previous = self.readings[cable]
             if previous is not None and sample.stamp <= previous.stamp:
@@ -80,11 +82,12 @@ class CableLengthMerger:
         if reason:
             return MergeResult(rejected=reason, ignored=ignored)
         n = len(sample.names)
+        positions = _floats(sample.positions)
+        velocities = _floats(sample.velocities) if len(sample.velocities) == n else None
+        efforts = _floats(sample.efforts) if len(sample.efforts) == n else None
         for cable, k in cables.items():
-            self.readings[cable] = CableReading(
-                float(sample.positions[k]), sample.stamp,
-                float(sample.velocities[k]) if len(sample.velocities) == n else float("nan"),
-                float(sample.efforts[k]) if len(sample.efforts) == n else float("nan"))
+            self.readings[cable] = CableReading(positions[k], sample.stamp, NAN if velocities is None else velocities[k],
+                                                NAN if efforts is None else efforts[k])
         return MergeResult(accepted=sorted(cables), ignored=ignored)
 
     def complete(self, stamp: float) -> tuple[np.ndarray | None, str]:
@@ -94,16 +97,19 @@ class CableLengthMerger:
         0.5 m/s payout is a 5 cm synchronisation error that is not there. Each reading is
         carried forward to `stamp` with its reported payout speed, where it has one.
         """
-        missing = [CABLE_NAMES[i] for i, r in enumerate(self.readings) if r is None]
-        if missing:
-            return None, "waiting for " + ", ".join(missing)
-        stale = [f"{CABLE_NAMES[i]} ({stamp - r.stamp:.3f} s old)" for i, r in enumerate(self.readings)
-                 if stamp - r.stamp > self.staleness]
-        if stale:
-            return None, "stale: " + ", ".join(stale)
-        return np.array([r.length + (r.velocity * (stamp - r.stamp) if np.isfinite(r.velocity) else 0.0)
+        if None in self.readings:
+            return None, "waiting for " + ", ".join(CABLE_NAMES[i] for i, r in enumerate(self.readings) if r is None)
+        if any(stamp - r.stamp > self.staleness for r in self.readings):
+            return None, "stale: " + ", ".join(f"{CABLE_NAMES[i]} ({stamp - r.stamp:.3f} s old)"
+                                               for i, r in enumerate(self.readings) if stamp - r.stamp > self.staleness)
+        return np.array([r.length + (r.velocity * (stamp - r.stamp) if math.isfinite(r.velocity) else 0.0)
                          for r in self.readings]), ""
 
     def measured_tensions(self) -> np.ndarray:
         """Load-pin tensions of the latest readings [N] (NaN where not measured)."""
-        return np.array([r.tension if r is not None else np.nan for r in self.readings])
+        return np.array([NAN if r is None else r.tension for r in self.readings])
+
+
+def _floats(values: Sequence[float]) -> list[float]:
+    """A message array (list, array.array or numpy array) as Python floats."""
+    return values.tolist() if hasattr(values, "tolist") else [float(v) for v in values]

@@ -5,20 +5,22 @@ knows nothing of ROS: messages arrive as plain values with their header stamps.
 """
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 
 from ..effects import Conditions, PlantModel
 from ..effects.sheave import motion_direction
-from ..model.plant import CABLE_NAMES, Plant
+from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from ..model.solve import METHODS, solve
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
 from .inputs import CableLengthMerger, JointSample
-from .residuals import Residuals, imu_channels, noise_levels, position_channels, predicted_channels, residuals
+from .residuals import TENSION_CHANNELS, Residuals, imu_channels, noise_levels, position_channels, predicted_channels, residuals
 
 
 @dataclass(frozen=True)
@@ -116,7 +118,7 @@ class MonitorPipeline:
         plant's measurement effects if it has any; kept for the measurements that follow."""
         if self.model is None:
             return predicted_channels(solution) if solution.ok else None
-        speeds = np.array([r.velocity if r is not None else np.nan for r in self.merger.readings])
+        speeds = np.array([r.velocity for r in self.merger.readings])  # all four are known once a sample is
         self.direction = motion_direction(speeds, self.direction)
         if not solution.ok:
             return None
@@ -125,8 +127,8 @@ class MonitorPipeline:
     def _solve(self, stamp: float, lengths: np.ndarray, accepted: list[int]) -> MonitorOutput:
         solution, clearance = self._solution(lengths)
         alarm = self.alarms.update(solution, clearance)
-        tensions = self.merger.measured_tensions()
-        measured = {f"tension_{CABLE_NAMES[i]}": tensions[i] for i in accepted}
+        readings = self.merger.readings
+        measured = {TENSION_CHANNELS[i]: readings[i].tension for i in accepted}
         predicted = self._predicted(solution)
         resid = residuals(self.noise, stamp, measured, predicted) if predicted is not None else None
         output = MonitorOutput(stamp, solution, clearance, alarm, resid)
@@ -141,7 +143,7 @@ class MonitorPipeline:
 
     def _measurement(self, topic: str, stamp: float, channels: dict[str, float]) -> Residuals | None:
         self.stats.messages[topic] += 1
-        if not all(np.isfinite(v) for k, v in channels.items() if k not in ("x", "y")):
+        if not all(math.isfinite(v) for k, v in channels.items() if k not in ("x", "y")):
             self._reject(topic, "bad measurement: not finite")
             return None
         last = self.last_solved
@@ -151,15 +153,15 @@ class MonitorPipeline:
         self.stats.used[topic] += 1
         return residuals(self.noise, stamp, channels, self.last_predicted)
 
-    def on_imu(self, stamp: float, quaternion_xyzw: np.ndarray, topic: str = "/platform/imu") -> Residuals | None:
+    def on_imu(self, stamp: float, quaternion_xyzw: Sequence[float], topic: str = "/platform/imu") -> Residuals | None:
         """An inclinometer reading: roll and pitch residuals against the latest solved pose."""
-        quaternion = np.asarray(quaternion_xyzw, dtype=float)
-        if not np.all(np.isfinite(quaternion)) or np.linalg.norm(quaternion) < 1e-9:
+        quaternion = [float(v) for v in quaternion_xyzw]
+        if not all(math.isfinite(v) for v in quaternion) or math.hypot(*quaternion) < 1e-9:
             self.stats.messages[topic] += 1
             self._reject(topic, "bad measurement: orientation is not a unit quaternion")
             return None
         return self._measurement(topic, stamp, imu_channels(quaternion))
 
-    def on_position(self, stamp: float, xyz: np.ndarray, topic: str = "/platform/position") -> Residuals | None:
+    def on_position(self, stamp: float, xyz: Sequence[float], topic: str = "/platform/position") -> Residuals | None:
         """A depth-gauge reading (x, y may be NaN): residuals against the latest solved pose."""
-        return self._measurement(topic, stamp, position_channels(np.asarray(xyz, dtype=float)))
+        return self._measurement(topic, stamp, position_channels(xyz))

@@ -1,14 +1,17 @@
 """Measured minus model for every measured channel: load pins, inclinometer, depth gauge."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..model.geometry import roll_pitch_yaw, rotation_from_quaternion
+from ..model.geometry import roll_pitch_of_quaternion, roll_pitch_yaw
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
+
+TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # load pins, one per cable
 
 
 @dataclass(frozen=True)
@@ -38,7 +41,7 @@ def predicted_channels(solution: Solution) -> dict[str, float]:
     the depth gauge reads the platform origin.
     """
     roll, pitch, _ = roll_pitch_yaw(solution.rotation)
-    channels = {f"tension_{name}": float(t) for name, t in zip(CABLE_NAMES, solution.tensions)}
+    channels = dict(zip(TENSION_CHANNELS, solution.tensions.tolist()))
     channels.update(roll=roll, pitch=pitch, x=float(solution.position[0]), y=float(solution.position[1]),
                     depth=float(solution.position[2]))
     return channels
@@ -51,7 +54,7 @@ def residuals(noise: Mapping[str, float], stamp: float, measured: Mapping[str, f
     `predicted` is what the sensors read for the solved pose (`predicted_channels`, or
     effects.PlantModel.predict under the plant's effects); `noise` is `noise_levels(plant)`.
     """
-    names = tuple(k for k, v in measured.items() if k in predicted and np.isfinite(v))
+    names = tuple(k for k, v in measured.items() if k in predicted and math.isfinite(v))
     if not names:
         return None
     return Residuals(
@@ -60,12 +63,12 @@ def residuals(noise: Mapping[str, float], stamp: float, measured: Mapping[str, f
         noise=np.array([noise["tension" if k.startswith("tension_") else k] for k in names]))
 
 
-def imu_channels(quaternion_xyzw: np.ndarray) -> dict[str, float]:
+def imu_channels(quaternion_xyzw: Sequence[float]) -> dict[str, float]:
     """Roll and pitch of an inclinometer's orientation (yaw is not measured)."""
-    roll, pitch, _ = roll_pitch_yaw(rotation_from_quaternion(quaternion_xyzw))
+    roll, pitch = roll_pitch_of_quaternion(quaternion_xyzw)
     return {"roll": roll, "pitch": pitch}
 
 
-def position_channels(xyz: np.ndarray) -> dict[str, float]:
+def position_channels(xyz: Sequence[float]) -> dict[str, float]:
     """Depth gauge (z) and, where measured, x and y of the platform origin."""
     return {"x": float(xyz[0]), "y": float(xyz[1]), "depth": float(xyz[2])}
