@@ -39,13 +39,16 @@ def solve_elastic(plant: Plant, lengths: object, axial_stiffness: object,
         rigid = solve_energy(plant, array)  # cold, or where the warm start failed (Newton across a kink)
         if not rigid.ok:
             return rigid  # a single elastic rope leaves the pose as indeterminate as a rigid one
-        return _newton(plant, array, ea, rigid)
+        # Lowered by its ropes' static stretch, so that every taut rope pulls from the first step:
+        # at the rigid pose itself the stretches are rounding errors of either sign.
+        return _newton(plant, array, ea, rigid, sag=float(np.max(rigid.tensions * array / ea)))
 
     return guarded_solve(METHOD, lengths, from_rigid)
 
 
-def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution) -> Solution:
-    rotation, position = start.rotation, start.position
+def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution, sag: float = 0.0) -> Solution:
+    """Newton on the force and moment balance from `start`'s pose, lowered by `sag` [m]."""
+    rotation, position = start.rotation, start.position - np.array([0.0, 0.0, sag])
     stiffness = ea / lengths
     weight, scale = plant.weight, plant.moment_scale
     ez = np.array([0.0, 0.0, 1.0])

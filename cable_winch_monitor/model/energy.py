@@ -5,11 +5,12 @@ subject to |A_i B_i| <= l_i (the minimum-potential-energy principle of seed 003)
 Karush-Kuhn-Tucker multipliers of the length constraints are the cable tensions, the
 inactive constraints are the slack cables. The solve has two parts:
 
+* a Newton iteration on the KKT conditions of the taut set, changing the set one cable
+  at a time: warm-started from the previous sample it is the fast path of the monitor
+  (a few steps per sample); cold, it starts from the level pose;
 * a global search (SLSQP over the six pose coordinates) that finds the minimum and so
-  the taut set from any start, used cold and whenever the fast path fails;
-* a Newton iteration on the KKT conditions of the taut set, which polishes the global
-  result to machine precision and, warm-started from the previous sample, is the fast
-  path of the monitor (a few steps per sample).
+  the taut set from any start, used where the iteration finds no admissible set; the
+  iteration then polishes its result to machine precision.
 
 A platform that can hang from one cable alone has no definite pose; that case is
 recognised first with `plumb_hang`.
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import cross, rotation_from_vector, skew, structure_matrix
+from .equal_lengths import level_pose
 from .plant import Plant
 from .plumb_hang import PlumbHang, lowest_hang_cable
 from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
@@ -63,9 +65,10 @@ def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> So
     single = _single_cable(plant, lengths)
     if single is not None:
         return single
-    state = _global_minimum(plant, lengths)
-    if _settle_active_set(plant, lengths, state):
-        return _result(plant, lengths, state)
+    for start in (_level_start, _global_minimum):
+        state = start(plant, lengths)
+        if state is not None and _settle_active_set(plant, lengths, state):
+            return _result(plant, lengths, state)
     return failed(SolveStatus.SOLVER_FAILED, "energy solver: no admissible taut set found near the energy minimum",
                   METHOD, lengths, iterations=state.steps)
 
@@ -111,6 +114,32 @@ def _single_cable(plant: Plant, lengths: np.ndarray) -> Solution | None:
                                 "C": position + rotation @ plant.cog})
 
 
+def _level_start(plant: Plant, lengths: np.ndarray) -> _State | None:
+    """The minimum found from the level pose at the mean length, or None where it is not clear-cut.
+
+    Winches pay out nearly in step, so the platform hangs close to level: from there the
+    KKT iteration (with its taut-set exchanges and its limit on the turn) reaches the
+    equilibrium in a few steps, without the global search. Where a slack cable touches its
+    length within ACTIVE_BAND (four taut ropes, l1 + l3 = l2 + l4 to the micrometre), the
+    global search decides the taut set, as it always has.
+    """
+    rotation, position = level_pose(plant, float(lengths.mean()))
+    state = _State(rotation, position, np.arange(4) != int(np.argmax(lengths)), np.zeros(4))
+    state.mu = _multipliers(plant, state)
+    if not _settle_active_set(plant, lengths, state):
+        return None
+    _, _, _, norms = _geometry(plant, state)
+    return state if np.array_equal(_touching(lengths, lengths - norms), state.active) else None
+
+
+def _touching(lengths: np.ndarray, slack: np.ndarray) -> np.ndarray:
+    """Cables whose span is within ACTIVE_BAND of their length (at least the tightest one)."""
+    active = slack < ACTIVE_BAND * max(1.0, lengths.max() * 1e-3)
+    if not active.any():
+        active[np.argmin(slack)] = True
+    return active
+
+
 def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
     """SLSQP on z_C over (position, rotation vector) from the level pose at the shortest length."""
     start = np.array([0.0, 0.0, -lengths.min(), 0.0, 0.0, 0.0])
@@ -151,10 +180,7 @@ def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
                       constraints={"type": "ineq", "fun": slack, "jac": slack_jacobian},
                       options={"maxiter": 500, "ftol": 1e-10})
     rotation, position = pose(result.x)
-    active = slack(result.x) < ACTIVE_BAND * max(1.0, lengths.max() * 1e-3)
-    if not active.any():
-        active[np.argmin(slack(result.x))] = True
-    state = _State(rotation, position, active, np.zeros(4), steps=int(result.nit))
+    state = _State(rotation, position, _touching(lengths, slack(result.x)), np.zeros(4), steps=int(result.nit))
     state.mu = _multipliers(plant, state)
     return state
 
