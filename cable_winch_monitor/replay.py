@@ -8,10 +8,13 @@ that stamp is their log time; inputs keep their own log time and bytes.
 """
 from __future__ import annotations
 
+import gc
 import time
 from collections import Counter
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 from .bagio import records
 from .bagio.reader import BagMessage, BagReader, ReadReport
@@ -117,6 +120,26 @@ def _outputs(pipeline: MonitorPipeline, item: BagMessage) -> list[records.Record
     return records.residual_records(stamp, residuals)
 
 
+@contextmanager
+def _fewer_collections(threshold: int = 20_000) -> Iterator[None]:
+    """Let the cyclic garbage collector run every `threshold` allocations instead of every 700.
+
+    A replay allocates a few dozen short-lived objects per message, freed by reference
+    counting; at Python's default threshold the collector scanned the young objects (and
+    every 10th time the older ones) so often that it took a quarter of the replay. Memory
+    stays bounded: the collector still runs, only less often. Start-up objects are frozen
+    out of the scans.
+    """
+    before = gc.get_threshold()
+    gc.freeze()
+    gc.set_threshold(threshold, *before[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*before)
+        gc.unfreeze()
+
+
 def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
            staleness: float = 0.5, progress: bool = True, batched: bool = True) -> ReplaySummary:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
@@ -134,7 +157,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     pipeline = LookaheadPipeline(plant, staleness) if lookahead else MonitorPipeline(plant, solver, staleness)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
-    with BagWriter(out) as writer:
+    with BagWriter(out) as writer, _fewer_collections():
         try:
             for count, item in enumerate(pipeline.feed(reader) if lookahead else reader, 1):
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)

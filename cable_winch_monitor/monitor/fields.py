@@ -63,19 +63,22 @@ def header(stamp: Stamp, frame_id: str = FRAME) -> Fields:
 
 
 def point(xyz: np.ndarray | None) -> Fields:
-    values = (NAN, NAN, NAN) if xyz is None else (float(v) for v in xyz)
-    return dict(zip("xyz", values))
+    if xyz is None:
+        return {"x": NAN, "y": NAN, "z": NAN}
+    x, y, z = xyz.tolist()
+    return {"x": x, "y": y, "z": z}
 
 
-def _element(values: np.ndarray | None, index: int) -> float:
-    return NAN if values is None else float(values[index])
+def _floats(values: np.ndarray | None) -> list[float]:
+    """Four per-cable values as floats (NaN when the solve has none)."""
+    return [NAN] * 4 if values is None else values.tolist()
 
 
 def pose(solution: Solution) -> Fields:
     """geometry_msgs/Pose of `platform` in `shaft` (NaN position, identity orientation without a pose)."""
     q = solution.quaternion
-    orientation = (0.0, 0.0, 0.0, 1.0) if q is None else (float(v) for v in q)
-    return {"position": point(solution.position), "orientation": dict(zip("xyzw", orientation))}
+    x, y, z, w = (0.0, 0.0, 0.0, 1.0) if q is None else q.tolist()
+    return {"position": point(solution.position), "orientation": {"x": x, "y": y, "z": z, "w": w}}
 
 
 def pose_stamped(stamp: Stamp, solution: Solution) -> Fields:
@@ -84,10 +87,10 @@ def pose_stamped(stamp: Stamp, solution: Solution) -> Fields:
 
 def tension_distribution(stamp: Stamp, solution: Solution) -> Fields:
     """Per-cable length, span, tension and taut flag, and the tension state as a whole."""
-    taut = set(solution.taut_set)
-    cables = [{"name": name, "length": _element(solution.lengths, i), "span": _element(solution.spans, i),
-               "tension": _element(solution.tensions, i), "taut": (i + 1) in taut}
-              for i, name in enumerate(CABLE_NAMES)]
+    taut = solution.taut_set
+    cables = [{"name": name, "length": length, "span": span, "tension": tension, "taut": (i + 1) in taut}
+              for i, (name, length, span, tension) in enumerate(zip(
+                  CABLE_NAMES, _floats(solution.lengths), _floats(solution.spans), _floats(solution.tensions)))]
     return {"header": header(stamp), "status": STATUS_NUMBERS[solution.status],
             "tension_state": solution.tension_state, "cables": cables,
             "equilibrium_residual": float(np.fmax(solution.force_residual, solution.moment_residual)),
@@ -101,7 +104,7 @@ def collision_alarm(stamp: Stamp, alarm: Alarm) -> Fields:
             "closest_point_name": "" if clearance is None else clearance.point_name,
             "closest_point_platform": point(None if clearance is None else clearance.point_platform),
             "closest_point_shaft": point(None if clearance is None else clearance.point_shaft),
-            "sync_error_pairs": list(alarm.sync_error_pairs), "sync_errors": [float(v) for v in alarm.sync_errors],
+            "sync_error_pairs": list(alarm.sync_error_pairs), "sync_errors": alarm.sync_errors.tolist(),
             "reason": alarm.reason}
 
 
