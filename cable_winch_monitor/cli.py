@@ -59,15 +59,27 @@ def _replay_summary(bag: str, args: argparse.Namespace) -> int:
     return 0 if summary.complete else 1
 
 
+def _fleet(args: argparse.Namespace, job) -> int:
+    """Run `job` over the bags of the folder args.bag into the new folder args.out; print the table."""
+    from .fleet import find_bags, run_fleet
+
+    if not args.out:
+        print(f"error: {args.bag} is a folder of bags: give --out, a new folder for the per-bag results",
+              file=sys.stderr)
+        return 2
+    summary = run_fleet(find_bags(args.bag), args.out, job, args.workers, args.scheduler)
+    print(summary.format())
+    _write_json(getattr(args, "json", None), {"bags": summary.rows, "total": summary.total(), "wall": summary.wall,
+                                              "workers": summary.workers})
+    return 0 if summary.ok else 1
+
+
 def _replay(args: argparse.Namespace) -> int:
-    from .fleet import find_bags, is_fleet, replay_job, run_fleet
+    from .fleet import is_fleet, replay_job
 
     if not is_fleet(args.bag):
         return _replay_summary(args.bag, args)
-    job = replay_job(load_plant(args.config), args.solver, args.staleness)
-    summary = run_fleet(find_bags(args.bag), args.out, job, args.workers, args.scheduler)
-    print(summary.format())
-    return 0 if summary.ok else 1
+    return _fleet(args, replay_job(load_plant(args.config), args.solver, args.staleness))
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -137,11 +149,16 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _diagnose(args: argparse.Namespace) -> int:
     from .analysis import report
-    from .analysis.diagnose import diagnose
-    from .analysis.evaluate import noise
+    from .analysis.diagnose import diagnose_bag
+    from .effects import load_module
+    from .fleet import diagnose_job, is_fleet
 
-    model, data = _analysis_inputs(args)
-    result = diagnose(model, data, noise(model.plant, data)[0], args.candidates.split(",") if args.candidates else None)
+    candidates = [n.strip() for n in args.candidates.split(",") if n.strip()] if args.candidates else None
+    if is_fleet(args.bag):
+        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
+    for path in args.effect_module:
+        load_module(path)
+    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0
@@ -161,6 +178,14 @@ def _fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_fleet_options(parser: argparse.ArgumentParser, command: str) -> None:
+    """--workers and --scheduler of a command that runs over a folder of bags."""
+    parser.add_argument("--workers", type=int, default=1, help=f"fleet {command}: bags run in parallel processes")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help=f"fleet {command} on a Dask cluster (e.g. tcp://10.0.0.5:8786); workers must see the "
+                        "bags and --out at the same paths")
+
+
 def _add_analysis(sub: argparse._SubParsersAction) -> None:
     """compare, diagnose and fit: the model-versus-measurement loop (cable_winch_monitor.analysis)."""
     commands = (("compare", _compare, "compare the model with a bag's measurements: per-channel errors, score, "
@@ -171,7 +196,8 @@ def _add_analysis(sub: argparse._SubParsersAction) -> None:
                  "file with them on"))
     for name, run, what in commands:
         p = sub.add_parser(name, help=what, description=what[0].upper() + what[1:] + ".")
-        p.add_argument("bag", help="rosbag2 directory or .mcap file")
+        p.add_argument("bag", help="rosbag2 directory or .mcap file" + (
+            ", or a folder of them (fleet diagnose: with --out)" if name == "diagnose" else ""))
         p.add_argument("--config", help="plant YAML with its `effects:` (default: the bundled seed-002 plant)")
         p.add_argument("--json", metavar="PATH", help="write the result as JSON (interface.md)")
         p.add_argument("--effect-module", action="append", default=[], metavar="PATH",
@@ -180,6 +206,9 @@ def _add_analysis(sub: argparse._SubParsersAction) -> None:
             p.add_argument("--html", metavar="PATH", help="write a standalone HTML report with plots")
         if name == "diagnose":
             p.add_argument("--candidates", help="comma-separated effects to consider (default: every known one)")
+            p.add_argument("--out", metavar="FOLDER", help="fleet diagnose (bag is a folder of bags): a new folder "
+                           "for one JSON result per bag; --json then writes the summary table")
+            _add_fleet_options(p, "diagnose")
         if name == "fit":
             p.add_argument("--effects", required=True, help="comma-separated effect names, e.g. rope_weight,cog_offset")
             p.add_argument("--write-config", metavar="NEW.yaml", help="write the plant file with the fitted effects on")
@@ -232,10 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
         if name == "replay":
             p.add_argument("bag", help="rosbag2 directory or .mcap file, or a folder of them (fleet replay: --out "
                            "is then a new folder with one output bag per input bag)")
-            p.add_argument("--workers", type=int, default=1, help="fleet replay: bags replayed in parallel processes")
-            p.add_argument("--scheduler", metavar="ADDRESS",
-                           help="fleet replay on a Dask cluster (e.g. tcp://10.0.0.5:8786); workers must see the "
-                           "bags and --out at the same paths")
+            _add_fleet_options(p, "replay")
         p.add_argument("--out", required=True, help="output bag directory to create (must not exist)")
         p.add_argument("--config", help="plant YAML (default: the bundled seed-002 plant)")
         p.add_argument("--solver", choices=METHODS, default="energy", help="solver (default: energy, as the node)")

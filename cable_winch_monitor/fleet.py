@@ -2,13 +2,14 @@
 
 A mine keeps recordings of many shafts; each bag is independent, so a folder is replayed
 (or diagnosed) bag by bag in parallel and the per-bag rows gather into one table with a
-total. The per-bag job is pluggable: `replay_job` is the replay; a diagnose job is any
-picklable callable (bag, out) -> row. With `--scheduler` every worker must see the bags
-and the output folder at the same paths (a shared file system).
+total. The per-bag job is pluggable: `replay_job` and `diagnose_job` are the two the CLI
+runs; any picklable callable (bag, out) -> row will do. With `--scheduler` every worker
+must see the bags and the output folder at the same paths (a shared file system).
 """
 from __future__ import annotations
 
 import functools
+import json
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -58,6 +59,34 @@ def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: fl
     return functools.partial(_replay_row, plant=plant, solver=solver, staleness=staleness)
 
 
+def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[str] | None,
+                  effect_modules: Sequence[str]) -> Row:
+    from .analysis.diagnose import diagnose_bag
+    from .analysis.report import diagnose_json
+    from .effects import load_module
+
+    for path in effect_modules:  # a Dask worker has not seen the client's modules
+        load_module(path)
+    started = time.perf_counter()
+    try:
+        result, data = diagnose_bag(bag, plant, candidates)
+    except BagError as error:
+        return {"bag": bag.name, "error": str(error)}
+    report = out.with_name(out.name + ".json")
+    report.write_text(json.dumps(diagnose_json(result, str(bag), len(data)), indent=2, default=float))
+    return {"bag": bag.name, "rows": len(data), "score": result.ladder[0].score_heldout,
+            "score after": result.ladder[-1].score_heldout, "found": ", ".join(result.selected) or "-",
+            "report": report.name, "wall [s]": time.perf_counter() - started}
+
+
+def diagnose_job(plant: Plant | None = None, candidates: list[str] | None = None,
+                 effect_modules: Sequence[str] = ()) -> Job:
+    """The per-bag diagnose as a picklable job: a row with the measurement rows, the held-out score
+    before and after the effects it found, and the full result (interface.md) in `<out folder>/<bag>.json`."""
+    return functools.partial(_diagnose_row, plant=plant, candidates=candidates,
+                             effect_modules=[str(Path(m).resolve()) for m in effect_modules])
+
+
 @dataclass
 class FleetSummary:
     """Rows per bag in folder order, and the wall time of the whole run."""
@@ -75,9 +104,11 @@ class FleetSummary:
         return all(not row.get("error") and row.get("complete", True) for row in self.rows)
 
     def total(self) -> Row:
+        """Counts (integers) and durations ("[s]" columns) summed; scores and text are not totals."""
         columns = {key for row in self.rows for key in row}
         return {"bag": "total", **{key: sum(row.get(key, 0) for row in self.rows) for key in columns
-                                   if all(isinstance(row.get(key, 0), (int, float)) for row in self.rows)}}
+                                   if all(isinstance(row.get(key, 0), int) or key.endswith("[s]")
+                                          and isinstance(row.get(key, 0), float) for row in self.rows)}}
 
     def format(self) -> str:
         columns = list(dict.fromkeys(key for row in self.rows for key in row if key != "error"))
@@ -92,8 +123,8 @@ class FleetSummary:
             lines.append("  ".join(f"{cell(row.get(c)):<{width[c]}}" if c == "bag" else f"{cell(row.get(c)):>{width[c]}}"
                                    for c in columns))
         lines += [f"  error {row['bag']}: {row['error']}" for row in self.rows if row.get("error")]
-        rate = self.samples / self.wall if self.wall > 0 else float("nan")
-        lines.append(f"{len(self.rows)} bag(s) on {self.workers}: wall time {self.wall:.2f} s, {rate:.0f} samples/s")
+        rate = f", {self.samples / self.wall:.0f} samples/s" if self.samples and self.wall > 0 else ""
+        lines.append(f"{len(self.rows)} bag(s) on {self.workers}: wall time {self.wall:.2f} s{rate}")
         return "\n".join(lines)
 
 

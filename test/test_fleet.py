@@ -1,17 +1,19 @@
-"""Fleet replay: a folder of bags on worker processes and on a local Dask cluster, one summary table.
+"""Fleet replay and diagnose: a folder of bags on worker processes and on a local Dask cluster, one summary table.
 
 The Dask cluster runs on this machine only (127.0.0.1, two worker processes, no
 dashboard); its results and output bags must equal a single-process run's.
 """
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
 import pytest
 
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.fleet import find_bags, is_fleet, replay_job, run_fleet
+from cable_winch_monitor.fleet import diagnose_job, find_bags, is_fleet, replay_job, run_fleet
+from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.paths import demo_bag
 from simbags import assert_clean, run_cli
 
@@ -69,3 +71,44 @@ def test_dask_cluster_gives_identical_results(fleet, tmp_path):
         assert output_bag(tmp_path / "dask" / name) == output_bag(tmp_path / "local" / name)
     one = count_messages(fleet / BAGS[0], tmp_path)["messages"]
     assert custom.rows[0] == {"bag": BAGS[0], "messages": one} and custom.total() == {"bag": "total", "messages": 3 * one}
+
+
+@pytest.fixture(scope="module")
+def effect_fleet(tmp_path_factory) -> tuple[Path, Path]:
+    """Two bags of the elastic-rope plant: one with the ropes' weight hidden in the truth, one with nothing."""
+    from effectbags import ELASTIC, SEED002, plant_file, simulate_bag
+
+    plant = plant_file(tmp_path_factory.mktemp("plant"), "nominal", SEED002, ELASTIC)
+    bags = tmp_path_factory.mktemp("effect_fleet")  # the bags, and beside them their scenario files
+    simulate_bag(bags, "heavy_ropes", plant, {"rope_weight": {"w": 60.0}})
+    simulate_bag(bags, "as_modelled", plant, {})
+    return bags, plant
+
+
+@pytest.mark.timeout(300)
+def test_fleet_diagnose_finds_each_bags_effect_on_workers_and_on_dask(effect_fleet, tmp_path):
+    bags, plant = effect_fleet
+    result = run_cli("diagnose", bags, "--config", plant, "--candidates", "rope_weight,encoder_offset",
+                     "--workers", "2", "--out", tmp_path / "out", "--json", tmp_path / "table.json", timeout=240)
+    assert_clean(result, 0)
+    lines = result.stdout.splitlines()
+    assert lines[0].split()[:2] == ["bag", "rows"]
+    rows = {line.split()[0]: line for line in lines[1:4]}
+    assert set(rows) == {"as_modelled", "heavy_ropes", "total"}
+    assert "rope_weight" in rows["heavy_ropes"] and " - " in rows["as_modelled"]
+    assert "2 bag(s) on 2 worker processes" in lines[-1]
+    table = json.loads((tmp_path / "table.json").read_text())
+    by_bag = {row["bag"]: row for row in table["bags"]}
+    assert table["total"]["rows"] == sum(row["rows"] for row in table["bags"])
+    assert by_bag["heavy_ropes"]["score after"] < by_bag["heavy_ropes"]["score"]  # the error falls
+    for name in ("heavy_ropes", "as_modelled"):  # each bag's full result, as `diagnose --json` writes it
+        report = json.loads((tmp_path / "out" / f"{name}.json").read_text())
+        assert report["selected"] == (["rope_weight"] if name == "heavy_ropes" else [])
+        assert report["samples"] == by_bag[name]["rows"]
+
+    distributed = pytest.importorskip("distributed")
+    job = diagnose_job(load_plant(plant), ["rope_weight", "encoder_offset"])
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        remote = run_fleet(find_bags(bags), tmp_path / "dask", job, scheduler=cluster.scheduler_address)
+    assert without_wall(remote.rows) == without_wall(table["bags"])

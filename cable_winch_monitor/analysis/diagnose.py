@@ -138,8 +138,10 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
                      screen.solves + train.solves + held.solves, channels)
 
 
-def diagnose_bag(bag: str | Path, plant: Plant | None = None) -> Diagnosis:
-    """Read a bag and diagnose it against a plant (the bundled one by default), its effects included."""
+def diagnose_bag(bag: str | Path, plant: Plant | None = None,
+                 candidates: list[str] | None = None) -> tuple[Diagnosis, Dataset]:
+    """Read a bag and diagnose it against a plant (the bundled one by default), its effects included;
+    the diagnosis and the bag's measurements."""
     data = read_bag(bag)
     model = PlantModel.from_plant(plant or load_plant())
-    return diagnose(model, data, noise(model.plant, data)[0])
+    return diagnose(model, data, noise(model.plant, data)[0], candidates), data

@@ -54,7 +54,7 @@ def main() -> int:
         simulate(load_scenario(scenario), directory / "bag")
         print(f"simulated {DURATION / 60:.0f} min into {directory / 'bag'} in {time.perf_counter() - started:.1f} s")
         started = time.perf_counter()
-        result = diagnose_bag(directory / "bag", load_plant(plant_path))
+        result, _ = diagnose_bag(directory / "bag", load_plant(plant_path))
         wall = time.perf_counter() - started
     print(f"diagnose: {result.train_rows} training and {result.heldout_rows} held-out rows, {result.solves} equilibrium solves, selected {result.selected}, "
           f"held-out score {result.ladder[0].score_heldout:.3f} -> {result.ladder[-1].score_heldout:.3f}")
