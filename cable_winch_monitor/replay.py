@@ -1,8 +1,9 @@
 """`replay`: a recorded bag through the monitor, every output into a new bag beside the inputs.
 
-The pipeline object and the field mapping are the live node's own (MonitorPipeline,
-monitor.fields); messages are fed in the bag's log order, one at a time, so a replay
-gives what the node gave. No ROS runtime is needed. Memory stays at about one chunk of
+The pipeline code and the field mapping are the live node's own (MonitorPipeline,
+monitor.fields); messages are fed in the bag's log order (monitor.lookahead merges and
+solves a window ahead, then takes them one at a time), so a replay gives what the node
+gave. No ROS runtime is needed. Memory stays at about one chunk of
 the input whatever the length of the bag. Outputs carry their input's header stamp, and
 that stamp is their log time; inputs keep their own log time and bytes.
 """
@@ -23,12 +24,10 @@ from .model.plant import Plant, load_plant
 from .monitor import fields
 from .monitor.alarm import AlarmLevel
 from .monitor.lookahead import LookaheadPipeline
-from .monitor.pipeline import MonitorPipeline, MonitorStats
+from .monitor.pipeline import MonitorOutput, MonitorStats
+from .monitor.residuals import Residuals
 from .progress import Progress
 
-JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
-INPUT_TOPICS = {"/winch/joint_states": JOINT_STATE, **{f"/winch_{i}/joint_states": JOINT_STATE for i in range(1, 5)},
-                "/platform/imu": IMU, "/platform/position": POINT}
 
 
 @dataclass(frozen=True)
@@ -106,18 +105,12 @@ class ReplaySummary:
         return "\n".join(lines)
 
 
-def _outputs(pipeline: MonitorPipeline, item: BagMessage) -> list[records.Record]:
-    """Feed one input message to the pipeline, as the node's callbacks do; the records to publish."""
-    msg = item.message
-    stamp = fields.stamp_of(msg)
-    if item.msgtype == JOINT_STATE:
-        output = pipeline.on_joint_state(fields.joint_sample(msg, item.topic))
-        return [] if output is None else records.output_records(stamp, output)
-    if item.msgtype == IMU:
-        residuals = pipeline.on_imu(fields.seconds(msg.header.stamp), fields.imu_quaternion(msg))
-    else:
-        residuals = pipeline.on_position(fields.seconds(msg.header.stamp), fields.point_xyz(msg))
-    return records.residual_records(stamp, residuals)
+def _records(item: BagMessage, result: MonitorOutput | Residuals | None) -> list[records.Record]:
+    """What the node publishes for one input message and the pipeline's result for it."""
+    stamp = fields.stamp_of(item.message)
+    if item.msgtype == fields.JOINT_STATE:
+        return [] if result is None else records.output_records(stamp, result)
+    return records.residual_records(stamp, result)
 
 
 @contextmanager
@@ -151,18 +144,18 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
-    reader = BagReader(bag, INPUT_TOPICS)
-    plant = plant or load_plant()
-    lookahead = batched and solver == "energy"
-    pipeline = LookaheadPipeline(plant, staleness) if lookahead else MonitorPipeline(plant, solver, staleness)
+    reader = BagReader(bag, fields.INPUT_TOPICS)
+    pipeline = LookaheadPipeline(plant or load_plant(), solver, staleness, batched)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():
         try:
-            for count, item in enumerate(pipeline.feed(reader) if lookahead else reader, 1):
+            for count, (item, result) in enumerate(pipeline.run(reader), 1):
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
                 try:
-                    outputs = _outputs(pipeline, item)
+                    if isinstance(result, Exception):
+                        raise result
+                    outputs = _records(item, result)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue
@@ -174,6 +167,6 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
             summary.interrupted = True
         finally:
             bar.finish()
-            summary.written = Counter({t: n for t, n in writer.counts.items() if t not in INPUT_TOPICS})
+            summary.written = Counter({t: n for t, n in writer.counts.items() if t not in fields.INPUT_TOPICS})
     summary.wall = time.perf_counter() - started
     return summary

@@ -13,7 +13,8 @@ from rosbags.rosbag2 import Reader
 from cable_winch_monitor.bagio.records import ALARM, OUTPUT_TYPES, POSE, RESIDUALS, TENSION
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
-from cable_winch_monitor.replay import INPUT_TOPICS, replay
+from cable_winch_monitor.monitor.fields import INPUT_TOPICS
+from cable_winch_monitor.replay import replay
 from simbags import assert_clean, messages, run_cli, simulated, truth
 
 SLACK_TOLERANCE = AlarmPolicy().slack_tolerance

@@ -18,9 +18,9 @@ from ..effects import Conditions
 from ..effects.sheave import motion_direction
 from ..model.plant import CABLE_NAMES
 from ..monitor import fields
+from ..monitor.fields import IMU, INPUT_TOPICS, JOINT_STATE
 from ..monitor.inputs import CableLengthMerger
 from ..monitor.residuals import imu_channels
-from ..replay import IMU, INPUT_TOPICS, JOINT_STATE
 
 CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES) + ("roll", "pitch", "depth")
 NOISE_KEYS = {channel: ("tension" if channel.startswith("tension_") else channel) for channel in CHANNELS}

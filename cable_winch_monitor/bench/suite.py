@@ -24,7 +24,7 @@ from ..fleet import find_bags, replay_job, run_fleet
 from ..model.batched import solve_batch
 from ..model.plant import Plant, load_plant
 from ..model.solve import solve
-from ..replay import INPUT_TOPICS
+from ..monitor.fields import INPUT_TOPICS
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
 from .replay_throughput import replay_child

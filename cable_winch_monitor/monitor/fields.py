@@ -19,6 +19,9 @@ from .residuals import Residuals
 from .inputs import JointSample
 
 FRAME = "shaft"
+JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
+INPUT_TOPICS = {"/winch/joint_states": JOINT_STATE, **{f"/winch_{i}/joint_states": JOINT_STATE for i in range(1, 5)},
+                "/platform/imu": IMU, "/platform/position": POINT}  # interface.md: the monitor's inputs
 NAN = float("nan")
 Stamp = tuple[int, int]
 Fields = dict[str, Any]

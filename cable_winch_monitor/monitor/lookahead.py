@@ -1,18 +1,23 @@
-"""Replay's solve path: the complete samples of a window of messages solved at once.
+"""Replay's feed: bag messages through the pipeline a window at a time, each window's samples solved at once.
 
-The live node must solve each sample as it arrives; a replay can read ahead. Before a
-window of messages is fed to the pipeline, a copy of its input merger runs over the
-window's joint states to find the complete samples the pipeline will meet, and
-`solve_batch` solves them together, warm-started from the last solved sample. The
-pipeline then takes these solutions in turn (each checked against its sample's
-lengths; a sample not foreseen is solved per sample), so merging, alarms, residuals and
-outputs are the per-sample pipeline's own.
+The live node must merge and solve each winch message as it arrives; a replay can read
+ahead. For each window of messages:
+
+1. every winch message is merged, in log order, by the pipeline's own merger (as the
+   node would merge it); each complete sample keeps what the merger knew at its message;
+2. the window's complete samples are solved together (`solve_batch`, warm-started from
+   the last solved sample), with their wall clearances; with another solver or with the
+   plant's physical effects each is solved in step 3 instead, as the node solves it;
+3. the messages are taken in log order again: a complete sample gets its alarm and
+   load-pin residuals, an inclinometer or depth reading its residuals against the latest
+   solved pose -- the per-sample pipeline's own code, so the outputs are the node's.
+
+Each message comes out with its result: the solved sample (MonitorOutput), residuals,
+None, or the exception the pipeline raised on it (counted like the node's callback errors).
 """
 from __future__ import annotations
 
-import copy
-from collections import deque
-from typing import Any, Iterable, Iterator, TypeVar
+from typing import Any, Iterable, Iterator, Union
 
 import numpy as np
 
@@ -21,55 +26,67 @@ from ..model.plant import Plant
 from ..model.result import Solution
 from . import fields
 from .clearance import Clearance, solution_clearances
-from .pipeline import MonitorPipeline
+from .pipeline import CompleteSample, MonitorOutput, MonitorPipeline
+from .residuals import Residuals
 
-JOINT_STATE = "sensor_msgs/msg/JointState"
 WINDOW = 2000  # messages read ahead
 
-Item = TypeVar("Item")
+Result = Union[MonitorOutput, Residuals, None, Exception]
 
 
 class LookaheadPipeline(MonitorPipeline):
-    """The energy-solver pipeline, fed by `feed`, solving each window's samples in one batch."""
+    """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time."""
 
-    def __init__(self, plant: Plant, staleness: float = 0.5, window: int = WINDOW):
-        super().__init__(plant, "energy", staleness)
+    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
+                 window: int = WINDOW):
+        super().__init__(plant, solver, staleness)
         self.window = window
-        self._presolved: deque[tuple[np.ndarray, Solution, Clearance | None]] = deque()
+        # The batch solver is the rigid energy model: not for another solver, nor with physical effects.
+        self.batched = batched and solver == "energy" and self.model is None
 
-    def _solution(self, lengths: np.ndarray) -> tuple[Solution, Clearance | None]:
-        if self._presolved and np.array_equal(self._presolved[0][0], lengths):
-            return self._presolved.popleft()[1:]
-        self._presolved.clear()  # not foreseen: the rest of the window would be out of step
-        return super()._solution(lengths)
-
-    def feed(self, items: Iterable[Item]) -> Iterator[Item]:
-        """The items (with .msgtype, .topic, .message) unchanged, a window at a time, each window presolved."""
-        window: list[Item] = []
+    def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
+        """Every item in order, with what the pipeline made of it."""
+        window: list[Any] = []
         for item in items:
             window.append(item)
             if len(window) == self.window:
-                self._presolve(window)
-                yield from window
+                yield from self._run_window(window)
                 window = []
-        self._presolve(window)
-        yield from window
+        yield from self._run_window(window)
 
-    def _presolve(self, window: list[Any]) -> None:
-        merger = copy.deepcopy(self.merger)
-        lengths = []
-        for item in window:
-            if item.msgtype != JOINT_STATE:
-                continue
+    def _run_window(self, window: list[Any]) -> Iterator[tuple[Any, Result]]:
+        merged = [self._merge_item(item) if item.msgtype == fields.JOINT_STATE else None for item in window]
+        samples = [outcome for outcome in merged if isinstance(outcome, CompleteSample)]
+        presolved = iter(self._presolve(samples))
+        for item, outcome in zip(window, merged):
+            solved = next(presolved) if isinstance(outcome, CompleteSample) else None
             try:
-                sample = fields.joint_sample(item.message, item.topic)
-                if merger.add(sample).rejected:
-                    continue
-                complete, _ = merger.complete(sample.stamp)
-            except Exception:  # noqa: BLE001 - the pipeline meets the same error and counts it
-                continue
-            if complete is not None:
-                lengths.append(complete)
-        if lengths and self.model is None:  # the batch solver is the rigid model: not with physical effects
-            solutions = solve_batch(self.plant, np.array(lengths), warm_start=self._warm_start()).solutions()
-            self._presolved = deque(zip(lengths, solutions, solution_clearances(self.plant, solutions)))
+                result = self._result(item, outcome, solved)
+            except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
+                result = error
+            yield item, result
+
+    def _merge_item(self, item: Any) -> CompleteSample | Exception | None:
+        try:
+            return self._merge(fields.joint_sample(item.message, item.topic))
+        except Exception as error:  # noqa: BLE001 - returned with its message in step 3
+            return error
+
+    def _presolve(self, samples: list[CompleteSample]) -> list[tuple[Solution, Clearance | None] | None]:
+        """Equilibrium and clearance of each sample, solved together (None each where not batched)."""
+        if not self.batched or not samples:
+            return [None] * len(samples)
+        batch = solve_batch(self.plant, np.array([s.lengths for s in samples]), warm_start=self._warm_start())
+        solutions = batch.solutions()
+        return list(zip(solutions, solution_clearances(self.plant, solutions)))
+
+    def _result(self, item: Any, outcome: CompleteSample | Exception | None,
+                solved: tuple[Solution, Clearance | None] | None) -> Result:
+        msg = item.message
+        if item.msgtype == fields.JOINT_STATE:
+            if isinstance(outcome, Exception):
+                raise outcome
+            return None if outcome is None else self._solve(outcome, solved)
+        if item.msgtype == fields.IMU:
+            return self.on_imu(fields.seconds(msg.header.stamp), fields.imu_quaternion(msg))
+        return self.on_position(fields.seconds(msg.header.stamp), fields.point_xyz(msg))

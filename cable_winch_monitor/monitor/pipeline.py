@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -32,6 +32,16 @@ class MonitorOutput:
     clearance: Clearance | None
     alarm: Alarm
     residuals: Residuals | None
+
+
+class CompleteSample(NamedTuple):
+    """Four fresh cable lengths at a winch message's stamp, with what the merger knew then."""
+
+    stamp: float
+    lengths: np.ndarray
+    accepted: list[int]  # the cables this message updated
+    tensions: list[float]  # load pins of the four cables [N] (NaN: not measured)
+    speeds: list[float]  # payout speeds [m/s] (NaN: not reported)
 
 
 @dataclass
@@ -80,6 +90,11 @@ class MonitorPipeline:
 
     def on_joint_state(self, sample: JointSample) -> MonitorOutput | None:
         """A winch message; returns the solved sample when the four lengths are complete and fresh."""
+        complete = self._merge(sample)
+        return None if complete is None else self._solve(complete)
+
+    def _merge(self, sample: JointSample) -> CompleteSample | None:
+        """Merge a winch message; the complete sample it makes, if it makes one."""
         self.stats.messages[sample.topic] += 1
         merged = self.merger.add(sample)
         self.stats.ignored_names.update(merged.ignored)
@@ -91,7 +106,9 @@ class MonitorPipeline:
         self.stats.waiting = waiting
         if lengths is None:
             return None
-        return self._solve(sample.stamp, lengths, merged.accepted)
+        readings = self.merger.readings
+        return CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings],
+                              [r.velocity for r in readings])
 
     def evaluate(self, lengths: object) -> tuple[Solution, Clearance | None, Alarm]:
         """What proposed cable lengths would give (for plant control), without touching the state."""
@@ -107,31 +124,28 @@ class MonitorPipeline:
             return self.model.solve(lengths, self._warm_start())
         return solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
 
-    def _solution(self, lengths: np.ndarray) -> tuple[Solution, Clearance | None]:
-        """The equilibrium of one complete sample and its wall clearance (replay overrides it with
-        presolved batches)."""
-        solution = self._equilibrium(lengths)
-        return solution, solution_clearance(self.plant, solution)
-
-    def _predicted(self, solution: Solution) -> dict[str, float] | None:
+    def _predicted(self, solution: Solution, speeds: list[float]) -> dict[str, float] | None:
         """What the sensors should read for a solved sample (None without a pose), under the
         plant's measurement effects if it has any; kept for the measurements that follow."""
         if self.model is None:
             return predicted_channels(solution) if solution.ok else None
-        speeds = np.array([r.velocity for r in self.merger.readings])  # all four are known once a sample is
-        self.direction = motion_direction(speeds, self.direction)
+        self.direction = motion_direction(np.array(speeds), self.direction)
         if not solution.ok:
             return None
-        return self.model.predict(solution, Conditions(speeds, self.direction))
+        return self.model.predict(solution, Conditions(np.array(speeds), self.direction))
 
-    def _solve(self, stamp: float, lengths: np.ndarray, accepted: list[int]) -> MonitorOutput:
-        solution, clearance = self._solution(lengths)
+    def _solve(self, sample: CompleteSample, solved: tuple[Solution, Clearance | None] | None = None) -> MonitorOutput:
+        """Solve a complete sample (or take its equilibrium and clearance as `solved` ahead), raise its
+        alarm and compare its load pins with the model."""
+        if solved is None:
+            solution = self._equilibrium(sample.lengths)
+            solved = solution, solution_clearance(self.plant, solution)
+        solution, clearance = solved
         alarm = self.alarms.update(solution, clearance)
-        readings = self.merger.readings
-        measured = {TENSION_CHANNELS[i]: readings[i].tension for i in accepted}
-        predicted = self._predicted(solution)
-        resid = residuals(self.noise, stamp, measured, predicted) if predicted is not None else None
-        output = MonitorOutput(stamp, solution, clearance, alarm, resid)
+        measured = {TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+        predicted = self._predicted(solution, sample.speeds)
+        resid = residuals(self.noise, sample.stamp, measured, predicted) if predicted is not None else None
+        output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid)
         self.stats.solved += int(solution.ok)
         self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
         self.stats.states[solution.tension_state] += 1

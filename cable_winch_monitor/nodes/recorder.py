@@ -21,7 +21,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..bagio.reader import BagError
 from ..bagio.writer import BagWriter
-from ..replay import INPUT_TOPICS
+from ..monitor.fields import INPUT_TOPICS
 
 NODE_NAME = "cable_winch_monitor_recorder"
 GRAPH_PERIOD = 0.5  # [s] between looks for topics not yet subscribed

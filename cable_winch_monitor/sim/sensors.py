@@ -18,14 +18,11 @@ import numpy as np
 from ..model.geometry import roll_pitch_yaw
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution
-from ..monitor.fields import Stamp, header
+from ..monitor.fields import IMU, JOINT_STATE, POINT, Stamp, header
 
 NAN = float("nan")
 UNKNOWN = -1.0  # covariance[0] of a quantity that is not measured (sensor_msgs convention)
 YAW_VARIANCE = 1.0e6  # [rad^2] the inclinometer does not measure yaw
-JOINT_STATE = "sensor_msgs/msg/JointState"
-IMU = "sensor_msgs/msg/Imu"
-POINT = "geometry_msgs/msg/PointStamped"
 
 
 @dataclass(frozen=True)
