@@ -27,14 +27,16 @@ SIZE = {name: Struct("<" + code).size for name, code in SCALAR.items()}
 Encoder = Callable[[Mapping[str, Any]], bytes]
 
 
-class _Generator:
-    """Source of one encoder; the offset is known modulo `base` to be `rem` (0 = after the header)."""
+class Layout:
+    """Where a generated CDR codec stands: the offset from the end of the header is known modulo
+    `base` to be `rem`; scalars whose alignment is known pend as one struct run (`fmt`, with
+    their arguments or targets in `pending`) until `flush` emits it."""
 
     def __init__(self, store: Typestore):
         self.store = store
         self.lines: list[str] = []
         self.structs: dict[str, str] = {}  # struct format -> name in the generated code
-        self.fmt, self.args = "", []
+        self.fmt, self.pending = "", []
         self.base, self.rem, self.indent, self.names = 8, 0, 1, 0
 
     def emit(self, line: str) -> None:
@@ -50,12 +52,17 @@ class _Generator:
         self.emit(f"{name} = {expr}")
         return name
 
+    def struct(self) -> str:
+        """The name of the pending run's Struct in the generated code."""
+        return self.structs.setdefault("<" + self.fmt, f"S{len(self.structs)}")
+
     def flush(self) -> None:
-        """Pack the pending run of scalars."""
-        if self.fmt:
-            name = self.structs.setdefault("<" + self.fmt, f"S{len(self.structs)}")
-            self.emit(f"out += {name}.pack({', '.join(self.args)})")
-            self.fmt, self.args = "", []
+        """Emit the pending run of scalars."""
+        raise NotImplementedError
+
+    def pad(self, size: int) -> str:
+        """A statement aligning to `size` bytes at run time."""
+        raise NotImplementedError
 
     def unknown(self, align: int = 1) -> None:
         """After variable-length data: the offset is known only modulo `align`."""
@@ -69,15 +76,28 @@ class _Generator:
             self.rem = (self.rem + pad) % self.base
         else:
             self.flush()
-            self.emit(f"out += bytes((4 - len(out)) % {size})")
+            self.emit(self.pad(size))
             self.base, self.rem = size, 0
 
-    def scalar(self, code: str, size: int, arg: str, count: int = 1) -> None:
-        """`count` values of `size` bytes each, packed with `code` from the argument expression `arg`."""
+    def scalar(self, code: str, size: int, item: str, count: int = 1) -> None:
+        """`count` values of `size` bytes each, with struct code `code`: `item` is the argument to pack
+        or the target to unpack into."""
         self.align(size)
         self.fmt += code if count == 1 else f"{count}{code}"
-        self.args.append(arg)
+        self.pending.append(item)
         self.rem = (self.rem + size * count) % self.base
+
+
+class _EncoderSource(Layout):
+    """Source of one encoder, from the nested field mapping `v` to the bytearray `out`."""
+
+    def flush(self) -> None:
+        if self.fmt:
+            self.emit(f"out += {self.struct()}.pack({', '.join(self.pending)})")
+            self.fmt, self.pending = "", []
+
+    def pad(self, size: int) -> str:
+        return f"out += bytes((4 - len(out)) % {size})"
 
     def string(self, expr: str) -> None:
         encoded = self.local(f"{expr}.encode()")
@@ -121,7 +141,7 @@ class _Generator:
             size = SIZE[inner_argument[0]]
             self.emit(f"if len({value}):")
             if size > 4:  # rosbags aligns the elements only when there are any
-                self.emit(f"    out += bytes((4 - len(out)) % {size})")
+                self.emit(f"    {self.pad(size)}")
             self.emit(f"    out += pack(f'<{{len({value})}}{ELEMENT[inner_argument[0]]}', *{value})")
             self.unknown(min(size, 4))
             return
@@ -143,7 +163,7 @@ class _Generator:
 @lru_cache(maxsize=None)
 def encoder(msgtype: str, store: Typestore | None = None) -> Encoder:
     """The compiled encoder of `msgtype` (values as for `records.build`)."""
-    generator = _Generator(store or typestore())
+    generator = _EncoderSource(store or typestore())
     source = generator.source(msgtype)
     namespace: dict[str, Any] = {"pack": pack}
     namespace.update({name: Struct(fmt) for fmt, name in generator.structs.items()})

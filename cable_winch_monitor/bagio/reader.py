@@ -15,6 +15,7 @@ from typing import Any, Iterator, Mapping
 import yaml
 from rosbags.typesys.store import Typestore
 
+from .decode import decode
 from .mcapfile import McapError, McapFile
 from .typestore import typestore
 
@@ -148,7 +149,7 @@ class BagReader:
             report.read[topic] += 1
             if not reason:
                 try:
-                    message = self.store.deserialize_cdr(raw.data, msgtype)
+                    message = decode(raw.data, msgtype, self.store)
                 except Exception:  # noqa: BLE001 - corrupt bytes raise anything; counted, never raised
                     reason = f"cannot be decoded as {msgtype}"
                 else:
