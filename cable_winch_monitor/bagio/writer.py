@@ -46,7 +46,7 @@ class BagWriter:
         connection = self._connections.get(topic)
         if connection is None:
             connection = self._connections[topic] = self._writer.add_connection(topic, msgtype, typestore=self.store)
-        self._append(connection.id, max(0, log_time), data)
+        self._append(connection.id, log_time if log_time > 0 else 0, data)
         self.counts[topic] += 1
 
     def _append(self, channel: int, time: int, data: bytes) -> None:
@@ -59,13 +59,15 @@ class BagWriter:
         if time > writer.max_timestamp:
             writer.max_timestamp = storage.message_end_time = time
         chunk = storage.chunk
-        chunk.message_start_time = min(time, chunk.message_start_time)
-        chunk.message_end_time = max(time, chunk.message_end_time)
+        if time < chunk.message_start_time:
+            chunk.message_start_time = time
+        if time > chunk.message_end_time:
+            chunk.message_end_time = time
         bio = chunk.bio
-        chunk.msgs[channel].append((time, bio.tell()))
-        bio.write(MESSAGE.pack(0x05, MESSAGE.size - 9 + len(data), channel, 0, time, time))
-        bio.write(data)
-        if bio.tell() > CHUNK_SIZE:
+        offset = bio.tell()
+        chunk.msgs[channel].append((time, offset))
+        bio.write(MESSAGE.pack(0x05, MESSAGE.size - 9 + len(data), channel, 0, time, time) + data)
+        if offset + MESSAGE.size + len(data) > CHUNK_SIZE:
             storage.close_chunk()
 
     def write(self, topic: str, msgtype: str, log_time: int, message: Any) -> None:

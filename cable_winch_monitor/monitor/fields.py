@@ -112,6 +112,5 @@ def collision_alarm(stamp: Stamp, alarm: Alarm) -> Fields:
 
 
 def model_residuals(stamp: Stamp, residuals: Residuals) -> Fields:
-    return {"header": header(stamp), "channels": list(residuals.channels), "measured": residuals.measured.tolist(),
-            "predicted": residuals.predicted.tolist(), "residuals": residuals.values.tolist(),
-            "noise": residuals.noise.tolist()}
+    return {"header": header(stamp), "channels": list(residuals.channels), "measured": list(residuals.measured),
+            "predicted": list(residuals.predicted), "residuals": list(residuals.values), "noise": list(residuals.noise)}

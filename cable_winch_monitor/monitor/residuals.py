@@ -2,8 +2,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -14,17 +13,20 @@ from ..model.result import Solution
 TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # load pins, one per cable
 
 
-@dataclass(frozen=True)
-class Residuals:
+class Residuals(NamedTuple):
+    """Measured and predicted readings of the channels measured at `stamp`, with their 1-sigma noise
+    (a few numbers per message: tuples of floats, not arrays)."""
+
     stamp: float
     channels: tuple[str, ...]
-    measured: np.ndarray
-    predicted: np.ndarray
-    noise: np.ndarray
+    measured: tuple[float, ...]
+    predicted: tuple[float, ...]
+    noise: tuple[float, ...]
 
     @property
-    def values(self) -> np.ndarray:
-        return self.measured - self.predicted
+    def values(self) -> tuple[float, ...]:
+        """Measured minus predicted."""
+        return tuple(m - p for m, p in zip(self.measured, self.predicted))
 
 
 def noise_levels(plant: Plant) -> dict[str, float]:
@@ -57,10 +59,8 @@ def residuals(noise: Mapping[str, float], stamp: float, measured: Mapping[str, f
     names = tuple(k for k, v in measured.items() if k in predicted and math.isfinite(v))
     if not names:
         return None
-    return Residuals(
-        stamp=stamp, channels=names, measured=np.array([measured[k] for k in names]),
-        predicted=np.array([predicted[k] for k in names]),
-        noise=np.array([noise["tension" if k.startswith("tension_") else k] for k in names]))
+    return Residuals(stamp, names, tuple(measured[k] for k in names), tuple(predicted[k] for k in names),
+                     tuple(noise["tension" if k.startswith("tension_") else k] for k in names))
 
 
 def imu_channels(quaternion_xyzw: Sequence[float]) -> dict[str, float]:
