@@ -9,6 +9,7 @@ strings and sequences, whose lengths vary.
 """
 from __future__ import annotations
 
+from array import array
 from functools import lru_cache
 from struct import Struct, pack
 from typing import Any, Callable, Mapping
@@ -23,6 +24,7 @@ SCALAR = {"bool": "?", "byte": "b", "char": "B", "int8": "b", "uint8": "B", "int
           "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q", "float32": "f", "float64": "d"}
 ELEMENT = {**SCALAR, "byte": "B"}  # rosbags packs byte arrays as uint8
 SIZE = {name: Struct("<" + code).size for name, code in SCALAR.items()}
+ARRAY_CODES = {code for code in "bBhHiIqQfd" if array(code).itemsize == Struct("<" + code).size}
 
 Encoder = Callable[[Mapping[str, Any]], bytes]
 
@@ -97,7 +99,7 @@ class _EncoderSource(Layout):
             self.fmt, self.pending = "", []
 
     def pad(self, size: int) -> str:
-        return f"out += bytes((4 - len(out)) % {size})"
+        return f"out += ZEROS[(4 - len(out)) % {size}]"
 
     def string(self, expr: str) -> None:
         encoded = self.local(f"{expr}.encode()")
@@ -142,7 +144,11 @@ class _EncoderSource(Layout):
             self.emit(f"if len({value}):")
             if size > 4:  # rosbags aligns the elements only when there are any
                 self.emit(f"    {self.pad(size)}")
-            self.emit(f"    out += pack(f'<{{len({value})}}{ELEMENT[inner_argument[0]]}', *{value})")
+            code = ELEMENT[inner_argument[0]]
+            if code in ARRAY_CODES:  # array's machine values are CDR's on a little-endian host
+                self.emit(f"    out += array('{code}', {value}).tobytes()")
+            else:
+                self.emit(f"    out += pack(f'<{{len({value})}}{code}', *{value})")
             self.unknown(min(size, 4))
             return
         item = self.fresh()
@@ -165,7 +171,7 @@ def encoder(msgtype: str, store: Typestore | None = None) -> Encoder:
     """The compiled encoder of `msgtype` (values as for `records.build`)."""
     generator = _EncoderSource(store or typestore())
     source = generator.source(msgtype)
-    namespace: dict[str, Any] = {"pack": pack}
+    namespace: dict[str, Any] = {"pack": pack, "array": array, "ZEROS": tuple(bytes(n) for n in range(8))}
     namespace.update({name: Struct(fmt) for fmt, name in generator.structs.items()})
     exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)  # noqa: S102 - generated above
     return namespace["encode"]
