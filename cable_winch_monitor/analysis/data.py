@@ -16,13 +16,12 @@ import numpy as np
 from ..bagio.reader import BagReader
 from ..effects import Conditions
 from ..effects.sheave import motion_direction
-from ..model.plant import CABLE_NAMES
 from ..monitor import fields
 from ..monitor.fields import IMU, INPUT_TOPICS, JOINT_STATE
 from ..monitor.inputs import CableLengthMerger
-from ..monitor.residuals import imu_channels
+from ..monitor.residuals import TENSION_CHANNELS, imu_channels
 
-CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES) + ("roll", "pitch", "depth")
+CHANNELS = TENSION_CHANNELS + ("roll", "pitch", "depth")
 NOISE_KEYS = {channel: ("tension" if channel.startswith("tension_") else channel) for channel in CHANNELS}
 KINDS = ("joint", "imu", "position")
 MAX_GAP = 0.5  # [s] an inclinometer or depth sample further than this from a winch sample has no lengths

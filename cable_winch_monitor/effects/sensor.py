@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.plant import CABLE_NAMES, Plant
+from ..model.plant import Plant
 from ..model.result import Solution
+from ..monitor.residuals import TENSION_CHANNELS
 from .base import Conditions, Effect, Parameter
 
 MAX_BENDING = 0.5  # 3 sqrt(B/T)/l beyond this the sensor is outside its range: reading capped at 2 T
@@ -44,6 +45,5 @@ class TensionSensorBending(Effect):
     source = "seed 001, eqs. (12)-(18)"
 
     def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
-        keys = [f"tension_{name}" for name in CABLE_NAMES]
-        readings = bending_reading(np.array([channels[k] for k in keys]), self["B"], self["span"])
-        channels.update({k: float(v) for k, v in zip(keys, readings)})
+        readings = bending_reading(np.array([channels[k] for k in TENSION_CHANNELS]), self["B"], self["span"])
+        channels.update({k: float(v) for k, v in zip(TENSION_CHANNELS, readings)})

@@ -19,6 +19,7 @@ from ..model.geometry import roll_pitch_yaw
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution
 from ..monitor.fields import IMU, JOINT_STATE, POINT, Stamp, header
+from ..monitor.residuals import TENSION_CHANNELS
 
 NAN = float("nan")
 UNKNOWN = -1.0  # covariance[0] of a quantity that is not measured (sensor_msgs convention)
@@ -79,7 +80,7 @@ class Sensors:
                     channels: Mapping[str, float]) -> dict[str, Any]:
         joints = self.config["joint_states"]
         cables = list(stream.cables)
-        tensions = np.array([channels.get(f"tension_{CABLE_NAMES[i]}", NAN) for i in cables])
+        tensions = np.array([channels.get(TENSION_CHANNELS[i], NAN) for i in cables])
         return {"header": header(stamp, ""), "name": [CABLE_NAMES[i] for i in cables],
                 "position": self._noisy(lengths[cables], joints["length_noise"]),
                 "velocity": self._noisy(speeds[cables], joints["velocity_noise"]) if joints["velocity"] else [],
