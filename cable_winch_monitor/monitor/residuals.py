@@ -11,6 +11,7 @@ from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
 
 TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # load pins, one per cable
+NOISE_KEYS = {channel: "tension" for channel in TENSION_CHANNELS}  # channel -> its key in noise_levels()
 
 
 class Residuals(NamedTuple):
@@ -56,11 +57,9 @@ def residuals(noise: Mapping[str, float], stamp: float, measured: Mapping[str, f
     `predicted` is what the sensors read for the solved pose (`predicted_channels`, or
     effects.PlantModel.predict under the plant's effects); `noise` is `noise_levels(plant)`.
     """
-    names = tuple(k for k, v in measured.items() if k in predicted and math.isfinite(v))
-    if not names:
-        return None
-    return Residuals(stamp, names, tuple(measured[k] for k in names), tuple(predicted[k] for k in names),
-                     tuple(noise["tension" if k.startswith("tension_") else k] for k in names))
+    rows = [(k, v, predicted[k], noise[NOISE_KEYS.get(k, k)]) for k, v in measured.items()
+            if k in predicted and math.isfinite(v)]
+    return Residuals(stamp, *zip(*rows)) if rows else None
 
 
 def imu_channels(quaternion_xyzw: Sequence[float]) -> dict[str, float]:
