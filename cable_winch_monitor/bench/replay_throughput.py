@@ -48,14 +48,14 @@ def main() -> None:
             result = simulate(config, directory / name)
             simulated = time.perf_counter() - started
             size = sum(f.stat().st_size for f in (directory / name).glob("*.mcap")) / 2 ** 20
-            samples, wall, rss, _ = replay_child(directory / name, directory / f"{name}_out")
-            rows.append((name, sum(result.messages.values()), size, simulated, samples, wall, rss))
+            samples, wall, rss, replay_wall = replay_child(directory / name, directory / f"{name}_out")
+            rows.append((name, sum(result.messages.values()), size, simulated, samples, replay_wall, wall, rss))
     print("replay throughput (cable-winch-monitor replay, one core; seed-002 plant, energy solver)")
     print(f"{'bag':<8}{'messages':>10}{'MiB':>7}{'simulate [s]':>14}{'samples':>9}{'replay [s]':>12}"
-          f"{'samples/s':>11}{'peak RSS [MiB]':>16}")
-    for name, messages, size, simulated, samples, wall, rss in rows:
-        print(f"{name:<8}{messages:>10}{size:>7.1f}{simulated:>14.1f}{samples:>9}{wall:>12.1f}"
-              f"{samples / wall:>11.0f}{rss:>16.1f}")
+          f"{'samples/s':>11}{'with start-up [s]':>19}{'peak RSS [MiB]':>16}")
+    for name, messages, size, simulated, samples, replay_wall, wall, rss in rows:
+        print(f"{name:<8}{messages:>10}{size:>7.1f}{simulated:>14.1f}{samples:>9}{replay_wall:>12.2f}"
+              f"{samples / replay_wall:>11.0f}{wall:>19.2f}{rss:>16.1f}")
 
 
 if __name__ == "__main__":
