@@ -1,9 +1,9 @@
 """Compiled little-endian CDR decoders: a message's bytes straight to the type store's message object.
 
 `decode(data, msgtype, store)` gives what rosbags' `deserialize_cdr` gives -- the same
-message classes, numbers, strings and read-only numpy arrays over the bytes -- at a
-third of its cost: `decoder(msgtype)` generates, once per type, one function with the
-nested messages inlined, where rosbags calls a generated function per nested message.
+message classes, numbers, strings and read-only numpy arrays over the bytes -- at a half
+to a third of its cost: `decoder(msgtype)` generates, once per type, one function with
+the nested messages inlined, where rosbags calls a generated function per nested message.
 Malformed bytes raise as rosbags' own checks do (string lengths and terminators,
 sequence counts against the bytes left, trailing bytes). Big-endian data and types with
 byte or char fields go to rosbags.
@@ -36,7 +36,6 @@ class _DecoderSource(Layout):
 
     def __init__(self, store: Typestore):
         super().__init__(store)
-        self.size = 0  # bytes of the pending run
         self.classes: dict[str, Any] = {}  # name in the generated code -> message class or dtype
 
     def flush(self) -> None:
@@ -50,6 +49,7 @@ class _DecoderSource(Layout):
         return f"p += -(p - 4) % {size}"
 
     def constant(self, value: Any) -> str:
+        """The name of a message class or dtype in the generated code."""
         for name, known in self.classes.items():
             if known is value:
                 return name
