@@ -123,6 +123,11 @@ class _EncoderSource(Layout):
             value = self.local(expr)
             if node == Nodetype.SEQUENCE:
                 self.scalar("I", 4, f"len({value})")
+                if inner == Nodetype.BASE and inner_argument[0] == "string":
+                    self.flush()
+                    self.emit(f"out += strings(tuple({value}))")  # names repeat from message to message
+                    self.unknown()
+                    return
             elif inner == Nodetype.BASE and inner_argument[0] in ELEMENT:
                 self.scalar(ELEMENT[inner_argument[0]], SIZE[inner_argument[0]], f"*{value}", length)
                 return
@@ -166,12 +171,25 @@ class _EncoderSource(Layout):
         return "\n".join(["def encode(v):", f"    out = bytearray({HEADER!r})", *self.lines, "    return bytes(out)"])
 
 
+@lru_cache(maxsize=4096)
+def strings(values: tuple[str, ...]) -> bytes:
+    """The elements of a sequence of strings as CDR, from the 4-aligned offset after its count:
+    each length-prefixed, NUL-terminated and padded to 4 bytes before the next."""
+    out = bytearray()
+    for text in values:
+        out += bytes(-len(out) % 4)
+        encoded = text.encode()
+        out += pack("<I", len(encoded) + 1) + encoded + b"\0"
+    return bytes(out)
+
+
 @lru_cache(maxsize=None)
 def encoder(msgtype: str, store: Typestore | None = None) -> Encoder:
     """The compiled encoder of `msgtype` (values as for `records.build`)."""
     generator = _EncoderSource(store or typestore())
     source = generator.source(msgtype)
-    namespace: dict[str, Any] = {"pack": pack, "array": array, "ZEROS": tuple(bytes(n) for n in range(8))}
+    namespace: dict[str, Any] = {"pack": pack, "array": array, "strings": strings,
+                                 "ZEROS": tuple(bytes(n) for n in range(8))}
     namespace.update({name: Struct(fmt) for fmt, name in generator.structs.items()})
     exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)  # noqa: S102 - generated above
     return namespace["encode"]
