@@ -105,9 +105,8 @@ class ReplaySummary:
         return "\n".join(lines)
 
 
-def _records(item: BagMessage, result: MonitorOutput | Residuals | None) -> list[records.Record]:
-    """What the node publishes for one input message and the pipeline's result for it."""
-    stamp = fields.stamp_of(item.message)
+def _records(item: BagMessage, stamp: fields.Stamp, result: MonitorOutput | Residuals | None) -> list[records.Record]:
+    """What the node publishes for one input message (header `stamp`) and the pipeline's result for it."""
     if item.msgtype == fields.JOINT_STATE:
         return [] if result is None else records.output_records(stamp, result)
     return records.residual_records(stamp, result)
@@ -155,11 +154,12 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 try:
                     if isinstance(result, Exception):
                         raise result
-                    outputs = _records(item, result)
+                    stamp = fields.stamp_of(item.message)
+                    outputs = _records(item, stamp, result)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue
-                log_time = fields.stamp_ns(fields.stamp_of(item.message))
+                log_time = fields.stamp_ns(stamp)
                 for topic, msgtype, data in outputs:
                     writer.write_raw(topic, msgtype, log_time, data)
                 bar.update(count)

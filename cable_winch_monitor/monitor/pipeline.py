@@ -129,10 +129,11 @@ class MonitorPipeline:
         plant's measurement effects if it has any; kept for the measurements that follow."""
         if self.model is None:
             return predicted_channels(solution) if solution.ok else None
-        self.direction = motion_direction(np.array(speeds), self.direction)
+        payout = np.array(speeds)
+        self.direction = motion_direction(payout, self.direction)
         if not solution.ok:
             return None
-        return self.model.predict(solution, Conditions(np.array(speeds), self.direction))
+        return self.model.predict(solution, Conditions(payout, self.direction))
 
     def _solve(self, sample: CompleteSample, solved: tuple[Solution, Clearance | None] | None = None) -> MonitorOutput:
         """Solve a complete sample (or take its equilibrium and clearance as `solved` ahead), raise its
