@@ -65,10 +65,12 @@ def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> So
     single = _single_cable(plant, lengths)
     if single is not None:
         return single
-    for start in (_level_start, _global_minimum):
-        state = start(plant, lengths)
-        if state is not None and _settle_active_set(plant, lengths, state):
-            return _result(plant, lengths, state)
+    state = _level_start(plant, lengths)  # settled already where it is not None
+    if state is not None:
+        return _result(plant, lengths, state)
+    state = _global_minimum(plant, lengths)
+    if _settle_active_set(plant, lengths, state):
+        return _result(plant, lengths, state)
     return failed(SolveStatus.SOLVER_FAILED, "energy solver: no admissible taut set found near the energy minimum",
                   METHOD, lengths, iterations=state.steps)
 
@@ -115,7 +117,8 @@ def _single_cable(plant: Plant, lengths: np.ndarray) -> Solution | None:
 
 
 def _level_start(plant: Plant, lengths: np.ndarray) -> _State | None:
-    """The minimum found from the level pose at the mean length, or None where it is not clear-cut.
+    """The minimum found from the level pose at the mean length (settled, tensions set), or None
+    where it is not clear-cut.
 
     Winches pay out nearly in step, so the platform hangs close to level: from there the
     KKT iteration (with its taut-set exchanges and its limit on the turn) reaches the
