@@ -1,0 +1,216 @@
+"""Gauss-Newton on the equilibrium manifold: the state of one taut set that best explains the measurements.
+
+For stacked rows (sample, taut set, start state) this finds the pose and tensions that
+minimise the sum of squared normalised residuals -- unstretched lengths implied by span
+and tension against the reported lengths (sigma_l), slack ropes longer than their
+reported length, and every observation -- subject to the static equilibrium
+J^T(x) tau = F as a hard constraint. Each step solves the KKT system of the Gauss-Newton
+model with the constraint linearised (an SQP step),
+
+    [A^T A + eps I   C^T] [dz]   [-A^T r]
+    [C               0  ] [nu] = [-c    ],
+
+with dz = (dp, dw, dmu) (position [m], rotation vector [rad] on the left, tensions in
+units of m g). Every row has the same 16 x 16 system: a slack rope's tension is held at
+zero by an identity row, so all rows of all taut sets go to one `np.linalg.solve`.
+eps is a small Levenberg term: along a direction no measurement sees (the weak
+load-sharing mode of four rigid taut ropes without load pins) it keeps the start.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .geometry import cross, rotations_from_vectors, skew
+from .observations import Observation, States
+from .plant import Plant
+from .ropes import Ropes
+
+MAX_STEPS = 25
+EPS = 1e-6                # Levenberg term (residuals are in sigma, dz in m, rad, m g)
+BALANCE_TOL = 1e-11       # relative force and moment balance at convergence
+STEP_TOL = 1e-8           # step [m per 100 m of rope, rad, m g] at convergence
+MAX_TURN_STEP = 0.2       # [rad] largest rotation of one step
+MAX_SHIFT_STEP = 0.2      # largest translation of one step, in units of the plant's size
+EZ = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The measurements of N samples: reported lengths (N, 4), their noise, observation values (N, m)."""
+
+    plant: Plant
+    lengths: np.ndarray
+    sigma_length: float
+    observations: tuple[Observation, ...]
+    values: np.ndarray
+    ropes: Ropes
+    load: np.ndarray          # external wrench (6,) [N, N m about C]
+
+    @classmethod
+    def build(cls, plant: Plant, lengths: np.ndarray, sigma_length: float, observations: Sequence[Observation],
+              ropes: Ropes, load: np.ndarray | None) -> "Problem":
+        count = len(lengths)
+        values = np.column_stack([np.broadcast_to(np.asarray(o.value, dtype=float), (count,))
+                                  for o in observations]) if observations else np.zeros((count, 0))
+        wrench = plant.wrench if load is None else np.asarray(load, dtype=float).reshape(6)
+        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrench)
+
+
+@dataclass
+class Rows:
+    """Stacked candidates: the sample each row explains, its taut set and its state (mu = tau / m g)."""
+
+    sample: np.ndarray        # (n,) int
+    taut: np.ndarray          # (n, 4) bool
+    rotation: np.ndarray      # (n, 3, 3)
+    position: np.ndarray      # (n, 3)
+    mu: np.ndarray            # (n, 4)
+    converged: np.ndarray = None   # (n,) bool
+    cost: np.ndarray = None        # (n,) sum of squared normalised residuals
+    residuals: np.ndarray = None   # (n, 4 + m) normalised residuals (lengths first)
+    steps: np.ndarray = None       # (n,) int
+
+    def __post_init__(self) -> None:
+        n = len(self.sample)
+        self.mu = np.where(self.taut, self.mu, 0.0)
+        self.converged = np.zeros(n, bool)
+        self.cost = np.full(n, np.inf)
+        self.residuals = np.zeros((n, 0))
+        self.steps = np.zeros(n, int)
+
+    def take(self, index: np.ndarray) -> "Rows":
+        out = Rows(self.sample[index], self.taut[index], self.rotation[index], self.position[index], self.mu[index])
+        out.converged, out.cost, out.residuals, out.steps = (self.converged[index], self.cost[index],
+                                                              self.residuals[index], self.steps[index])
+        return out
+
+
+def implied_lengths(problem: Problem, rows: Rows) -> np.ndarray:
+    """The corrected lengths of each row (n, 4): a taut rope's unstretched length through the rope law;
+    a slack rope's reported length, or longer where its span needs it."""
+    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.plant.weight)
+    taut_length = problem.ropes.unstretched(states.spans, states.tensions)[0]
+    slack_length = problem.ropes.unstretched(states.spans, np.zeros_like(states.spans))[0]
+    return np.where(rows.taut, taut_length, np.maximum(slack_length, problem.lengths[rows.sample]))
+
+
+def residuals(problem: Problem, rows: Rows, live: np.ndarray) -> np.ndarray:
+    """Normalised residuals (n, 4 + m) of the rows `live` at their current state: lengths, then observations."""
+    return _residuals(problem, rows, live, False)[0]
+
+
+def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bool):
+    """Normalised residuals r (n, 4+m), their Jacobian A (n, 4+m, 10), constraint c (n, 6) and C (n, 6, 10)."""
+    plant = problem.plant
+    weight, scale = plant.weight, plant.moment_scale
+    rotation, position, mu, taut = rows.rotation[live], rows.position[live], rows.mu[live], rows.taut[live]
+    sample = rows.sample[live]
+    n = live.size
+    arms = np.einsum("nij,cj->nci", rotation, plant.attachments)
+    levers = arms - np.einsum("nij,j->ni", rotation, plant.cog)[:, None, :]
+    spans = position[:, None, :] + arms - plant.anchors
+    norms = np.linalg.norm(spans, axis=2)
+    units = spans / norms[..., None]
+    moments = cross(levers, units)
+    lengths = problem.lengths[sample]
+    sigma = problem.sigma_length
+
+    taut_length, d_span, d_tension = problem.ropes.unstretched(norms, mu * weight)
+    slack_length, d_slack_span, _ = problem.ropes.unstretched(norms, np.zeros_like(norms))
+    excess = slack_length - lengths
+    overstretched = ~taut & (excess > 0.0)
+    length_residual = np.where(taut, taut_length - lengths, np.maximum(excess, 0.0)) / sigma
+
+    values = problem.values[sample]
+    states = States(plant, rotation, position, mu * weight)
+    predicted = np.column_stack([o.predict(states) for o in problem.observations]) if problem.observations \
+        else np.zeros((n, 0))
+    measured = np.isfinite(values)
+    sigmas = np.array([o.sigma for o in problem.observations])
+    observation_residual = np.where(measured, (predicted - np.where(measured, values, 0.0)) / sigmas, 0.0)
+    residual = np.concatenate([length_residual, observation_residual], axis=1)
+
+    force = np.einsum("nc,nci->ni", mu, units) - problem.load[:3] / weight
+    moment = (np.einsum("nc,nci->ni", mu, moments) - problem.load[3:] / weight) / scale
+    constraint = np.concatenate([force, moment], axis=1)
+    if not with_jacobian:
+        return residual, None, constraint, None
+
+    m = len(problem.observations)
+    pose_row = np.concatenate([units, cross(arms, units)], axis=2)          # d span_i / d(p, w): (n, 4, 6)
+    jacobian = np.zeros((n, 4 + m, 10))
+    d_pose = np.where(taut, d_span, np.where(overstretched, d_slack_span, 0.0)) / sigma
+    jacobian[:, :4, :6] = d_pose[..., None] * pose_row
+    jacobian[:, np.arange(4), 6 + np.arange(4)] = np.where(taut, d_tension * weight / sigma, 0.0)
+    for k, observation in enumerate(problem.observations):
+        gradient = observation.jacobian(states)
+        gradient[:, 6:] *= weight
+        jacobian[:, 4 + k] = np.where(measured[:, k:k + 1], gradient / observation.sigma, 0.0)
+    jacobian[:, :, 6:] *= taut[:, None, :]
+
+    projector = (np.eye(3) - units[..., :, None] * units[..., None, :]) / norms[..., None, None]
+    sr, sq = skew(arms), skew(levers)
+    w = (mu * taut)[..., None, None]
+    balance = np.zeros((n, 6, 10))
+    balance[:, 0:3, 0:3] = np.sum(w * projector, axis=1)
+    balance[:, 0:3, 3:6] = -np.sum(w * projector @ sr, axis=1)
+    balance[:, 3:6, 0:3] = np.sum(w * sq @ projector, axis=1) / scale
+    balance[:, 3:6, 3:6] = np.sum(w * (skew(units) @ sq - sq @ projector @ sr), axis=1) / scale
+    balance[:, 0:3, 6:] = np.swapaxes(units * taut[..., None], 1, 2)
+    balance[:, 3:6, 6:] = np.swapaxes(moments * taut[..., None], 1, 2) / scale
+    return residual, jacobian, constraint, balance
+
+
+def solve_rows(problem: Problem, rows: Rows) -> Rows:
+    """Gauss-Newton SQP on every row from its start; sets converged, cost, residuals and steps."""
+    plant = problem.plant
+    reach = np.maximum(1.0, problem.lengths[rows.sample].max(axis=1) * 1e-2)
+    rows.residuals = np.zeros((len(rows.sample), 4 + len(problem.observations)))
+    live = np.arange(len(rows.sample))
+    for _ in range(MAX_STEPS):
+        residual, jacobian, constraint, balance = _residuals(problem, rows, live, True)
+        rows.residuals[live] = residual
+        rows.cost[live] = np.sum(residual ** 2, axis=1)
+        n = live.size
+        system = np.zeros((n, 16, 16))
+        hessian = np.swapaxes(jacobian, 1, 2) @ jacobian + EPS * np.eye(10)
+        gradient = np.einsum("nki,nk->ni", jacobian, residual)
+        slack = ~rows.taut[live]
+        held = np.concatenate([np.zeros((n, 6), bool), slack], axis=1)
+        hessian = np.where(held[:, :, None] | held[:, None, :], 0.0, hessian)
+        hessian[:, np.arange(6, 10), np.arange(6, 10)] += slack
+        gradient = np.where(held, np.concatenate([np.zeros((n, 6)), rows.mu[live]], axis=1), gradient)
+        system[:, :10, :10] = hessian
+        system[:, :10, 10:] = np.swapaxes(balance, 1, 2)
+        system[:, 10:, :10] = balance
+        rhs = -np.concatenate([gradient, constraint], axis=1)
+        try:
+            step = np.linalg.solve(system, rhs[..., None])[..., 0][:, :10]
+        except np.linalg.LinAlgError:
+            step = np.stack([np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(system, rhs)])[:, :10]
+        size = np.maximum.reduce([np.abs(step[:, 0:3]).max(axis=1) / reach[live], np.abs(step[:, 3:6]).max(axis=1),
+                                  np.abs(step[:, 6:]).max(axis=1)])
+        done = (size < STEP_TOL) & (np.abs(constraint).max(axis=1) < BALANCE_TOL * reach[live])
+        rows.converged[live[done]] = True
+        largest = np.maximum.reduce([np.abs(step[:, 3:6]).max(axis=1) / MAX_TURN_STEP,
+                                     np.abs(step[:, 0:3]).max(axis=1) / (MAX_SHIFT_STEP * plant.moment_scale),
+                                     np.ones(n)])
+        step /= largest[:, None]
+        move = live[~done]
+        step = step[~done]
+        rows.position[move] += step[:, 0:3]
+        rows.rotation[move] = rotations_from_vectors(step[:, 3:6]) @ rows.rotation[move]
+        rows.mu[move] += step[:, 6:]
+        rows.steps[move] += 1
+        live = move
+        if not live.size:
+            break
+    if live.size:  # the last step moved them: residuals at the final state
+        residual, _, _, _ = _residuals(problem, rows, live, False)
+        rows.residuals[live] = residual
+        rows.cost[live] = np.sum(residual ** 2, axis=1)
+    return rows
+
