@@ -17,11 +17,11 @@ freedom as there are taut ropes, and with the lengths alone every taut rope can 
 reported length exactly, so the optimum is today's forward kinematics (zero cost). The
 taut set is chosen by an active-set search: the start's set (the previous sample's live,
 the forward kinematics of the reported lengths cold) is solved by `fusion.solve_rows`;
-where an observation contradicts the start, its neighbouring sets (one rope added,
-released or exchanged) are solved with it, all stacked; where the best of these is still
-doubtful -- a tension below zero, a slack rope overstretched, a residual beyond
-SEARCH_SIGMA -- every other set of two or more ropes is solved from it. The admissible
-row of least cost is kept.
+where the result is doubtful -- a tension below zero, a slack rope overstretched, a
+residual beyond SEARCH_SIGMA -- its neighbouring sets (one rope added, released or
+exchanged) are solved from it, all stacked (together with the start where an observation
+contradicts the start already); where the best of these is still doubtful, every other
+set of two or more ropes. The admissible row of least cost is kept.
 """
 from __future__ import annotations
 
@@ -220,11 +220,11 @@ def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
     count = len(problem.lengths)
     best, rigid = None, None
     if warm is not None:
-        best = _search(problem, warm)
+        best = _search(problem, warm, probe=False)
         best = best.take(np.flatnonzero(_admissible(best)))
     if best is None or len(best.sample) < count:
         cold, rigid = _forward_kinematics(problem)
-        cold = _search(problem, cold)
+        cold = _search(problem, cold, probe=True)
         best = cold.take(np.flatnonzero(_admissible(cold)))
     missing = sorted(set(range(count)) - set(best.sample.tolist()))
     return _assemble(problem, best, {i: _single_forward(problem, i, rigid) for i in missing})
@@ -242,22 +242,26 @@ def _doubtful(rows: Rows) -> np.ndarray:
     return ~_admissible(rows) | overstretched | (np.abs(rows.residuals).max(axis=1) > SEARCH_SIGMA)
 
 
-def _search(problem: Problem, start: Rows) -> Rows:
+def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
     """The best admissible row per sample (one start row per sample in, one row per sample out).
 
-    The start's set is solved, with its neighbours where an observation already disagrees at
-    the start (a load pin reading kilonewtons on a rope the start has slack); where the best
-    of these is still doubtful, every other set of two or more ropes is solved from it.
+    The start's set is solved, with its neighbours where `probe` and an observation already
+    disagrees at the start (from forward kinematics: a load pin reading kilonewtons on a rope
+    the lengths have slack; a warm start is not probed, its pose is a sample old); where the best
+    is doubtful, its neighbours; where the best of these is still doubtful, every other set
+    of two or more ropes is solved from it.
     """
     count = len(start.sample)
     best = Rows(start.sample, start.taut, start.rotation, start.position, start.mu)
     visited = np.zeros((count, 16), bool)
     visited[np.arange(count), best.taut @ BITS] = True
-    best.residuals = residuals(problem, best, np.arange(count))
-    observed = best.residuals[:, 4:]
-    pending = np.flatnonzero(np.abs(observed).max(axis=1, initial=0.0) > SEARCH_SIGMA)
+    best.residuals = np.zeros((count, 4 + len(problem.observations)))
+    pending = np.zeros(0, int)
+    if probe and problem.observations:
+        observed = residuals(problem, best, np.arange(count))[:, 4:]
+        pending = np.flatnonzero(np.abs(observed).max(axis=1) > SEARCH_SIGMA)
     solved = np.zeros(count, bool)
-    for search in (NEIGHBOURS, ALL_SETS):
+    for search in (NEIGHBOURS, NEIGHBOURS, ALL_SETS):
         owner, codes = _candidates(best, pending, visited, search)
         fresh = np.flatnonzero(~solved)
         if not fresh.size and not owner.size:
@@ -276,7 +280,8 @@ def _search(problem: Problem, start: Rows) -> Rows:
         for name in ("taut", "rotation", "position", "mu", "converged", "cost", "residuals", "steps"):
             getattr(best, name)[replaced] = getattr(candidates, name)[better]
         solved[:] = True
-        pending = replaced[_doubtful(best.take(replaced))]
+        searched = np.unique(owner)
+        pending = searched[_doubtful(best.take(searched))]
         if not pending.size:
             break
     return best

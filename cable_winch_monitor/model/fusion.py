@@ -19,6 +19,7 @@ load-sharing mode of four rigid taut ropes without load pins) it keeps the start
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Sequence
 
 import numpy as np
@@ -28,7 +29,7 @@ from .observations import Observation, States
 from .plant import Plant
 from .ropes import Ropes
 
-MAX_STEPS = 25
+MAX_STEPS = 12
 EPS = 1e-6                # Levenberg term (residuals are in sigma, dz in m, rad, m g)
 BALANCE_TOL = 1e-11       # relative force and moment balance at convergence
 STEP_TOL = 1e-8           # step [m per 100 m of rope, rad, m g] at convergence
@@ -39,7 +40,11 @@ EZ = np.array([0.0, 0.0, 1.0])
 
 @dataclass(frozen=True)
 class Problem:
-    """The measurements of N samples: reported lengths (N, 4), their noise, observation values (N, m)."""
+    """The measurements of N samples: reported lengths (N, 4), their noise, observation values (N, m).
+
+    Observations that read a state coordinate (load pins, depth) are read off the state
+    together, with a constant Jacobian; the others call their prediction functions.
+    """
 
     plant: Plant
     lengths: np.ndarray
@@ -52,11 +57,31 @@ class Problem:
     @classmethod
     def build(cls, plant: Plant, lengths: np.ndarray, sigma_length: float, observations: Sequence[Observation],
               ropes: Ropes, load: np.ndarray | None) -> "Problem":
+        if not (np.isfinite(sigma_length) and sigma_length > 0.0):
+            raise ValueError(f"length noise sigma must be finite and positive, got {sigma_length!r}")
         count = len(lengths)
         values = np.column_stack([np.broadcast_to(np.asarray(o.value, dtype=float), (count,))
                                   for o in observations]) if observations else np.zeros((count, 0))
         wrench = plant.wrench if load is None else np.asarray(load, dtype=float).reshape(6)
         return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrench)
+
+    @cached_property
+    def sigmas(self) -> np.ndarray:
+        return np.array([o.sigma for o in self.observations])
+
+    @cached_property
+    def read_off(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Indices of the coordinate observations, their coordinates, and their normalised Jacobian rows
+        in the solver's variables (tensions in m g)."""
+        index = np.array([k for k, o in enumerate(self.observations) if o.coordinate is not None], dtype=int)
+        columns = np.array([self.observations[k].coordinate for k in index], dtype=int)
+        jacobian = np.zeros((index.size, 10))
+        jacobian[np.arange(index.size), columns] = np.where(columns >= 6, self.plant.weight, 1.0)
+        return index, columns, jacobian / self.sigmas[index, None] if index.size else jacobian
+
+    @cached_property
+    def predicted_by_function(self) -> np.ndarray:
+        return np.array([k for k, o in enumerate(self.observations) if o.coordinate is None], dtype=int)
 
 
 @dataclass
@@ -108,57 +133,64 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     weight, scale = plant.weight, plant.moment_scale
     rotation, position, mu, taut = rows.rotation[live], rows.position[live], rows.mu[live], rows.taut[live]
     sample = rows.sample[live]
-    n = live.size
-    arms = np.einsum("nij,cj->nci", rotation, plant.attachments)
-    levers = arms - np.einsum("nij,j->ni", rotation, plant.cog)[:, None, :]
+    n, m = live.size, len(problem.observations)
+    arms = np.matmul(plant.attachments, np.swapaxes(rotation, 1, 2))           # R b_i: (n, 4, 3)
+    levers = arms - np.matmul(rotation, plant.cog)[:, None, :]
     spans = position[:, None, :] + arms - plant.anchors
-    norms = np.linalg.norm(spans, axis=2)
+    norms = np.sqrt(np.einsum("nci,nci->nc", spans, spans))
     units = spans / norms[..., None]
     moments = cross(levers, units)
     lengths = problem.lengths[sample]
     sigma = problem.sigma_length
+    tensions = mu * weight
 
-    taut_length, d_span, d_tension = problem.ropes.unstretched(norms, mu * weight)
+    taut_length, d_span, d_tension = problem.ropes.unstretched(norms, tensions)
     slack_length, d_slack_span, _ = problem.ropes.unstretched(norms, np.zeros_like(norms))
     excess = slack_length - lengths
     overstretched = ~taut & (excess > 0.0)
-    length_residual = np.where(taut, taut_length - lengths, np.maximum(excess, 0.0)) / sigma
+    residual = np.empty((n, 4 + m))
+    residual[:, :4] = np.where(taut, taut_length - lengths, np.maximum(excess, 0.0)) / sigma
 
     values = problem.values[sample]
-    states = States(plant, rotation, position, mu * weight)
-    predicted = np.column_stack([o.predict(states) for o in problem.observations]) if problem.observations \
-        else np.zeros((n, 0))
-    measured = np.isfinite(values)
-    sigmas = np.array([o.sigma for o in problem.observations])
-    observation_residual = np.where(measured, (predicted - np.where(measured, values, 0.0)) / sigmas, 0.0)
-    residual = np.concatenate([length_residual, observation_residual], axis=1)
+    measured = ~np.isnan(values)
+    index, columns, read_jacobian = problem.read_off
+    functional = problem.predicted_by_function
+    predicted = np.empty((n, m))
+    if index.size:
+        predicted[:, index] = np.concatenate([position, np.zeros((n, 3)), tensions], axis=1)[:, columns]
+    states = States(plant, rotation, position, tensions) if functional.size else None
+    for k in functional.tolist():
+        predicted[:, k] = problem.observations[k].predict(states)
+    residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
 
-    force = np.einsum("nc,nci->ni", mu, units) - problem.load[:3] / weight
-    moment = (np.einsum("nc,nci->ni", mu, moments) - problem.load[3:] / weight) / scale
-    constraint = np.concatenate([force, moment], axis=1)
+    constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - problem.load[:3] / weight,
+                                 (np.einsum("nc,nci->ni", mu, moments) - problem.load[3:] / weight) / scale], axis=1)
     if not with_jacobian:
         return residual, None, constraint, None
 
-    m = len(problem.observations)
-    pose_row = np.concatenate([units, cross(arms, units)], axis=2)          # d span_i / d(p, w): (n, 4, 6)
     jacobian = np.zeros((n, 4 + m, 10))
     d_pose = np.where(taut, d_span, np.where(overstretched, d_slack_span, 0.0)) / sigma
-    jacobian[:, :4, :6] = d_pose[..., None] * pose_row
+    jacobian[:, :4, :3] = d_pose[..., None] * units
+    jacobian[:, :4, 3:6] = d_pose[..., None] * cross(arms, units)
     jacobian[:, np.arange(4), 6 + np.arange(4)] = np.where(taut, d_tension * weight / sigma, 0.0)
-    for k, observation in enumerate(problem.observations):
-        gradient = observation.jacobian(states)
+    if index.size:
+        jacobian[:, 4 + index] = read_jacobian
+    for k in functional.tolist():
+        gradient = problem.observations[k].jacobian(states)
         gradient[:, 6:] *= weight
-        jacobian[:, 4 + k] = np.where(measured[:, k:k + 1], gradient / observation.sigma, 0.0)
+        jacobian[:, 4 + k] = gradient / problem.sigmas[k]
+    jacobian[:, 4:] *= measured[..., None]
     jacobian[:, :, 6:] *= taut[:, None, :]
 
     projector = (np.eye(3) - units[..., :, None] * units[..., None, :]) / norms[..., None, None]
+    weighted = (mu * taut)[..., None, None] * projector
     sr, sq = skew(arms), skew(levers)
-    w = (mu * taut)[..., None, None]
-    balance = np.zeros((n, 6, 10))
-    balance[:, 0:3, 0:3] = np.sum(w * projector, axis=1)
-    balance[:, 0:3, 3:6] = -np.sum(w * projector @ sr, axis=1)
-    balance[:, 3:6, 0:3] = np.sum(w * sq @ projector, axis=1) / scale
-    balance[:, 3:6, 3:6] = np.sum(w * (skew(units) @ sq - sq @ projector @ sr), axis=1) / scale
+    balance = np.empty((n, 6, 10))
+    balance[:, 0:3, 0:3] = weighted.sum(axis=1)
+    balance[:, 0:3, 3:6] = -np.matmul(weighted, sr).sum(axis=1)
+    balance[:, 3:6, 0:3] = np.matmul(sq, weighted).sum(axis=1) / scale
+    balance[:, 3:6, 3:6] = ((mu * taut)[..., None, None] * np.matmul(skew(units), sq)
+                            - np.matmul(np.matmul(sq, weighted), sr)).sum(axis=1) / scale
     balance[:, 0:3, 6:] = np.swapaxes(units * taut[..., None], 1, 2)
     balance[:, 3:6, 6:] = np.swapaxes(moments * taut[..., None], 1, 2) / scale
     return residual, jacobian, constraint, balance

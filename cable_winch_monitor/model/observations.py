@@ -62,6 +62,8 @@ class Observation:
 
     `gradient(states)` returns (n, 10): the derivative of the prediction with respect to
     position [m], rotation vector [rad] (applied on the left: R -> exp([w]x) R) and tensions [N].
+    `coordinate` marks a reading that is one of those coordinates itself (a load pin, the
+    depth gauge): the estimator then reads it off the state without calling `predict`.
     """
 
     name: str
@@ -69,6 +71,7 @@ class Observation:
     sigma: float
     predict: Predict
     gradient: Callable[[States], np.ndarray] | None = None
+    coordinate: int | None = None
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma) and self.sigma > 0.0):
@@ -99,13 +102,13 @@ def _unit_gradient(n: int, column: int) -> np.ndarray:
 def load_pin(cable: int, value: float | np.ndarray, sigma: float) -> Observation:
     """Load pin of cable `cable` (0-based): reads the rope tension tau_i [N]."""
     return Observation(f"tension_{CABLE_NAMES[cable]}", value, sigma, lambda s: s.tensions[:, cable],
-                       lambda s: _unit_gradient(len(s), 6 + cable))
+                       lambda s: _unit_gradient(len(s), 6 + cable), coordinate=6 + cable)
 
 
 def position_component(axis: int, value: float | np.ndarray, sigma: float) -> Observation:
     """Depth gauge (axis 2, named 'depth') or a horizontal position sensor (0: 'x', 1: 'y') [m]."""
     return Observation(("x", "y", "depth")[axis], value, sigma, lambda s: s.position[:, axis],
-                       lambda s: _unit_gradient(len(s), axis))
+                       lambda s: _unit_gradient(len(s), axis), coordinate=axis)
 
 
 def _roll(states: States) -> np.ndarray:
