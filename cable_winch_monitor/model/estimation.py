@@ -26,11 +26,11 @@ set of two or more ropes. The admissible row of least cost is kept.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
-from .batched import BatchSolution, solve_batch
+from .batched import solve_batch
 from .elastic import solve_elastic
 from .energy import TENSION_TOL, solve_energy
 from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
@@ -198,36 +198,42 @@ def _warm_rows(plant: Plant, lengths: np.ndarray, warm_start: Estimate | None) -
                 (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / plant.weight)
 
 
-def _forward_kinematics(problem: Problem) -> tuple[Rows, BatchSolution]:
-    """Cold starts: the rigid forward kinematics of the reported lengths, batched, for the samples it
-    solves (a single-cable state or bad input has no pose to start from)."""
-    batch = solve_batch(problem.plant, problem.ropes.effective(problem.lengths))
-    ok = np.flatnonzero(batch.ok)
-    return Rows(ok, batch.taut[ok], batch.rotation[ok], batch.position[ok],
-                batch.tensions[ok] / problem.plant.weight), batch
-
-
-def _single_forward(problem: Problem, i: int, rigid: BatchSolution | None) -> Solution:
-    """Today's forward kinematics of sample i: the energy solver's (from the batch where it ran), or the
-    elastic solver's for elastic ropes."""
-    ropes, lengths = problem.ropes, problem.lengths[i]
+def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solution]]:
+    """Cold starts: the rigid forward kinematics of the reported lengths (batched for many samples) of
+    the samples it solves, and today's forward kinematics of any sample i (for those the estimator
+    leaves: a single-cable state, bad input, no admissible set)."""
+    plant, ropes = problem.plant, problem.ropes
+    effective = ropes.effective(problem.lengths)
+    if len(effective) == 1:
+        solution = solve_energy(plant, effective[0])  # one sample: the per-sample solver is the faster
+        picked = [solution] if solution.ok else []
+        start = Rows(np.arange(len(picked)), np.array([s.taut for s in picked], bool).reshape(-1, 4),
+                     np.array([s.rotation for s in picked]).reshape(-1, 3, 3),
+                     np.array([s.position for s in picked]).reshape(-1, 3),
+                     np.array([s.tensions for s in picked]).reshape(-1, 4))
+        rigid = (lambda i: solution)
+    else:
+        batch = solve_batch(plant, effective)
+        ok = np.flatnonzero(batch.ok)
+        start = Rows(ok, batch.taut[ok], batch.rotation[ok], batch.position[ok], batch.tensions[ok])
+        rigid = batch.solution
+    start.mu = start.mu / plant.weight
     if ropes.rigid:
-        return rigid.solution(i) if rigid is not None else solve_energy(problem.plant, lengths)
-    return solve_elastic(problem.plant, ropes.effective(lengths), ropes.axial_stiffness)
+        return start, rigid
+    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness)
 
 
 def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
     count = len(problem.lengths)
-    best, rigid = None, None
     if warm is not None:
         best = _search(problem, warm, probe=False)
-        best = best.take(np.flatnonzero(_admissible(best)))
-    if best is None or len(best.sample) < count:
-        cold, rigid = _forward_kinematics(problem)
-        cold = _search(problem, cold, probe=True)
-        best = cold.take(np.flatnonzero(_admissible(cold)))
+        if _admissible(best).all():
+            return _assemble(problem, best, {})
+    cold, forward = _forward_kinematics(problem)
+    cold = _search(problem, cold, probe=True)
+    best = cold.take(np.flatnonzero(_admissible(cold)))
     missing = sorted(set(range(count)) - set(best.sample.tolist()))
-    return _assemble(problem, best, {i: _single_forward(problem, i, rigid) for i in missing})
+    return _assemble(problem, best, {i: forward(i) for i in missing})
 
 
 def _admissible(rows: Rows) -> np.ndarray:
