@@ -79,6 +79,16 @@ def test_lengths_alone_under_another_load(plant):
             assert got.solution.taut_set == want.taut_set
             assert np.abs(got.solution.points_b - want.points_b).max() < 1e-6
             assert np.abs(got.solution.tensions - want.tensions).max() < 1.0
+            assert check_physics(plant, got.solution).passes()  # balanced against the load it was given
+    side_pull = plant.wrench + np.array([2e3, -1e3, 0.0, 0.0, 0.0, 500.0])
+    for row in random_lengths(30, seed=6):
+        got = estimate(plant, row, load=side_pull)
+        want = solve_energy(plant, row, load=side_pull)
+        assert got.solution.status is want.status
+        if want.ok:
+            assert got.solution.taut_set == want.taut_set
+            assert np.abs(got.solution.points_b - want.points_b).max() < 1e-6
+            assert check_physics(plant, got.solution).passes()
 
 
 def measured(truth, rng: np.random.Generator, pins: bool = True) -> tuple[np.ndarray, list[obs.Observation]]:
@@ -172,7 +182,9 @@ def test_declared_channel_with_numerical_gradient(plant, weak_mode):
 def test_bad_input_is_a_status(plant):
     assert estimate(plant, [1.0, 2.0, float("nan"), 3.0]).solution.status is SolveStatus.INVALID_INPUT
     failed = estimate(plant, [20.0] * 4, axial_stiffness=-1.0)
-    assert failed.solution.status is SolveStatus.SOLVER_FAILED and "EA" in failed.solution.message
+    assert failed.solution.status is SolveStatus.INVALID_INPUT and "EA" in failed.solution.message
+    upward = estimate(plant, [20.0] * 4, load=-plant.wrench)
+    assert upward.solution.status is SolveStatus.INVALID_INPUT and "load" in upward.solution.message
     with pytest.raises(ValueError, match="'depth'.*sigma"):
         obs.position_component(2, -20.0, 0.0)
 

@@ -128,6 +128,7 @@ class BatchEstimate:
     names: tuple[str, ...]
     sigma_length: float
     iterations: np.ndarray
+    load: np.ndarray              # (6,) the external wrench (model.load)
     fallback: dict[int, Estimate] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -146,7 +147,8 @@ class BatchEstimate:
         rows = np.array([i for i in indices if i not in self.fallback], dtype=int)
         out = {i: self.fallback[i] for i in indices if i in self.fallback}
         solutions = solved_rows(self.plant, METHOD, self.corrected[rows], self.rotation[rows], self.position[rows],
-                                self.tensions[rows], self.taut[rows], self.iterations[rows]) if rows.size else []
+                                self.tensions[rows], self.taut[rows], self.iterations[rows],
+                                loads=np.broadcast_to(self.load, (rows.size, 6))) if rows.size else []
         for i, solution in zip(rows.tolist(), solutions):
             measured = np.isfinite(self.residuals[i])
             out[i] = Estimate(solution, self.reported[i], self.corrected[i] - self.reported[i], self.sigma_length,
@@ -167,11 +169,13 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
         return _unfused(failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan)), np.full(4, np.nan),
                         sigma_length)
     try:
-        ropes = Ropes.of(axial_stiffness, rope_weight)
+        problem = Problem.build(plant, array[None], sigma_length, observations, Ropes.of(axial_stiffness, rope_weight),
+                                load)
+    except ValueError as error:
+        return _unfused(failed(SolveStatus.INVALID_INPUT, str(error), METHOD, array), array, sigma_length)
+    try:
         with np.errstate(all="ignore"):
-            batch = _estimate(Problem.build(plant, array[None], sigma_length, observations, ropes, load),
-                              _warm_rows(plant, array, warm_start))
-        return batch.estimate(0)
+            return _estimate(problem, _warm_rows(problem, warm_start)).estimate(0)
     except (ValueError, np.linalg.LinAlgError) as error:
         return _unfused(failed(SolveStatus.SOLVER_FAILED, f"estimator failed: {error}", METHOD, array), array,
                         sigma_length)
@@ -188,14 +192,14 @@ def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Obs
         return _estimate(Problem.build(plant, lengths, sigma_length, observations, ropes, load), None)
 
 
-def _warm_rows(plant: Plant, lengths: np.ndarray, warm_start: Estimate | None) -> Rows | None:
+def _warm_rows(problem: Problem, warm_start: Estimate | None) -> Rows | None:
     """The previous state as start, lowered by the change of the mean length."""
     if warm_start is None or not warm_start.ok:
         return None
     previous = warm_start.solution
-    shift = float(previous.lengths.mean() - lengths.mean())
+    shift = float(previous.lengths.mean() - problem.lengths[0].mean())
     return Rows(np.zeros(1, int), previous.taut[None].copy(), previous.rotation[None].copy(),
-                (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / plant.weight)
+                (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / problem.scale)
 
 
 def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solution]]:
@@ -205,7 +209,7 @@ def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solutio
     plant, ropes = problem.plant, problem.ropes
     effective = ropes.effective(problem.lengths)
     if len(effective) == 1:
-        solution = solve_energy(plant, effective[0])  # one sample: the per-sample solver is the faster
+        solution = solve_energy(plant, effective[0], load=problem.load)  # one sample: the per-sample solver is the faster
         picked = [solution] if solution.ok else []
         start = Rows(np.arange(len(picked)), np.array([s.taut for s in picked], bool).reshape(-1, 4),
                      np.array([s.rotation for s in picked]).reshape(-1, 3, 3),
@@ -213,14 +217,14 @@ def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solutio
                      np.array([s.tensions for s in picked]).reshape(-1, 4))
         rigid = (lambda i: solution)
     else:
-        batch = solve_batch(plant, effective)
+        batch = solve_batch(plant, effective, loads=problem.load)
         ok = np.flatnonzero(batch.ok)
         start = Rows(ok, batch.taut[ok], batch.rotation[ok], batch.position[ok], batch.tensions[ok])
         rigid = batch.solution
-    start.mu = start.mu / plant.weight
+    start.mu = start.mu / problem.scale
     if ropes.rigid:
         return start, rigid
-    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness)
+    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness, load=problem.load)
 
 
 def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
@@ -311,14 +315,14 @@ def _assemble(problem: Problem, best: Rows, unsolved: dict[int, Solution]) -> Ba
     """Arrays of every sample: the estimated rows, and forward kinematics where none was admissible."""
     plant, count = problem.plant, len(problem.lengths)
     m = len(problem.observations)
-    tensions = np.where(best.taut, np.maximum(best.mu, 0.0), 0.0) * plant.weight
-    taut = tensions > TENSION_TOL * plant.weight
+    tensions = np.where(best.taut, np.maximum(best.mu, 0.0), 0.0) * problem.scale
+    taut = tensions > TENSION_TOL * problem.scale
     corrected = implied_lengths(problem, best)
     out = BatchEstimate(plant, problem.lengths, problem.lengths.copy(), problem.lengths.copy(),
                         np.full(count, SolveStatus.SOLVED.value, dtype=object), np.zeros((count, 4), bool),
                         np.zeros((count, 4)), np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan),
                         np.full((count, m), np.nan), tuple(o.name for o in problem.observations),
-                        problem.sigma_length, np.zeros(count, int))
+                        problem.sigma_length, np.zeros(count, int), problem.load)
     rows = best.sample
     out.corrected[rows] = corrected
     out.loaded[rows] = problem.ropes.loaded(corrected, tensions)

@@ -11,7 +11,7 @@ model with the constraint linearised (an SQP step),
     [C               0  ] [nu] = [-c    ],
 
 with dz = (dp, dw, dmu) (position [m], rotation vector [rad] on the left, tensions in
-units of m g). Every row has the same 16 x 16 system: a slack rope's tension is held at
+units of the load's force |f|, m g under gravity). Every row has the same 16 x 16 system: a slack rope's tension is held at
 zero by an identity row, so all rows of all taut sets go to one `np.linalg.solve`.
 eps is a small Levenberg term: along a direction no measurement sees (the weak
 load-sharing mode of four rigid taut ropes without load pins) it keeps the start.
@@ -24,6 +24,7 @@ from typing import Sequence
 
 import numpy as np
 
+from . import load as loads
 from .geometry import cross, rotations_from_vectors, skew
 from .observations import Observation, States
 from .plant import Plant
@@ -62,8 +63,16 @@ class Problem:
         count = len(lengths)
         values = np.column_stack([np.broadcast_to(np.asarray(o.value, dtype=float), (count,))
                                   for o in observations]) if observations else np.zeros((count, 0))
-        wrench = plant.wrench if load is None else np.asarray(load, dtype=float).reshape(6)
+        wrench = loads.resolve(plant, load)
+        reason = loads.check(wrench)
+        if reason:
+            raise ValueError(reason)
         return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrench)
+
+    @cached_property
+    def scale(self) -> float:
+        """|f| of the load [N]: tensions are solved for in this unit (m g under gravity)."""
+        return loads.magnitude(self.load)
 
     @cached_property
     def sigmas(self) -> np.ndarray:
@@ -76,7 +85,7 @@ class Problem:
         index = np.array([k for k, o in enumerate(self.observations) if o.coordinate is not None], dtype=int)
         columns = np.array([self.observations[k].coordinate for k in index], dtype=int)
         jacobian = np.zeros((index.size, 10))
-        jacobian[np.arange(index.size), columns] = np.where(columns >= 6, self.plant.weight, 1.0)
+        jacobian[np.arange(index.size), columns] = np.where(columns >= 6, self.scale, 1.0)
         return index, columns, jacobian / self.sigmas[index, None] if index.size else jacobian
 
     @cached_property
@@ -86,7 +95,7 @@ class Problem:
 
 @dataclass
 class Rows:
-    """Stacked candidates: the sample each row explains, its taut set and its state (mu = tau / m g)."""
+    """Stacked candidates: the sample each row explains, its taut set and its state (mu = tau / |f|)."""
 
     sample: np.ndarray        # (n,) int
     taut: np.ndarray          # (n, 4) bool
@@ -116,7 +125,7 @@ class Rows:
 def implied_lengths(problem: Problem, rows: Rows) -> np.ndarray:
     """The corrected lengths of each row (n, 4): a taut rope's unstretched length through the rope law;
     a slack rope's reported length, or longer where its span needs it."""
-    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.plant.weight)
+    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scale)
     taut_length = problem.ropes.unstretched(states.spans, states.tensions)[0]
     slack_length = problem.ropes.unstretched(states.spans, np.zeros_like(states.spans))[0]
     return np.where(rows.taut, taut_length, np.maximum(slack_length, problem.lengths[rows.sample]))
@@ -130,7 +139,7 @@ def residuals(problem: Problem, rows: Rows, live: np.ndarray) -> np.ndarray:
 def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bool):
     """Normalised residuals r (n, 4+m), their Jacobian A (n, 4+m, 10), constraint c (n, 6) and C (n, 6, 10)."""
     plant = problem.plant
-    weight, scale = plant.weight, plant.moment_scale
+    weight, scale = problem.scale, plant.moment_scale
     rotation, position, mu, taut = rows.rotation[live], rows.position[live], rows.mu[live], rows.taut[live]
     sample = rows.sample[live]
     n, m = live.size, len(problem.observations)
