@@ -32,8 +32,8 @@ from .ropes import Ropes
 
 MAX_STEPS = 12
 EPS = 1e-6                # Levenberg term (residuals are in sigma, dz in m, rad, m g)
-BALANCE_TOL = 1e-11       # relative force and moment balance at convergence
-STEP_TOL = 1e-8           # step [m per 100 m of rope, rad, m g] at convergence
+BALANCE_TOL = 1e-9        # relative force and moment balance at convergence (per 100 m of rope)
+STEP_TOL = 1e-6           # last step [m per 100 m of rope, rad, |f|] at convergence: Newton's next is ~1e-12
 MAX_TURN_STEP = 0.2       # [rad] largest rotation of one step
 MAX_SHIFT_STEP = 0.2      # largest translation of one step, in units of the plant's size
 EZ = np.array([0.0, 0.0, 1.0])
@@ -209,12 +209,10 @@ def solve_rows(problem: Problem, rows: Rows) -> Rows:
     """Gauss-Newton SQP on every row from its start; sets converged, cost, residuals and steps."""
     plant = problem.plant
     reach = np.maximum(1.0, problem.lengths[rows.sample].max(axis=1) * 1e-2)
-    rows.residuals = np.zeros((len(rows.sample), 4 + len(problem.observations)))
     live = np.arange(len(rows.sample))
+    settled = np.zeros(len(rows.sample), bool)
     for _ in range(MAX_STEPS):
         residual, jacobian, constraint, balance = _residuals(problem, rows, live, True)
-        rows.residuals[live] = residual
-        rows.cost[live] = np.sum(residual ** 2, axis=1)
         n = live.size
         system = np.zeros((n, 16, 16))
         hessian = np.swapaxes(jacobian, 1, 2) @ jacobian + EPS * np.eye(10)
@@ -234,24 +232,21 @@ def solve_rows(problem: Problem, rows: Rows) -> Rows:
             step = np.stack([np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(system, rhs)])[:, :10]
         size = np.maximum.reduce([np.abs(step[:, 0:3]).max(axis=1) / reach[live], np.abs(step[:, 3:6]).max(axis=1),
                                   np.abs(step[:, 6:]).max(axis=1)])
-        done = (size < STEP_TOL) & (np.abs(constraint).max(axis=1) < BALANCE_TOL * reach[live])
-        rows.converged[live[done]] = True
         largest = np.maximum.reduce([np.abs(step[:, 3:6]).max(axis=1) / MAX_TURN_STEP,
                                      np.abs(step[:, 0:3]).max(axis=1) / (MAX_SHIFT_STEP * plant.moment_scale),
                                      np.ones(n)])
         step /= largest[:, None]
-        move = live[~done]
-        step = step[~done]
-        rows.position[move] += step[:, 0:3]
-        rows.rotation[move] = rotations_from_vectors(step[:, 3:6]) @ rows.rotation[move]
-        rows.mu[move] += step[:, 6:]
-        rows.steps[move] += 1
-        live = move
+        rows.position[live] += step[:, 0:3]
+        rows.rotation[live] = rotations_from_vectors(step[:, 3:6]) @ rows.rotation[live]
+        rows.mu[live] += step[:, 6:]
+        rows.steps[live] += 1
+        settled[live[size < STEP_TOL]] = True
+        live = live[size >= STEP_TOL]
         if not live.size:
             break
-    if live.size:  # the last step moved them: residuals at the final state
-        residual, _, _, _ = _residuals(problem, rows, live, False)
-        rows.residuals[live] = residual
-        rows.cost[live] = np.sum(residual ** 2, axis=1)
+    everything = np.arange(len(rows.sample))  # residuals and balance where the last steps left the rows
+    residual, _, constraint, _ = _residuals(problem, rows, everything, False)
+    rows.residuals, rows.cost = residual, np.sum(residual ** 2, axis=1)
+    rows.converged = settled & (np.abs(constraint).max(axis=1) < BALANCE_TOL * reach)
     return rows
 
