@@ -187,6 +187,11 @@ def test_bad_input_is_a_status(plant):
     assert upward.solution.status is SolveStatus.INVALID_INPUT and "load" in upward.solution.message
     with pytest.raises(ValueError, match="'depth'.*sigma"):
         obs.position_component(2, -20.0, 0.0)
+    wrong = obs.Observation("gauge", 1.0, 1.0, lambda s: 0.0)  # one number, not one per state
+    message = estimate(plant, [20.0] * 4, [wrong]).solution.message
+    assert "'gauge'" in message and "one value per state" in message
+    two = estimate(plant, [20.0] * 4, [obs.roll(np.zeros(2), 1e-4)])
+    assert two.solution.status is SolveStatus.INVALID_INPUT and "2 values for 1 samples" in two.solution.message
 
 
 def test_mahalanobis_gate():

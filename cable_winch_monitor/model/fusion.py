@@ -61,8 +61,12 @@ class Problem:
         if not (np.isfinite(sigma_length) and sigma_length > 0.0):
             raise ValueError(f"length noise sigma must be finite and positive, got {sigma_length!r}")
         count = len(lengths)
-        values = np.column_stack([np.broadcast_to(np.asarray(o.value, dtype=float), (count,))
-                                  for o in observations]) if observations else np.zeros((count, 0))
+        values = np.zeros((count, len(observations)))
+        for k, observation in enumerate(observations):
+            value = np.asarray(observation.value, dtype=float)
+            if value.size not in (1, count):
+                raise ValueError(f"observation {observation.name!r}: {value.size} values for {count} samples")
+            values[:, k] = value.reshape(-1)
         wrench = loads.resolve(plant, load)
         reason = loads.check(wrench)
         if reason:
@@ -169,7 +173,7 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
         predicted[:, index] = np.concatenate([position, np.zeros((n, 3)), tensions], axis=1)[:, columns]
     states = States(plant, rotation, position, tensions) if functional.size else None
     for k in functional.tolist():
-        predicted[:, k] = problem.observations[k].predict(states)
+        predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
 
     constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - problem.load[:3] / weight,

@@ -77,6 +77,15 @@ class Observation:
         if not (np.isfinite(self.sigma) and self.sigma > 0.0):
             raise ValueError(f"observation {self.name!r}: noise sigma must be finite and positive, got {self.sigma!r}")
 
+    def evaluate(self, states: States) -> np.ndarray:
+        """The predictions (n,) for n states; ValueError naming the channel where the function gives
+        another shape."""
+        values = np.asarray(self.predict(states), dtype=float)
+        if values.shape != (len(states),):
+            raise ValueError(f"observation {self.name!r}: prediction must give one value per state, "
+                             f"got shape {values.shape} for {len(states)} states")
+        return values
+
     def jacobian(self, states: States) -> np.ndarray:
         """(n, 10) derivative of the prediction; central differences where no gradient is declared."""
         if self.gradient is not None:
@@ -85,7 +94,7 @@ class Observation:
         for k, h in enumerate(FD_STEPS):
             step = np.zeros((len(states), STATE_SIZE))
             step[:, k] = h
-            out[:, k] = (self.predict(states.moved(step)) - self.predict(states.moved(-step))) / (2.0 * h)
+            out[:, k] = (self.evaluate(states.moved(step)) - self.evaluate(states.moved(-step))) / (2.0 * h)
         return out
 
     def with_value(self, value: float | np.ndarray) -> "Observation":
