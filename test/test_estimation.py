@@ -17,7 +17,7 @@ from cable_winch_monitor.model.estimation import estimate, estimate_batch
 from cable_winch_monitor.model.gate import chi_square_threshold, mahalanobis_gate
 from cable_winch_monitor.model.result import SolveStatus, check_physics
 from test_solver_agreement import random_lengths
-from weakmode_truth import weak_mode_samples, weak_mode_truth
+from root_truth import elastic_truth, weak_mode_samples, weak_mode_truth
 
 PIN, TILT, DEPTH, ENCODER = 150.0, np.radians(0.01), 5e-3, 1e-3
 
@@ -163,6 +163,23 @@ def test_equal_lengths_with_load_pins_do_not_depend_on_history(plant):
     assert np.abs(tensions[0] - truth.tensions).max() <= 3.0 * PIN
     without_pins = [estimate(plant, truth.lengths, warm_start=h).solution.tensions for h in histories]
     assert np.ptp(np.array(without_pins), axis=0).max() > 1e3  # the lengths alone leave the share to the history
+
+
+def test_elastic_ropes_fused(plant):
+    ea, weight = 75e6, 60.0
+    rng = np.random.default_rng(21)
+    truths = [t for t in (elastic_truth(plant, rng.uniform(50.0, 650.0) + rng.uniform(-0.05, 0.05, 4), ea, weight)
+                          for _ in range(160)) if t is not None]
+    assert len(truths) >= 150
+    lengths, readings = stacked([measured(t, rng) for t in truths])
+    truth = np.array([t.tensions for t in truths])
+    fused = estimate_batch(plant, lengths, readings, ENCODER, axial_stiffness=ea, rope_weight=weight)
+    lengths_only = estimate_batch(plant, lengths, axial_stiffness=ea, rope_weight=weight)
+    error = np.abs(fused.tensions - truth).max(axis=1)
+    assert np.mean(error <= 3.0 * PIN) >= 0.995
+    assert np.sqrt(np.mean(error ** 2)) < 0.7 * np.sqrt(np.mean(np.abs(lengths_only.tensions - truth).max(axis=1) ** 2))
+    for got in fused.estimates():
+        assert got.fused and check_physics(plant, got.loaded_solution).passes()
 
 
 def test_declared_channel_with_numerical_gradient(plant, weak_mode):

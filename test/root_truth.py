@@ -1,12 +1,14 @@
-"""Truth on the rigid weak mode, computed without the package's solvers.
+"""Equilibria computed without the package's solvers: the rigid weak mode, and elastic ropes.
 
 Four taut rigid ropes hold the platform only where l1 + l3 = l2 + l4 (to the micrometre),
 and there the load may be shared in a one-parameter family: which member the ropes carry
 is what the load pins tell. Here the truth is the root of the balance written as forces
 and moments on the platform (each rope pulls B_i towards A_i; moments about C), three
 rope spans equal to chosen lengths, and the share along (-1, 1, -1, 1) set to a drawn
-value; the fourth length is then the fourth span. scipy's hybrid Powell root finder,
-scipy's rotations: nothing of cable_winch_monitor.model but the plant's points.
+value; the fourth length is then the fourth span. Elastic ropes (Hooke, EA / L, with the
+own-weight stretch L = l + w l^2 / (2 EA)) need only the six balance equations in the pose.
+scipy's hybrid Powell root finder, scipy's rotations: nothing of cable_winch_monitor.model
+but the plant's points.
 """
 from __future__ import annotations
 
@@ -70,3 +72,34 @@ def weak_mode_samples(plant, count: int, seed: int) -> list[Truth]:
         if truth is not None:
             out.append(truth)
     return out
+
+
+def _elastic_balance(x: np.ndarray, plant, effective: np.ndarray, ea: float) -> np.ndarray:
+    rotation = Rotation.from_rotvec(x[3:6]).as_matrix()
+    points = x[0:3] + plant.attachments @ rotation.T
+    pulls = plant.anchors - points
+    spans = np.linalg.norm(pulls, axis=1)
+    tensions = ea / effective * np.maximum(spans - effective, 0.0)
+    forces = tensions[:, None] * pulls / spans[:, None]
+    force = forces.sum(axis=0) + np.array([0.0, 0.0, -plant.weight])
+    moment = np.cross(points - (x[0:3] + rotation @ plant.cog), forces).sum(axis=0)
+    return np.concatenate([force / plant.weight, moment / (plant.weight * 10.0)])
+
+
+def elastic_truth(plant, lengths: np.ndarray, ea: float, weight: float) -> Truth | None:
+    """Equilibrium on four elastic ropes of unstretched lengths l, EA [N] and weight w [N/m]; None where
+    the root finder fails or fewer than two ropes pull."""
+    lengths = np.asarray(lengths, dtype=float)
+    effective = lengths + weight * lengths ** 2 / (2.0 * ea)
+    sag = plant.weight * effective.max() / (2.0 * ea)
+    start = np.concatenate([[0.0, 0.0, -effective.mean() - sag], np.zeros(3)])
+    result = root(_elastic_balance, start, args=(plant, effective, ea), method="hybr", options={"xtol": 1e-13})
+    if not result.success or np.abs(_elastic_balance(result.x, plant, effective, ea)).max() > 1e-9:
+        return None
+    rotation = Rotation.from_rotvec(result.x[3:6]).as_matrix()
+    spans = np.linalg.norm(plant.anchors - result.x[0:3] - plant.attachments @ rotation.T, axis=1)
+    tensions = ea / effective * np.maximum(spans - effective, 0.0)
+    if np.count_nonzero(tensions) < 2:
+        return None
+    roll, pitch, _ = Rotation.from_matrix(rotation).as_euler("xyz")
+    return Truth(lengths, tensions, rotation, result.x[0:3].copy(), float(roll), float(pitch))
