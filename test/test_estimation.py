@@ -14,7 +14,7 @@ from cable_winch_monitor.model import observations as obs
 from cable_winch_monitor.model.elastic import solve_elastic
 from cable_winch_monitor.model.energy import solve_energy
 from cable_winch_monitor.model.estimation import estimate, estimate_batch
-from cable_winch_monitor.model.gate import chi_square_threshold, mahalanobis_gate
+from cable_winch_monitor.model.gate import HeldGate, chi_square_threshold, mahalanobis_gate
 from cable_winch_monitor.model.result import SolveStatus, check_physics
 from test_solver_agreement import random_lengths
 from root_truth import elastic_truth, weak_mode_samples, weak_mode_truth
@@ -221,3 +221,12 @@ def test_mahalanobis_gate():
     whitened = np.linalg.solve(np.linalg.cholesky(covariance), innovation)
     gate = mahalanobis_gate(innovation, covariance)
     assert gate.chi_square == pytest.approx(whitened @ whitened) and not gate.passed
+
+
+def test_held_gate():
+    gate = HeldGate(hold=1.0)
+    assert gate.update(0.0, False) and gate.update(0.5, True)  # one outlier does not drop the sensor
+    verdicts = [gate.update(1.0 + 0.1 * k, False) for k in range(12)]
+    assert verdicts.index(False) == 10  # failing for a full second drops it
+    assert not gate.update(2.2, True) and not gate.update(2.9, False)  # a pass amid failures does not restore it
+    assert [gate.update(3.0 + 0.5 * k, True) for k in range(3)] == [False, False, True]

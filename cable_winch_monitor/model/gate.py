@@ -56,3 +56,24 @@ def mahalanobis_gate(innovation: Sequence[float], covariance: np.ndarray | Seque
         raise ValueError("gate needs at least one measured channel")
     d2 = float(y @ np.linalg.solve(s, y))
     return GateResult(d2, chi_square_threshold(y.size, probability), int(y.size))
+
+
+@dataclass
+class HeldGate:
+    """A sensor's trust over time: it is left out once its gate has failed for `hold` seconds without
+    a pass, and taken back once it has passed for `hold` seconds without a failure, so that one
+    outlier neither drops a sensor nor a flapping one keeps coming back."""
+
+    hold: float
+    trusted: bool = True
+    since: float | None = None   # stamp of the first verdict against the current state, None: none pending
+
+    def update(self, stamp: float, passed: bool) -> bool:
+        """The verdict at `stamp`; returns whether the sensor is trusted after it."""
+        if passed == self.trusted:
+            self.since = None
+        elif self.since is None:
+            self.since = stamp
+        if self.since is not None and stamp - self.since >= self.hold:
+            self.trusted, self.since = passed, None
+        return self.trusted
