@@ -276,11 +276,9 @@ def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
         fresh = np.flatnonzero(~solved)
         if not fresh.size and not owner.size:
             break
-        candidates = best.take(np.concatenate([fresh, owner]))
-        candidates.taut[fresh.size:] = (codes[:, None] & BITS) > 0
-        candidates = solve_rows(problem, Rows(candidates.sample, candidates.taut, candidates.rotation.copy(),
-                                              candidates.position.copy(), candidates.mu.copy()))
         owner = np.concatenate([fresh, owner])
+        taut = np.concatenate([best.taut[fresh], (codes[:, None] & BITS) > 0])
+        candidates = solve_rows(problem, best.take(owner, taut))
         key = np.where(_admissible(candidates), candidates.cost, np.inf)
         current = np.where(solved & _admissible(best), best.cost, np.inf)
         order = np.lexsort((key, owner))

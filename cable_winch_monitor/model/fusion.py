@@ -18,7 +18,7 @@ load-sharing mode of four rigid taut ropes without load pins) it keeps the start
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Sequence
 
@@ -105,11 +105,11 @@ class Rows:
     taut: np.ndarray          # (n, 4) bool
     rotation: np.ndarray      # (n, 3, 3)
     position: np.ndarray      # (n, 3)
-    mu: np.ndarray            # (n, 4)
-    converged: np.ndarray = None   # (n,) bool
-    cost: np.ndarray = None        # (n,) sum of squared normalised residuals
-    residuals: np.ndarray = None   # (n, 4 + m) normalised residuals (lengths first)
-    steps: np.ndarray = None       # (n,) int
+    mu: np.ndarray            # (n, 4), zero on slack ropes
+    converged: np.ndarray = field(init=False)   # (n,) bool
+    cost: np.ndarray = field(init=False)        # (n,) sum of squared normalised residuals
+    residuals: np.ndarray = field(init=False)   # (n, 4 + m) normalised residuals (lengths first)
+    steps: np.ndarray = field(init=False)       # (n,) int
 
     def __post_init__(self) -> None:
         n = len(self.sample)
@@ -119,8 +119,10 @@ class Rows:
         self.residuals = np.zeros((n, 0))
         self.steps = np.zeros(n, int)
 
-    def take(self, index: np.ndarray) -> "Rows":
-        out = Rows(self.sample[index], self.taut[index], self.rotation[index], self.position[index], self.mu[index])
+    def take(self, index: np.ndarray, taut: np.ndarray | None = None) -> "Rows":
+        """The rows `index` (copies), with another taut set where given (its slack ropes' tensions zeroed)."""
+        out = Rows(self.sample[index], self.taut[index] if taut is None else taut, self.rotation[index],
+                   self.position[index], self.mu[index])
         out.converged, out.cost, out.residuals, out.steps = (self.converged[index], self.cost[index],
                                                               self.residuals[index], self.steps[index])
         return out
