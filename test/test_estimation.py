@@ -80,6 +80,15 @@ def test_lengths_alone_under_another_load(plant):
             assert np.abs(got.solution.points_b - want.points_b).max() < 1e-6
             assert np.abs(got.solution.tensions - want.tensions).max() < 1.0
             assert check_physics(plant, got.solution).passes()  # balanced against the load it was given
+    lengths = random_lengths(30, seed=5)
+    braking = np.outer(np.linspace(1.0, 1.3, len(lengths)), plant.wrench)  # one load per sample
+    for row, load, got in zip(lengths, braking, estimate_batch(plant, lengths, loads=braking).estimates()):
+        want = solve_energy(plant, row, load=load)
+        assert got.solution.status is want.status
+        if want.ok:
+            assert got.solution.taut_set == want.taut_set
+            assert np.abs(got.solution.tensions - want.tensions).max() < 1.0
+            assert check_physics(plant, got.solution).passes()
     side_pull = plant.wrench + np.array([2e3, -1e3, 0.0, 0.0, 0.0, 500.0])
     for row in random_lengths(30, seed=6):
         got = estimate(plant, row, load=side_pull)

@@ -104,7 +104,7 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
     lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
     return estimate_batch(model.physical, lengths, observations_for(model, measured, conditions),
                           length_noise(model), law.EA, law.weight if law.EA is not None else 0.0,
-                          model.load(conditions)).estimates()
+                          loads=model.load(conditions)).estimates()
 
 
 def _forward(solution: Solution, reported: Sequence[float]) -> Estimate:

@@ -128,7 +128,7 @@ class BatchEstimate:
     names: tuple[str, ...]
     sigma_length: float
     iterations: np.ndarray
-    load: np.ndarray              # (6,) the external wrench (model.load)
+    loads: np.ndarray             # (N, 6) the external wrench of each sample (model.load)
     fallback: dict[int, Estimate] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -148,7 +148,7 @@ class BatchEstimate:
         out = {i: self.fallback[i] for i in indices if i in self.fallback}
         solutions = solved_rows(self.plant, METHOD, self.corrected[rows], self.rotation[rows], self.position[rows],
                                 self.tensions[rows], self.taut[rows], self.iterations[rows],
-                                loads=np.broadcast_to(self.load, (rows.size, 6))) if rows.size else []
+                                loads=self.loads[rows]) if rows.size else []
         for i, solution in zip(rows.tolist(), solutions):
             measured = np.isfinite(self.residuals[i])
             out[i] = Estimate(solution, self.reported[i], self.corrected[i] - self.reported[i], self.sigma_length,
@@ -183,13 +183,15 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
 
 def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Observation] = (),
                    sigma_length: float = 1e-3, axial_stiffness: object = None, rope_weight: float = 0.0,
-                   load: np.ndarray | None = None) -> BatchEstimate:
-    """`estimate` for the rows of lengths (N, 4), observation values (N,) each: every sample starts
-    from the batched forward kinematics of its reported lengths, the search runs on all together."""
+                   loads: np.ndarray | None = None) -> BatchEstimate:
+    """`estimate` for the rows of lengths (N, 4), observation values (N,) each, under `loads` (one
+    wrench (6,) for all, one per sample (N, 6), None: gravity): every sample starts from the batched
+    forward kinematics of its reported lengths, the search runs on all together. ValueError names a
+    bad argument."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
-        return _estimate(Problem.build(plant, lengths, sigma_length, observations, ropes, load), None)
+        return _estimate(Problem.build(plant, lengths, sigma_length, observations, ropes, loads), None)
 
 
 def _warm_rows(problem: Problem, warm_start: Estimate | None) -> Rows | None:
@@ -199,7 +201,7 @@ def _warm_rows(problem: Problem, warm_start: Estimate | None) -> Rows | None:
     previous = warm_start.solution
     shift = float(previous.lengths.mean() - problem.lengths[0].mean())
     return Rows(np.zeros(1, int), previous.taut[None].copy(), previous.rotation[None].copy(),
-                (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / problem.scale)
+                (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / problem.scales[0])
 
 
 def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solution]]:
@@ -209,7 +211,7 @@ def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solutio
     plant, ropes = problem.plant, problem.ropes
     effective = ropes.effective(problem.lengths)
     if len(effective) == 1:
-        solution = solve_energy(plant, effective[0], load=problem.load)  # one sample: the per-sample solver is the faster
+        solution = solve_energy(plant, effective[0], load=problem.loads[0])  # one sample: the per-sample solver is the faster
         picked = [solution] if solution.ok else []
         start = Rows(np.arange(len(picked)), np.array([s.taut for s in picked], bool).reshape(-1, 4),
                      np.array([s.rotation for s in picked]).reshape(-1, 3, 3),
@@ -217,14 +219,14 @@ def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solutio
                      np.array([s.tensions for s in picked]).reshape(-1, 4))
         rigid = (lambda i: solution)
     else:
-        batch = solve_batch(plant, effective, loads=problem.load)
+        batch = solve_batch(plant, effective, loads=problem.loads)
         ok = np.flatnonzero(batch.ok)
         start = Rows(ok, batch.taut[ok], batch.rotation[ok], batch.position[ok], batch.tensions[ok])
         rigid = batch.solution
-    start.mu = start.mu / problem.scale
+    start.mu = start.mu / problem.scales[start.sample, None]
     if ropes.rigid:
         return start, rigid
-    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness, load=problem.load)
+    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness, load=problem.loads[i])
 
 
 def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
@@ -313,14 +315,15 @@ def _assemble(problem: Problem, best: Rows, unsolved: dict[int, Solution]) -> Ba
     """Arrays of every sample: the estimated rows, and forward kinematics where none was admissible."""
     plant, count = problem.plant, len(problem.lengths)
     m = len(problem.observations)
-    tensions = np.where(best.taut, np.maximum(best.mu, 0.0), 0.0) * problem.scale
-    taut = tensions > TENSION_TOL * problem.scale
+    scales = problem.scales[best.sample, None]
+    tensions = np.where(best.taut, np.maximum(best.mu, 0.0), 0.0) * scales
+    taut = tensions > TENSION_TOL * scales
     corrected = implied_lengths(problem, best)
     out = BatchEstimate(plant, problem.lengths, problem.lengths.copy(), problem.lengths.copy(),
                         np.full(count, SolveStatus.SOLVED.value, dtype=object), np.zeros((count, 4), bool),
                         np.zeros((count, 4)), np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan),
                         np.full((count, m), np.nan), tuple(o.name for o in problem.observations),
-                        problem.sigma_length, np.zeros(count, int), problem.load)
+                        problem.sigma_length, np.zeros(count, int), problem.loads)
     rows = best.sample
     out.corrected[rows] = corrected
     out.loaded[rows] = problem.ropes.loaded(corrected, tensions)

@@ -53,11 +53,13 @@ class Problem:
     observations: tuple[Observation, ...]
     values: np.ndarray
     ropes: Ropes
-    load: np.ndarray          # external wrench (6,) [N, N m about C]
+    loads: np.ndarray         # external wrench of each sample (N, 6) [N, N m about C]
 
     @classmethod
     def build(cls, plant: Plant, lengths: np.ndarray, sigma_length: float, observations: Sequence[Observation],
               ropes: Ropes, load: np.ndarray | None) -> "Problem":
+        """The problem of N samples under `load`: one wrench (6,) for all, one per sample (N, 6), or None
+        for gravity; ValueError names what is wrong."""
         if not (np.isfinite(sigma_length) and sigma_length > 0.0):
             raise ValueError(f"length noise sigma must be finite and positive, got {sigma_length!r}")
         count = len(lengths)
@@ -67,16 +69,16 @@ class Problem:
             if value.size not in (1, count):
                 raise ValueError(f"observation {observation.name!r}: {value.size} values for {count} samples")
             values[:, k] = value.reshape(-1)
-        wrench = loads.resolve(plant, load)
-        reason = loads.check(wrench)
+        wrenches = np.array(loads.loads_for(plant, load, count), dtype=float)
+        reason = next((r for r in map(loads.check, wrenches) if r), "")
         if reason:
             raise ValueError(reason)
-        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrench)
+        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrenches)
 
     @cached_property
-    def scale(self) -> float:
-        """|f| of the load [N]: tensions are solved for in this unit (m g under gravity)."""
-        return loads.magnitude(self.load)
+    def scales(self) -> np.ndarray:
+        """|f| of each sample's load [N]: its tensions are solved for in this unit (m g under gravity)."""
+        return np.linalg.norm(self.loads[:, :3], axis=1)
 
     @cached_property
     def sigmas(self) -> np.ndarray:
@@ -84,12 +86,12 @@ class Problem:
 
     @cached_property
     def read_off(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Indices of the coordinate observations, their coordinates, and their normalised Jacobian rows
-        in the solver's variables (tensions in m g)."""
+        """Indices of the coordinate observations, their coordinates, and their Jacobian rows per unit of
+        the state coordinates, divided by their sigma (a tension row is still to be scaled by |f|)."""
         index = np.array([k for k, o in enumerate(self.observations) if o.coordinate is not None], dtype=int)
         columns = np.array([self.observations[k].coordinate for k in index], dtype=int)
         jacobian = np.zeros((index.size, 10))
-        jacobian[np.arange(index.size), columns] = np.where(columns >= 6, self.scale, 1.0)
+        jacobian[np.arange(index.size), columns] = 1.0
         return index, columns, jacobian / self.sigmas[index, None] if index.size else jacobian
 
     @cached_property
@@ -131,7 +133,7 @@ class Rows:
 def implied_lengths(problem: Problem, rows: Rows) -> np.ndarray:
     """The corrected lengths of each row (n, 4): a taut rope's unstretched length through the rope law;
     a slack rope's reported length, or longer where its span needs it."""
-    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scale)
+    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scales[rows.sample, None])
     taut_length = problem.ropes.unstretched(states.spans, states.tensions)[0]
     slack_length = problem.ropes.unstretched(states.spans, np.zeros_like(states.spans))[0]
     return np.where(rows.taut, taut_length, np.maximum(slack_length, problem.lengths[rows.sample]))
@@ -145,7 +147,8 @@ def residuals(problem: Problem, rows: Rows, live: np.ndarray) -> np.ndarray:
 def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bool):
     """Normalised residuals r (n, 4+m), their Jacobian A (n, 4+m, 10), constraint c (n, 6) and C (n, 6, 10)."""
     plant = problem.plant
-    weight, scale = problem.scale, plant.moment_scale
+    scale = plant.moment_scale
+    weight = problem.scales[rows.sample[live], None]   # |f| of each row's load, (n, 1)
     rotation, position, mu, taut = rows.rotation[live], rows.position[live], rows.mu[live], rows.taut[live]
     sample = rows.sample[live]
     n, m = live.size, len(problem.observations)
@@ -178,8 +181,9 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
         predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
 
-    constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - problem.load[:3] / weight,
-                                 (np.einsum("nc,nci->ni", mu, moments) - problem.load[3:] / weight) / scale], axis=1)
+    load = problem.loads[sample] / weight
+    constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - load[:, :3],
+                                 (np.einsum("nc,nci->ni", mu, moments) - load[:, 3:]) / scale], axis=1)
     if not with_jacobian:
         return residual, None, constraint, None
 
@@ -191,9 +195,8 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     if index.size:
         jacobian[:, 4 + index] = read_jacobian
     for k in functional.tolist():
-        gradient = problem.observations[k].jacobian(states)
-        gradient[:, 6:] *= weight
-        jacobian[:, 4 + k] = gradient / problem.sigmas[k]
+        jacobian[:, 4 + k] = problem.observations[k].jacobian(states) / problem.sigmas[k]
+    jacobian[:, 4:, 6:] *= weight[:, :, None]   # per newton -> per unit of |f|
     jacobian[:, 4:] *= measured[..., None]
     jacobian[:, :, 6:] *= taut[:, None, :]
 
