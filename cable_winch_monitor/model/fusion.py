@@ -36,7 +36,6 @@ BALANCE_TOL = 1e-9        # relative force and moment balance at convergence (pe
 STEP_TOL = 1e-6           # last step [m per 100 m of rope, rad, |f|] at convergence: Newton's next is ~1e-12
 MAX_TURN_STEP = 0.2       # [rad] largest rotation of one step
 MAX_SHIFT_STEP = 0.2      # largest translation of one step, in units of the plant's size
-EZ = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass(frozen=True)
