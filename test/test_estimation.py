@@ -13,8 +13,8 @@ from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.model import observations as obs
 from cable_winch_monitor.model.elastic import solve_elastic
 from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.estimation import estimate, estimate_batch
-from cable_winch_monitor.model.gate import HeldGate, chi_square_threshold, mahalanobis_gate
+from cable_winch_monitor.model.estimation import estimate, estimate_batch, estimate_gated
+from cable_winch_monitor.model.gate import HeldGate, chi_square_threshold, gate_sensors, mahalanobis_gate
 from cable_winch_monitor.model.result import SolveStatus, check_physics
 from test_solver_agreement import random_lengths
 from root_truth import elastic_truth, weak_mode_samples, weak_mode_truth
@@ -239,3 +239,22 @@ def test_held_gate():
     assert verdicts.index(False) == 10  # failing for a full second drops it
     assert not gate.update(2.2, True) and not gate.update(2.9, False)  # a pass amid failures does not restore it
     assert [gate.update(3.0 + 0.5 * k, True) for k in range(3)] == [False, False, True]
+
+
+def test_a_pin_off_by_2_kN_is_left_out(plant, weak_mode):
+    truths, samples = weak_mode
+    sensors = {"inclinometer": ("roll", "pitch"), "depth gauge": ("depth",),
+               **{f"load pin {i}": (f"tension_cable_{i}",) for i in range(1, 5)}}
+    caught, false_alarms, errors = 0, 0, []
+    for k, (truth, (lengths, readings)) in enumerate(zip(truths[:40], samples[:40])):
+        bad = 3 + k % 4  # readings 3..6 are the pins
+        readings = list(readings)
+        readings[bad] = readings[bad].with_value(readings[bad].value + 2e3)
+        naive = gate_sensors(estimate(plant, lengths, readings, sigma_length=ENCODER).residuals, sensors)
+        assert not all(g.passed for g in naive.values())  # gated on the estimate using it, every pin is suspect
+        fused, gates = estimate_gated(plant, lengths, readings, sensors, sigma_length=ENCODER)
+        caught += not gates[f"load pin {bad - 2}"].passed and readings[bad].name not in fused.used
+        false_alarms += sum(not g.passed for name, g in gates.items() if name != f"load pin {bad - 2}")
+        errors.append(np.abs(fused.solution.tensions - truth.tensions).max())
+    assert caught >= 38 and false_alarms <= 2
+    assert np.mean(np.array(errors) <= 3.0 * PIN) >= 0.95  # three pins still resolve the weak mode

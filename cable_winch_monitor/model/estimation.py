@@ -26,7 +26,7 @@ set of two or more ropes. The admissible row of least cost is kept.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -34,7 +34,8 @@ from .batched import solve_batch
 from .elastic import solve_elastic
 from .energy import TENSION_TOL, solve_energy
 from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
-from .observations import Observation
+from .gate import DEFAULT_PROBABILITY, GateResult, gate_sensors
+from .observations import Observation, States
 from .plant import Plant
 from .result import Solution, SolveStatus, failed, solved_rows, validate_lengths
 from .ropes import Ropes
@@ -192,6 +193,37 @@ def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Obs
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
         return _estimate(Problem.build(plant, lengths, sigma_length, observations, ropes, loads), None)
+
+
+def estimate_gated(plant: Plant, lengths: object, observations: Sequence[Observation],
+                   sensors: Mapping[str, Sequence[str]], probability: float = DEFAULT_PROBABILITY,
+                   **options: Any) -> tuple[Estimate, dict[str, GateResult]]:
+    """`estimate` leaving out the sensors that disagree beyond reason: while a sensor (a name and its
+    channels) fails its Mahalanobis gate, the worst one (largest d^2 against its threshold) is left
+    out and the rest estimated again; a sensor left out is gated by its innovation against the
+    estimate without it. Returns the estimate of the trusted sensors and every sensor's gate.
+    `options` are `estimate`'s (sigma_length, axial_stiffness, rope_weight, load, warm_start)."""
+    left_out: set[str] = set()
+    while True:
+        kept = [o for o in observations if not any(o.name in sensors[s] for s in left_out)]
+        fused = estimate(plant, lengths, kept, **options)
+        if not fused.fused:
+            return fused, {}
+        gates = gate_sensors(fused.residuals, {s: c for s, c in sensors.items() if s not in left_out}, probability)
+        failing = {s: g.chi_square / g.threshold for s, g in gates.items() if not g.passed}
+        if not failing or len(gates) - len(failing) < 1:
+            innovations = _innovations(plant, fused, [o for o in observations if o not in kept])
+            gates.update(gate_sensors(innovations, {s: sensors[s] for s in left_out}, probability))
+            return fused, gates
+        left_out.add(max(failing, key=failing.get))
+
+
+def _innovations(plant: Plant, fused: Estimate, observations: Sequence[Observation]) -> dict[str, float]:
+    """(measured - predicted) / sigma of observations the estimate did not use, at its state."""
+    solution = fused.solution
+    states = States(plant, solution.rotation[None], solution.position[None], solution.tensions[None])
+    return {o.name: (float(np.asarray(o.value, dtype=float).reshape(-1)[0]) - float(o.evaluate(states)[0])) / o.sigma
+            for o in observations if np.isfinite(np.asarray(o.value, dtype=float)).all()}
 
 
 def _warm_rows(problem: Problem, warm_start: Estimate | None) -> Rows | None:

@@ -11,7 +11,7 @@ their sum of squares.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -56,6 +56,20 @@ def mahalanobis_gate(innovation: Sequence[float], covariance: np.ndarray | Seque
         raise ValueError("gate needs at least one measured channel")
     d2 = float(y @ np.linalg.solve(s, y))
     return GateResult(d2, chi_square_threshold(y.size, probability), int(y.size))
+
+
+def gate_sensors(residuals: Mapping[str, float], sensors: Mapping[str, Sequence[str]],
+                 probability: float = DEFAULT_PROBABILITY) -> dict[str, GateResult]:
+    """Gate each sensor (a name and its channels: the inclinometer's roll and pitch, one load pin) by
+    the normalised residuals of its channels in an estimate ((measured - predicted) / sigma, as
+    `Estimate.residuals`); sensors with no channel among them are left out. The estimate has used
+    the sensor, so a residual is smaller than the sensor's own error: the gate errs towards trust."""
+    out = {}
+    for sensor, names in sensors.items():
+        values = [residuals[name] for name in names if name in residuals]
+        if values:
+            out[sensor] = mahalanobis_gate(values, None, probability)
+    return out
 
 
 @dataclass
