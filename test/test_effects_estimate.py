@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from cable_winch_monitor.effects.estimate import estimate_recording, estimate_sample, length_noise
-from cable_winch_monitor.effects.model import PlantModel
+from cable_winch_monitor.effects.model import NO_CONDITIONS, PlantModel
 from cable_winch_monitor.effects.rope import RopeElasticity, RopeWeight
 from cable_winch_monitor.model.result import check_physics
 from root_truth import elastic_truth
@@ -26,7 +26,7 @@ def test_lengths_alone_are_the_models_forward_kinematics(plant):
     model = PlantModel(noisy_plant(plant))
     assert length_noise(model) == 1e-3
     lengths = random_lengths(40, seed=17)
-    recording = estimate_recording(model, lengths, {})
+    recording = estimate_recording(model, lengths, {}, [NO_CONDITIONS] * len(lengths))
     for row, fused in zip(lengths, recording):
         want = model.solve(row)
         got = estimate_sample(model, row, {"depth": float("nan")})
@@ -49,7 +49,7 @@ def test_pins_reading_the_rope_weight_are_predicted_by_the_model(plant):
     ea, weight = 75e6, 60.0
     model = PlantModel(noisy_plant(plant), (RopeElasticity({"EA": ea}), RopeWeight({"w": weight})))
     rng = np.random.default_rng(4)
-    errors, misfits = [], []
+    errors, misfits, samples = [], [], []
     for _ in range(12):
         truth = elastic_truth(plant, rng.uniform(100.0, 600.0) + rng.uniform(-0.05, 0.05, 4), ea, weight)
         points = truth.position + plant.attachments @ truth.rotation.T
@@ -58,6 +58,7 @@ def test_pins_reading_the_rope_weight_are_predicted_by_the_model(plant):
         measured["depth"] = truth.position[2] + rng.normal(0.0, NOISE["depth"])
         reported = truth.lengths + rng.normal(0.0, NOISE["length"], 4)
         got = estimate_sample(model, reported, measured)
+        samples.append((reported, measured, got))
         assert got.fused and set(got.used) == set(measured)
         assert check_physics(model.physical, got.loaded_solution).passes()
         assert max(abs(r) for r in got.residuals.values()) < 4.0
@@ -65,6 +66,16 @@ def test_pins_reading_the_rope_weight_are_predicted_by_the_model(plant):
         without = estimate_sample(PlantModel(model.plant, (RopeElasticity({"EA": ea}),)), reported, measured)
         misfits.append(min(abs(without.residuals[f"tension_cable_{i + 1}"]) for i in range(4)))
     assert max(errors) <= 3.0 * NOISE["tension"]
+    recording = estimate_recording(model, np.array([s[0] for s in samples]),
+                                   {name: np.array([s[1][name] for s in samples]) for name in samples[0][1]},
+                                   [NO_CONDITIONS] * len(samples))
+    for (_, _, one), batched in zip(samples, recording):
+        assert np.abs(batched.solution.tensions - one.solution.tensions).max() < 1.0
     # a model that forgets the rope's weight cannot explain the pins: the balance holds the tensions
     # to the platform's weight, and every pin is left many sigma off
     assert min(misfits) > 10.0
+
+
+def test_bad_lengths_are_a_status(plant):
+    got = estimate_sample(PlantModel(noisy_plant(plant)), ["a", 1.0, 2.0, 3.0], {})
+    assert got.solution.status.value == "invalid_input" and "number" in got.solution.message

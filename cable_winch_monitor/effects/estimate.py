@@ -43,22 +43,23 @@ def length_noise(model: PlantModel) -> float | None:
 
 
 def _modelled(model: PlantModel, name: str, value: float | np.ndarray, sigma: float,
-              conditions: Conditions) -> Observation:
-    """A channel predicted by the plant model for each state (numerical gradient)."""
+              conditions: Sequence[Conditions]) -> Observation:
+    """A channel predicted by the plant model for each state, at its sample's conditions (numerical gradient)."""
     plant = model.physical
 
     def predict(states: States) -> np.ndarray:
         rows = solved_rows(plant, "estimate", states.spans, states.rotation, states.position, states.tensions,
                            states.tensions > 0.0, [0] * len(states))
-        return np.array([model.predict(solution, conditions)[name] for solution in rows])
+        samples = states.sample if states.sample is not None else np.zeros(len(states), int)
+        return np.array([model.predict(solution, conditions[k])[name] for solution, k in zip(rows, samples.tolist())])
 
     return Observation(name, value, sigma, predict)
 
 
 def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarray],
-                     conditions: Conditions = NO_CONDITIONS) -> list[Observation]:
-    """The observations of the measured channels with a noise in the plant file (values NaN where a
-    channel was not measured; arrays over a batch need the same conditions for every sample)."""
+                     conditions: Sequence[Conditions] = (NO_CONDITIONS,)) -> list[Observation]:
+    """The observations of the measured channels with a noise in the plant file: values a number, or
+    arrays over a batch (NaN where a channel was not measured) with each sample's conditions."""
     noise = model.plant.noise
     direct = not model.measuring
     out = []
@@ -84,27 +85,34 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
         return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
                         reported)
     law = model.rope_law
-    lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
-    return estimate(model.physical, lengths, observations_for(model, measured, conditions), length_noise(model),
+    try:
+        lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
+    except (TypeError, ValueError):  # not four numbers: the solver's input check says what is wrong
+        return _forward(model.solve(reported, None, conditions), np.full(4, np.nan))
+    return estimate(model.physical, lengths, observations_for(model, measured, [conditions]), length_noise(model),
                     law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
 
 
 def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
-                       conditions: Conditions = NO_CONDITIONS) -> list[Estimate]:
-    """`estimate_sample` for N samples at once (reported (N, 4), each channel (N,), NaN where not measured),
-    under one set of conditions (the load and the effects see the same for every sample)."""
+                       conditions: Sequence[Conditions]) -> list[Estimate]:
+    """`estimate_sample` for N samples at once: reported (N, 4), each channel (N,) (NaN where not
+    measured), each sample's conditions (its load, its lengths, what its sensors read depend on them)."""
+    reported = np.asarray(reported, dtype=float).reshape(-1, 4)
+    if len(conditions) != len(reported):
+        raise ValueError(f"{len(conditions)} conditions for {len(reported)} samples")
     if not _supported(model):
         previous: Solution | None = None
         out = []
-        for row in np.asarray(reported, dtype=float):
-            out.append(_forward(model.solve(row, previous, conditions), row))
+        for row, at in zip(reported, conditions):
+            out.append(_forward(model.solve(row, previous, at), row))
             previous = out[-1].solution if out[-1].ok else previous
         return out
     law = model.rope_law
-    lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
+    lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
+    loads = np.array([model.load(at) for at in conditions])
     return estimate_batch(model.physical, lengths, observations_for(model, measured, conditions),
                           length_noise(model), law.EA, law.weight if law.EA is not None else 0.0,
-                          loads=model.load(conditions)).estimates()
+                          loads=loads).estimates()
 
 
 def _forward(solution: Solution, reported: Sequence[float]) -> Estimate:

@@ -175,7 +175,7 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     predicted = np.empty((n, m))
     if index.size:
         predicted[:, index] = np.concatenate([position, np.zeros((n, 3)), tensions], axis=1)[:, columns]
-    states = States(plant, rotation, position, tensions) if functional.size else None
+    states = States(plant, rotation, position, tensions, sample) if functional.size else None
     for k in functional.tolist():
         predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas

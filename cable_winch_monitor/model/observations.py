@@ -26,12 +26,14 @@ FD_STEPS = np.array([1e-6] * 3 + [1e-8] * 3 + [1e-3] * 4)  # finite-difference s
 
 @dataclass(frozen=True)
 class States:
-    """n equilibrium states: rotation (n, 3, 3), position (n, 3) [m], tensions (n, 4) [N] of `plant`."""
+    """n equilibrium states: rotation (n, 3, 3), position (n, 3) [m], tensions (n, 4) [N] of `plant`, and
+    the sample each explains (its index in a batch: a prediction may depend on the sample's conditions)."""
 
     plant: Plant
     rotation: np.ndarray
     position: np.ndarray
     tensions: np.ndarray
+    sample: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.position)
@@ -49,7 +51,7 @@ class States:
     def moved(self, step: np.ndarray) -> "States":
         """The states moved by `step` (n, 10) in the state coordinates."""
         rotation = rotations_from_vectors(step[:, 3:6]) @ self.rotation
-        return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10])
+        return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10], self.sample)
 
 
 Predict = Callable[[States], np.ndarray]
