@@ -4,13 +4,19 @@ The live node must merge and solve each winch message as it arrives; a replay ca
 ahead. For each window of messages:
 
 1. every winch message is merged, in log order, by the pipeline's own merger (as the
-   node would merge it); each complete sample keeps what the merger knew at its message;
-2. the window's complete samples are solved together (`solve_batch`, warm-started from
-   the last solved sample), with their wall clearances; with another solver or with the
-   plant's physical effects each is solved in step 3 instead, as the node solves it;
+   node would merge it), and every sensor reading kept as the node keeps it; each complete
+   sample keeps what the merger knew at its message, what the sensors read then, and its
+   conditions;
+2. the window's complete samples are solved together, with their wall clearances: where
+   the plant fuses its sensors (`noise.length`), estimated together from the sensors
+   trusted at the window's start (`estimate_recording`); else solved by `solve_batch`,
+   warm-started from the last solved sample (with another solver or with the plant's
+   physical effects each is solved in step 3 instead, as the node solves it);
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
-   solved pose -- the per-sample pipeline's own code, so the outputs are the node's.
+   solved pose -- the per-sample pipeline's own code, so the outputs are the node's. A sample
+   whose trusted sensors changed within the window (a gate closed or opened) is estimated
+   again there, warm-started, as the node estimates it.
 
 Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
 a sample's value is interpolated between the readings around its stamp.
@@ -20,32 +26,47 @@ None, or the exception the pipeline raised on it (counted like the node's callba
 """
 from __future__ import annotations
 
-from typing import Any, Iterable, Iterator, Union
+from typing import Any, Iterable, Iterator, NamedTuple, Union
 
 import numpy as np
 
 from .bagio import fields
+from .effects.estimate import estimate_recording
+from .model.conditions import Conditions
+from .model.estimation import Estimate
+from . import channels
 from .model.batched import solve_batch
 from .model.plant import Plant
 from .model.result import Solution
 from .monitor.clearance import Clearance, solution_clearances
 from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 from .monitor.residuals import Residuals
+from .monitor.sensors import DEFAULT_HOLD
 
 WINDOW = 2000  # messages read ahead
 
 Result = Union[MonitorOutput, Residuals, None, Exception]
+Solved = tuple[Solution, Clearance | None, Estimate | None]
+
+
+class Merged(NamedTuple):
+    """A complete sample with what the sensors read at its message and its conditions."""
+
+    sample: CompleteSample
+    measured: dict[str, float]
+    conditions: Conditions
 
 
 class LookaheadPipeline(MonitorPipeline):
     """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
-                 window: int = WINDOW):
-        super().__init__(plant, solver, staleness)
+                 window: int = WINDOW, gate_hold: float = DEFAULT_HOLD):
+        super().__init__(plant, solver, staleness, gate_hold)
         self.window = window
-        # The batch solver is the rigid energy model: not for another solver, nor with physical effects.
-        self.batched = batched and solver == "energy" and self.model.plain
+        # The batch solver is the rigid energy model: not for another solver, nor with physical effects;
+        # the batched estimator takes the plant model's effects.
+        self.batched = batched and solver == "energy" and (self.model.plain or self.fusing)
         self.input_specs = {spec.topic: spec for spec in self.model.inputs}
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
@@ -63,38 +84,62 @@ class LookaheadPipeline(MonitorPipeline):
             spec = self.input_specs.get(item.topic)
             if spec is not None:
                 self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
-        merged = [self._merge_item(item) if item.msgtype == fields.JOINT_STATE else None for item in window]
-        samples = [outcome for outcome in merged if isinstance(outcome, CompleteSample)]
+        merged = [self._merge_item(item) for item in window]
+        samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
+        refused = self.gates.refused  # the sensors left out when the window was estimated
         presolved = iter(self._presolve(samples))
         for item, outcome in zip(window, merged):
-            solved = next(presolved) if isinstance(outcome, CompleteSample) else None
+            solved = next(presolved) if isinstance(outcome, Merged) else None
+            if solved is not None and solved[2] is not None and self.gates.refused != refused:
+                solved = None  # a gate changed within the window: estimated as the node does
             try:
                 result = self._result(item, outcome, solved)
             except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
                 result = error
             yield item, result
 
-    def _merge_item(self, item: Any) -> CompleteSample | Exception | None:
+    def _merge_item(self, item: Any) -> Merged | Exception | None:
+        """Step 1 for one message: a winch message merged (its complete sample, if it makes one), a
+        sensor reading kept for the samples to come."""
+        if item.msgtype != fields.JOINT_STATE:
+            readers = channels.on_topic(item.topic)
+            if readers and item.topic not in self.input_specs:
+                try:
+                    stamp = fields.message_seconds(item.message, item.log_time)
+                except Exception:  # noqa: BLE001 - step 3 reports it with its message
+                    return None
+                self.keep_reading(stamp, {c.name: c.read(item.message) for c in readers})
+            return None
         try:
-            return self._merge(fields.joint_sample(item.message, item.topic))
+            sample = self._merge(fields.joint_sample(item.message, item.topic))
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
+        return None if sample is None else Merged(sample, self.measured(sample), self.conditions(sample))
 
-    def _presolve(self, samples: list[CompleteSample]) -> list[tuple[Solution, Clearance | None] | None]:
-        """Equilibrium and clearance of each sample, solved together (None each where not batched)."""
+    def _presolve(self, samples: list[Merged]) -> list[Solved | None]:
+        """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched)."""
         if not self.batched or not samples:
             return [None] * len(samples)
-        batch = solve_batch(self.plant, np.array([s.lengths for s in samples]), warm_start=self._warm_start())
-        solutions = batch.solutions()
-        return list(zip(solutions, solution_clearances(self.model.physical, solutions)))
+        lengths = np.array([s.sample.lengths for s in samples])
+        if self.fusing:
+            trusted = [self.gates.trusted(s.measured) for s in samples]
+            names = sorted({name for row in trusted for name in row})
+            measured = {name: np.array([row.get(name, np.nan) for row in trusted]) for name in names}
+            estimates = estimate_recording(self.model, lengths, measured, [s.conditions for s in samples])
+            solutions = [e.solution for e in estimates]
+        else:
+            solutions = solve_batch(self.plant, lengths, warm_start=self._warm_start()).solutions()
+            estimates = [None] * len(samples)
+        return list(zip(solutions, solution_clearances(self.model.physical, solutions), estimates))
 
-    def _result(self, item: Any, outcome: CompleteSample | Exception | None,
-                solved: tuple[Solution, Clearance | None] | None) -> Result:
+    def _result(self, item: Any, outcome: Merged | Exception | None, solved: Solved | None) -> Result:
         msg = item.message
         if item.msgtype == fields.JOINT_STATE:
             if isinstance(outcome, Exception):
                 raise outcome
-            return None if outcome is None else self._solve(outcome, solved)
+            if outcome is None:
+                return None
+            return self._solve(outcome.sample, outcome.measured, solved, outcome.conditions)
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
-        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg)
+        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg, keep=False)

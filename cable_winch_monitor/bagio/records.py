@@ -65,6 +65,6 @@ def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: pose (only if solved),
     tension distribution, collision alarm, residuals (if any)."""
     records = [_record(POSE, fields.pose_stamped(stamp, output.solution))] if output.solution.ok else []
-    records += [_record(TENSION, fields.tension_distribution(stamp, output.solution)),
+    records += [_record(TENSION, fields.tension_distribution(stamp, output.solution, output.estimate)),
                 _record(ALARM, fields.collision_alarm(stamp, output.alarm))]
     return records + residual_records(stamp, output.residuals)

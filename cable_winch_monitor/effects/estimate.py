@@ -74,14 +74,15 @@ def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarra
     return out
 
 
-def _supported(model: PlantModel) -> bool:
+def fuses(model: PlantModel) -> bool:
+    """Whether the model's samples are estimated (lengths with a noise, the energy solver, no pose-dependent geometry)."""
     return length_noise(model) is not None and model.solver == "energy" and not model.refining
 
 
 def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapping[str, float],
                     conditions: Conditions = NO_CONDITIONS, warm_start: Estimate | None = None) -> Estimate:
     """The fused state of one sample (never raises); the model's forward kinematics where it cannot fuse."""
-    if not _supported(model):
+    if not fuses(model):
         return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
                         reported)
     law = model.rope_law
@@ -100,7 +101,7 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
     reported = np.asarray(reported, dtype=float).reshape(-1, 4)
     if len(conditions) != len(reported):
         raise ValueError(f"{len(conditions)} conditions for {len(reported)} samples")
-    if not _supported(model):
+    if not fuses(model):
         previous: Solution | None = None
         out = []
         for row, at in zip(reported, conditions):

@@ -31,6 +31,7 @@ from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
 from ..monitor.pipeline import MonitorOutput, MonitorPipeline
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import DEFAULT_HOLD
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
 from .diagnostics import DiagnosticsReporter
 
@@ -60,6 +61,10 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
     ("staleness", 0.5, ParameterDescriptor(
         description="[s] a sample is solved only when no cable's latest length is older than this",
         floating_point_range=_range(0.001, 60.0), read_only=True)),
+    ("gate_hold", DEFAULT_HOLD, ParameterDescriptor(
+        description="[s] a sensor failing its Mahalanobis gate this long is left out of the estimate "
+                    "(and taken back after passing as long)", floating_point_range=_range(0.0, 3600.0),
+        read_only=True)),
     ("diagnostics_period", 1.0, ParameterDescriptor(
         description="[s] period of /diagnostics (at most 1 s)", floating_point_range=_range(0.01, 1.0),
         read_only=True)),
@@ -78,7 +83,7 @@ class WinchMonitorNode(Node):
             self.declare_parameter(name, default, descriptor)
         value = self._parameter
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
-        self.pipeline = MonitorPipeline(plant, value("solver"), value("staleness"))
+        self.pipeline = MonitorPipeline(plant, value("solver"), value("staleness"), value("gate_hold"))
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0
@@ -137,7 +142,7 @@ class WinchMonitorNode(Node):
     def _publish(self, stamp: fields.Stamp, output: MonitorOutput) -> None:
         if output.solution.ok:  # never a pose that was not solved
             self.pose_pub.publish(build(PoseStamped, fields.pose_stamped(stamp, output.solution)))
-        self.tension_pub.publish(build(TensionDistribution, fields.tension_distribution(stamp, output.solution)))
+        self.tension_pub.publish(build(TensionDistribution, fields.tension_distribution(stamp, output.solution, output.estimate)))
         self.alarm_pub.publish(build(CollisionAlarm, fields.collision_alarm(stamp, output.alarm)))
         self._publish_residuals(stamp, output.residuals)
 
