@@ -16,6 +16,7 @@ from cable_winch_monitor.analysis.data import CHANNELS, Dataset
 from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows, payout_accelerations
 from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.effects.sheave import motion_direction, motion_directions
 
 RATE = 10.0  # [Hz]
 ROWS = 2000
@@ -191,3 +192,14 @@ def test_compare_names_the_payout_for_a_hidden_rope_weight(tmp_path):
     assert first["slope_sigma_per_unit"] * noise == pytest.approx(60.0, rel=0.1)
     assert "what the remaining error follows:\n  load-pin residuals follow the payout, r = " in result.stdout
     assert "What the remaining error follows" in page.read_text() and first["sentence"] in page.read_text()
+
+
+def test_directions_of_a_series_as_sample_by_sample():
+    rng = np.random.default_rng(7)
+    speeds = np.repeat(rng.normal(0.0, 0.05, (200, 4)), rng.integers(1, 6, 200), axis=0)  # runs of stops
+    speeds[rng.random(speeds.shape) < 0.05] = np.nan  # winches that report no speed
+    expected, current = np.zeros_like(speeds), np.zeros(4)
+    for k, sample in enumerate(speeds):
+        current = expected[k] = motion_direction(sample, current)
+    np.testing.assert_array_equal(motion_directions(speeds), expected)
+    assert (expected == 0.0).any() and (expected == 1.0).any() and (expected == -1.0).any()

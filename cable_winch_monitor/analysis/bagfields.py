@@ -137,9 +137,11 @@ def read_fields(bag: str | Path, exclude: Iterable[str] = PACKAGE_TOPICS, max_se
     excluded = set(exclude)
     reader = BagReader(bag)
     reader.topics = _topic_types(reader, excluded)
+    result = BagFields()
+    if reader.topics == {}:  # the summaries list no other topic: nothing to read
+        return result
     topics: dict[str, _Topic] = {}
     paths: set[str] = set()
-    result = BagFields()
     dropped: set[str] = set()
     for item in reader:
         if item.topic in excluded:

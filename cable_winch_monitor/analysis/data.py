@@ -15,7 +15,7 @@ import numpy as np
 
 from ..bagio.reader import BagReader
 from ..effects import Conditions
-from ..effects.sheave import motion_direction
+from ..effects.sheave import motion_directions
 from ..monitor import fields
 from ..monitor.fields import IMU, INPUT_TOPICS, JOINT_STATE
 from ..monitor.inputs import CableLengthMerger
@@ -45,10 +45,7 @@ class Dataset:
     @property
     def directions(self) -> np.ndarray:
         """Direction of motion of each winch at each row, held through stops (see effects.sheave)."""
-        out, current = np.zeros_like(self.speeds), np.zeros(4)
-        for k, speeds in enumerate(self.speeds):
-            current = out[k] = motion_direction(speeds, current)
-        return out
+        return motion_directions(self.speeds)
 
     def conditions(self) -> list[Conditions]:
         return [Conditions(s, d) for s, d in zip(self.speeds, self.directions)]

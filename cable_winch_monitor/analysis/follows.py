@@ -38,7 +38,7 @@ from .data import CHANNELS, Dataset
 MIN_R = 0.5          # weaker correlations are not reported, however significant
 ALPHA = 0.01         # per test, with the effective number of independent pairs
 MIN_ROWS = 30        # fewer rows with both values: no test
-MAX_ROWS = 5000      # longer series are thinned evenly (the estimate does not need more)
+MAX_ROWS = 3000      # longer series are thinned evenly (the estimate does not need more)
 MAX_LEVELS = 5       # integer-valued regressors with at most this many values are discrete
 LAG_SHARE = 0.2      # Bartlett's sum runs to this share of the series length
 ALSO_WITHIN = 0.05   # regressors this close to the best |r| are named beside it
@@ -169,21 +169,20 @@ def _nanmean(values: np.ndarray) -> np.ndarray:
         return np.where(count > 0, np.where(finite, values, 0.0).sum(axis=1) / count, np.nan)
 
 
-def _autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
-    """rho(1..lags) of a series (mean removed), by FFT."""
+def autocorrelation(x: np.ndarray) -> np.ndarray:
+    """rho(1..LAG_SHARE n) of a series (mean removed), by FFT (zero-padded past the last lag: no wrap)."""
+    lags = max(1, int(LAG_SHARE * x.size))
     x = x - x.mean()
-    size = 1 << int(np.ceil(np.log2(2 * x.size)))
-    spectrum = np.fft.rfft(x, size)
+    spectrum = np.fft.rfft(x, size := 1 << int(np.ceil(np.log2(x.size + lags))))
     acf = np.fft.irfft(spectrum * np.conj(spectrum), size)[:lags + 1]
     return acf[1:] / acf[0] if acf[0] > 0 else np.zeros(lags)
 
 
-def effective_pairs(x: np.ndarray, y: np.ndarray) -> float:
-    """Bartlett's effective number of independent pairs of two autocorrelated series (see the module)."""
-    n = x.size
-    lags = max(1, int(LAG_SHARE * n))
-    j = np.arange(1, lags + 1)
-    inverse = 1.0 / n + 2.0 / n * np.sum((1.0 - j / n) * _autocorrelation(x, lags) * _autocorrelation(y, lags))
+def effective_pairs(rho_x: np.ndarray, rho_y: np.ndarray, n: int) -> float:
+    """Bartlett's effective number of independent pairs of two autocorrelated series of n values, from
+    their autocorrelations (see the module)."""
+    j = np.arange(1, rho_x.size + 1)
+    inverse = 1.0 / n + 2.0 / n * np.sum((1.0 - j / n) * rho_x * rho_y)
     return float(np.clip(1.0 / inverse if inverse > 0 else n, 3.0, n))
 
 
@@ -199,8 +198,9 @@ class _Test:
     level_means: dict[str, float] = field(default_factory=dict)
 
 
-def _test(y: np.ndarray, regressor: Regressor) -> _Test | None:
-    """r or eta of a residual y with a regressor over the rows where both are known, and its p-value."""
+def _test(y: np.ndarray, regressor: Regressor, rho_y: dict[bytes, np.ndarray]) -> _Test | None:
+    """r or eta of a residual y with a regressor over the rows where both are known, and its p-value
+    (`rho_y`: the residual's autocorrelation per set of rows, filled as needed)."""
     x = regressor.values
     both = np.isfinite(x) & np.isfinite(y)
     x, y = x[both], y[both]
@@ -209,13 +209,16 @@ def _test(y: np.ndarray, regressor: Regressor) -> _Test | None:
     if x.size > MAX_ROWS:
         keep = np.linspace(0, x.size - 1, MAX_ROWS).round().astype(int)
         x, y = x[keep], y[keep]
-    n_eff = effective_pairs(x, y)
+    key = both.tobytes()
+    if key not in rho_y:
+        rho_y[key] = autocorrelation(y)
+    n_eff = effective_pairs(autocorrelation(x), rho_y[key], x.size)
     if regressor.levels is None or np.unique(x).size == 2:
         r = float(np.corrcoef(x, y)[0, 1])
         t = abs(r) * np.sqrt(max(n_eff - 2.0, 1.0) / max(1.0 - r * r, 1e-12))
         p = float(2.0 * stats.t.sf(t, max(n_eff - 2.0, 1.0)))
         test = _Test(regressor, "r", r, x.size, n_eff, p, None if regressor.levels is not None else
-                     float(np.polyfit(x, y, 1)[0]))
+                     r * float(np.std(y) / np.std(x)))
     else:
         levels = np.unique(x)
         means = np.array([y[x == level].mean() for level in levels])
@@ -275,7 +278,9 @@ def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regress
     group_regressor: dict[str, set[str]] = {}
     for target, members in targets:
         y = _nanmean(z[:, [channels.index(c) for c in members]])
-        tests = sorted((t for t in (_test(y, r) for r in candidates) if _significant(t)), key=lambda t: -abs(t.r))
+        rho_y: dict[bytes, np.ndarray] = {}
+        tests = sorted((t for t in (_test(y, r, rho_y) for r in candidates) if _significant(t)),
+                       key=lambda t: -abs(t.r))
         if not tests:
             continue
         best = tests[0]

@@ -18,6 +18,15 @@ def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
     return np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, previous))
 
 
+def motion_directions(speeds: np.ndarray) -> np.ndarray:
+    """`motion_direction` along a time series of speeds (n, winches) from standing (0), in one pass: each
+    sample takes the sign of the last sample moving faster than the dead band."""
+    speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
+    moving = np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, 0.0))
+    last = np.maximum.accumulate(np.where(moving != 0.0, np.arange(len(moving))[:, None], -1), axis=0)
+    return np.where(last >= 0, np.take_along_axis(moving, np.maximum(last, 0), axis=0), 0.0)
+
+
 def radial_planes(plant: Plant) -> np.ndarray:
     """Horizontal unit vectors from the shaft axis through each anchor: the sheave planes' direction
     (winches stand outside the shaft, each sheave turns the rope towards its winch)."""
