@@ -12,11 +12,15 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.analysis.bagfields import read_fields
-from cable_winch_monitor.analysis.data import CHANNELS, Dataset
+from cable_winch_monitor.analysis.compare import compare
+from cable_winch_monitor.analysis.data import CHANNELS, Dataset, read_bag
 from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows, payout_accelerations
 from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.effects.sheave import motion_direction, motion_directions
+from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.sim.profile import Profile
 
 RATE = 10.0  # [Hz]
 ROWS = 2000
@@ -203,3 +207,25 @@ def test_directions_of_a_series_as_sample_by_sample():
         current = expected[k] = motion_direction(sample, current)
     np.testing.assert_array_equal(motion_directions(speeds), expected)
     assert (expected == 0.0).any() and (expected == 1.0).any() and (expected == -1.0).any()
+
+
+STOP_AND_GO = {"start_length": 40.0, "segments": [{"move": 12.0, "speed": 1.0, "accel": 0.2}, {"stop": 3.0},
+                                                  {"move": -8.0, "speed": 1.0, "accel": 0.2}, {"stop": 3.0}] * 3}
+
+
+def test_load_pins_carrying_the_platform_inertia_follow_the_payout_acceleration(tmp_path):
+    """The ropes carry m (g - a) while the winches accelerate; the model carries m g. The truth's
+    acceleration is the simulator's commanded profile, which the ranking never sees."""
+    plant = plant_file(tmp_path, "elastic", SEED002, ELASTIC)
+    bag = simulate_bag(tmp_path, "stop_and_go", plant, {}, profile=STOP_AND_GO, duration=80.0)
+    data = read_bag(bag)
+    profile = Profile(STOP_AND_GO["start_length"], STOP_AND_GO["segments"])
+    phase = np.clip(np.searchsorted(profile.starts, data.times, side="right") - 1, 0, None)
+    accel = np.array([profile.phases[k].accel for k in phase])  # paying out faster: the platform accelerates down
+    model = PlantModel.from_plant(load_plant(plant))
+    data.measured[:, :4] -= model.plant.mass * accel[:, None] / 4.0  # shared by four ropes
+    result = compare(model, data)
+    first = result.follows[0]
+    assert first.target == LOAD_PINS and first.regressor == "acceleration" and first.r < -0.7, first.sentence
+    assert first.slope * result.noise[0] == pytest.approx(-model.plant.mass / 4.0, rel=0.1)  # N per m/s^2
+    assert first.sentence.startswith("load-pin residuals follow the payout acceleration, r = -0.")
