@@ -13,17 +13,19 @@ from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.analysis.bagfields import read_fields
 from cable_winch_monitor.analysis.compare import compare
-from cable_winch_monitor.analysis.data import CHANNELS, Dataset, read_bag
-from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows, payout_accelerations
+from cable_winch_monitor.analysis.data import read_bag
+from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows
 from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.channels import TENSION_CHANNELS, names
 from cable_winch_monitor.effects import PlantModel
-from cable_winch_monitor.effects.sheave import motion_direction, motion_directions
+from cable_winch_monitor.model.conditions import directions, motion_direction
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.profile import Profile
 
 RATE = 10.0  # [Hz]
 ROWS = 2000
+CHANNELS = names()
 
 
 def _smooth(rng: np.random.Generator, tau: float, n: int = ROWS) -> np.ndarray:
@@ -105,22 +107,6 @@ def test_noise_and_unrelated_drift_give_no_finding():
     findings = sum(len(follows(np.column_stack([_smooth(rng, 20.0) for _ in CHANNELS]), list(CHANNELS),
                                _regressors(rng))) for _ in range(10))
     assert findings <= 2  # of 10 x 7 residuals x 5 regressors; a naive n = 2000 test reports most of them
-
-
-def test_payout_acceleration_from_speeds_or_from_lengths():
-    t = np.arange(0.0, 60.0, 0.1)
-    speed = np.interp(t, [0.0, 10.0, 20.0, 40.0, 50.0], [0.0, 0.0, 1.0, 1.0, 0.0])  # 0.1 m/s^2 up, -0.1 down
-    length = 60.0 + np.concatenate([[0.0], np.cumsum((speed[1:] + speed[:-1]) / 2 * 0.1)])
-    rng = np.random.default_rng(6)
-    lengths = length[:, None] + rng.normal(0.0, 0.0002, (t.size, 4))
-    speeds = np.column_stack([speed + rng.normal(0.0, 0.002, t.size)] * 3 + [np.full(t.size, np.nan)])
-    data = Dataset("synthetic", t, np.zeros(t.size, int), lengths, speeds, np.full((t.size, len(CHANNELS)), np.nan))
-    accel = payout_accelerations(data)
-    for window, expected in (((12.0, 18.0), 0.1), ((25.0, 35.0), 0.0), ((42.0, 48.0), -0.1)):
-        rows = (t > window[0]) & (t < window[1])
-        assert np.abs(accel[rows, :3].mean() - expected) < 0.005, window  # from the reported speeds
-        assert np.abs(accel[rows, :3] - expected).max() < 0.03, window
-        assert np.abs(accel[rows, 3].mean() - expected) < 0.005, window   # winch 4 reports none: from lengths
 
 
 def _write_bag(path, count: int = 300):
@@ -205,7 +191,7 @@ def test_directions_of_a_series_as_sample_by_sample():
     expected, current = np.zeros_like(speeds), np.zeros(4)
     for k, sample in enumerate(speeds):
         current = expected[k] = motion_direction(sample, current)
-    np.testing.assert_array_equal(motion_directions(speeds), expected)
+    np.testing.assert_array_equal(directions(speeds), expected)
     assert (expected == 0.0).any() and (expected == 1.0).any() and (expected == -1.0).any()
 
 
@@ -223,9 +209,10 @@ def test_load_pins_carrying_the_platform_inertia_follow_the_payout_acceleration(
     phase = np.clip(np.searchsorted(profile.starts, data.times, side="right") - 1, 0, None)
     accel = np.array([profile.phases[k].accel for k in phase])  # paying out faster: the platform accelerates down
     model = PlantModel.from_plant(load_plant(plant))
-    data.measured[:, :4] -= model.plant.mass * accel[:, None] / 4.0  # shared by four ropes
+    pins = [data.channels.index(name) for name in TENSION_CHANNELS]
+    data.measured[:, pins] -= model.plant.mass * accel[:, None] / 4.0  # shared by four ropes
     result = compare(model, data)
     first = result.follows[0]
     assert first.target == LOAD_PINS and first.regressor == "acceleration" and first.r < -0.7, first.sentence
-    assert first.slope * result.noise[0] == pytest.approx(-model.plant.mass / 4.0, rel=0.1)  # N per m/s^2
+    assert first.slope * result.noise[pins[0]] == pytest.approx(-model.plant.mass / 4.0, rel=0.1)  # N per m/s^2
     assert first.sentence.startswith("load-pin residuals follow the payout acceleration, r = -0.")

@@ -24,15 +24,14 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
+from ..bagio.fields import input_topics, seconds
 from ..bagio.mcapfile import McapError, McapFile
 from ..bagio.reader import BagReader
 from ..bagio.records import OUTPUT_TYPES
-from ..monitor.fields import INPUT_TOPICS
 
 MAX_SERIES = 256
 MAX_SAMPLES = 4000   # per series
 MAX_ELEMENTS = 8     # longer arrays and sequences are not taken element-wise
-PACKAGE_TOPICS = tuple(INPUT_TOPICS) + tuple(OUTPUT_TYPES)  # read as channels, or the monitor's own outputs
 HEADER, TIME, DURATION = "std_msgs/msg/Header", "builtin_interfaces/msg/Time", "builtin_interfaces/msg/Duration"
 NOT_NUMBERS = ("string", "wstring")
 
@@ -109,7 +108,7 @@ def _stamp(message: Any, msgtype: str, store: Typestore, log_time: int) -> float
     if fields and fields[0] == ("header", (Nodetype.NAME, HEADER)):
         stamp = message.header.stamp
         if stamp.sec or stamp.nanosec:
-            return stamp.sec + stamp.nanosec * 1e-9
+            return seconds(stamp)
     return log_time * 1e-9
 
 
@@ -131,10 +130,16 @@ def _topic_types(reader: BagReader, exclude: set[str]) -> dict[str, str] | None:
     return topics
 
 
-def read_fields(bag: str | Path, exclude: Iterable[str] = PACKAGE_TOPICS, max_series: int = MAX_SERIES,
+def package_topics() -> set[str]:
+    """The topics the package reads as winches and channels (those declared so far) or writes itself."""
+    return set(input_topics()) | set(OUTPUT_TYPES)
+
+
+def read_fields(bag: str | Path, exclude: Iterable[str] | None = None, max_series: int = MAX_SERIES,
                 max_samples: int = MAX_SAMPLES) -> BagFields:
-    """Every numeric field of the bag's topics not in `exclude` as time series (BagError if it is not a bag)."""
-    excluded = set(exclude)
+    """Every numeric field of the bag's topics not in `exclude` (default: `package_topics`) as time series
+    (BagError if it is not a bag)."""
+    excluded = set(package_topics() if exclude is None else exclude)
     reader = BagReader(bag)
     reader.topics = _topic_types(reader, excluded)
     result = BagFields()

@@ -30,10 +30,10 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy import stats
-from scipy.signal import savgol_filter
 
+from ..channels import TENSION_CHANNELS
 from .bagfields import BagFields
-from .data import CHANNELS, Dataset
+from .data import Dataset
 
 MIN_R = 0.5          # weaker correlations are not reported, however significant
 ALPHA = 0.01         # per test, with the effective number of independent pairs
@@ -43,7 +43,6 @@ MAX_LEVELS = 5       # integer-valued regressors with at most this many values a
 LAG_SHARE = 0.2      # Bartlett's sum runs to this share of the series length
 ALSO_WITHIN = 0.05   # regressors this close to the best |r| are named beside it
 MAX_FINDINGS = 12
-SMOOTHING = 1.0      # [s] window of the smoothed derivative for the payout acceleration
 DIRECTION_WORDS = {-1.0: "hoisting", 0.0: "not yet moved", 1.0: "lowering"}
 LOAD_PINS = "load-pin"
 NOTHING = f"nothing: no residual follows any condition with |r| >= {MIN_R:g} at p < {ALPHA:g}"
@@ -89,32 +88,6 @@ class Finding:
                 "as_close": [{"regressor": name, "r": r} for name, r in self.also], "sentence": self.sentence}
 
 
-def payout_accelerations(data: Dataset) -> np.ndarray:
-    """(n, 4) payout acceleration of each winch at each row [m/s^2]: the smoothed derivative
-    (Savitzky-Golay, SMOOTHING window) of the reported speeds over the winch rows, or the second one of
-    the lengths where a winch reports no speed, interpolated to every row."""
-    out = np.full(data.lengths.shape, np.nan)
-    rows = np.flatnonzero(data.kinds == 0)
-    if rows.size < 5:
-        return out
-    t = data.times[rows]
-    dt = float(np.median(np.diff(t))) or 0.1
-    grid = np.arange(t[0], t[-1] + dt / 2, dt)
-    window = max(5, int(round(SMOOTHING / dt)) | 1)
-    if grid.size < window:
-        return out
-    for w in range(data.lengths.shape[1]):
-        speeds = data.speeds[rows, w]
-        if np.isfinite(speeds).sum() > rows.size // 2:
-            ok = np.isfinite(speeds)
-            series, order = np.interp(grid, t[ok], speeds[ok]), 1
-        else:
-            series, order = np.interp(grid, t, data.lengths[rows, w]), 2
-        derivative = savgol_filter(series, window, 3, deriv=order, delta=dt)
-        out[:, w] = np.interp(data.times, grid, derivative)
-    return out
-
-
 def _direction(data: Dataset) -> np.ndarray:
     """+1 lowering, -1 hoisting, 0 not yet moved: the winches' common direction of motion."""
     return np.sign(data.directions.sum(axis=1))
@@ -141,17 +114,16 @@ def _is_discrete(values: np.ndarray) -> bool:
     return finite.size > 0 and np.all(finite == np.round(finite)) and np.unique(finite).size <= MAX_LEVELS
 
 
-def regressors(data: Dataset, fields: BagFields | None = None,
-               inputs: Mapping[str, np.ndarray] | None = None) -> list[Regressor]:
+def regressors(data: Dataset, fields: BagFields | None = None) -> list[Regressor]:
     """Every condition of a recording at the dataset's rows: time from the start, payout, speed and
-    acceleration (means over the winches), direction of motion, each declared extra input (name ->
-    value at each row) and each numeric field of the bag's other topics."""
+    acceleration (means over the winches), direction of motion, each extra input the plant's effects
+    declare (data.inputs) and each numeric field of the bag's other topics."""
     out = [Regressor("time", "time", "s", data.times - (data.times[0] if len(data) else 0.0)),
            Regressor("payout", "the payout", "m", data.lengths.mean(axis=1)),
            Regressor("speed", "the payout speed", "m/s", _nanmean(data.speeds)),
-           Regressor("acceleration", "the payout acceleration", "m/s^2", _nanmean(payout_accelerations(data))),
+           Regressor("acceleration", "the payout acceleration", "m/s^2", _nanmean(data.accelerations)),
            Regressor("direction", "the direction of motion", "", _direction(data), DIRECTION_WORDS)]
-    for name, values in (inputs or {}).items():
+    for name, values in data.inputs.items():
         values = np.asarray(values, dtype=float)
         out.append(Regressor(name, name, "", values, {} if _is_discrete(values) else None))
     taken = {r.name for r in out}
@@ -243,7 +215,7 @@ def _words(target: str, channels: Sequence[str]) -> tuple[str, str]:
     if len(channels) > 1:
         return f"{target} residuals", "follow"
     name = channels[0]
-    return (f"{name[len('tension_'):]} load-pin residual" if name.startswith("tension_") else f"{name} residual"), \
+    return (f"{name[len('tension_'):]} load-pin residual" if name in TENSION_CHANNELS else f"{name} residual"), \
         "follows"
 
 
@@ -271,7 +243,7 @@ def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regress
     targets made of several channels, residual = their mean (default: the load pins together). A channel
     of a group is named on its own only where it follows something the group does not."""
     if groups is None:
-        pins = [c for c in channels if c.startswith("tension_")]
+        pins = [c for c in channels if c in TENSION_CHANNELS]
         groups = {LOAD_PINS: pins} if len(pins) > 1 else {}
     targets = [(name, tuple(members)) for name, members in groups.items()] + [(c, (c,)) for c in channels]
     findings: list[Finding] = []
@@ -295,11 +267,11 @@ def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regress
     return sorted(findings, key=lambda f: -abs(f.r))[:MAX_FINDINGS]
 
 
-def what_follows(data: Dataset, z: np.ndarray, rows: np.ndarray | None = None, fields: BagFields | None = None,
-                 inputs: Mapping[str, np.ndarray] | None = None) -> list[Finding]:
-    """`follows` for residuals z (rows, CHANNELS) at `rows` of a dataset (all rows if None), against every
-    regressor of the dataset and the bag's other topics."""
-    candidates = regressors(data, fields, inputs)
+def what_follows(data: Dataset, z: np.ndarray, rows: np.ndarray | None = None,
+                 fields: BagFields | None = None) -> list[Finding]:
+    """`follows` for residuals z (rows, data.channels) at `rows` of a dataset (all rows if None), against
+    every regressor of the dataset and the bag's other topics."""
+    candidates = regressors(data, fields)
     if rows is not None:
         candidates = [r.take(rows) for r in candidates]
-    return follows(z, list(CHANNELS), candidates)
+    return follows(z, list(data.channels), candidates)

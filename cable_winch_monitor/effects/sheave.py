@@ -3,28 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.conditions import Conditions
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
-from .base import Conditions, Effect, Parameter
+from .base import Effect, Parameter
 
-DEADBAND = 0.02  # [m/s] slower payout counts as standing still (encoder speed noise is ~2 mm/s)
 MIN_SHARE = 0.05  # fraction of samples needed in each direction of motion to identify friction
-
-
-def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """+1 paying out, -1 hauling in; within the dead band the last direction holds (static friction
-    keeps the slip state the rope had when it stopped)."""
-    speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
-    return np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, previous))
-
-
-def motion_directions(speeds: np.ndarray) -> np.ndarray:
-    """`motion_direction` along a time series of speeds (n, winches) from standing (0), in one pass: each
-    sample takes the sign of the last sample moving faster than the dead band."""
-    speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
-    moving = np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, 0.0))
-    last = np.maximum.accumulate(np.where(moving != 0.0, np.arange(len(moving))[:, None], -1), axis=0)
-    return np.where(last >= 0, np.take_along_axis(moving, np.maximum(last, 0), axis=0), 0.0)
 
 
 def radial_planes(plant: Plant) -> np.ndarray:
