@@ -15,6 +15,7 @@ from cable_winch_monitor.analysis.bagfields import read_fields
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows
+from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.channels import TENSION_CHANNELS, names
@@ -216,3 +217,33 @@ def test_load_pins_carrying_the_platform_inertia_follow_the_payout_acceleration(
     assert first.target == LOAD_PINS and first.regressor == "acceleration" and first.r < -0.7, first.sentence
     assert first.slope * result.noise[pins[0]] == pytest.approx(-model.plant.mass / 4.0, rel=0.1)  # N per m/s^2
     assert first.sentence.startswith("load-pin residuals follow the payout acceleration, r = -0.")
+
+
+STEEL = 1.2e-5  # [1/K] thermal expansion of the ropes
+
+
+def test_compare_names_a_field_of_a_topic_the_package_does_not_read(tmp_path):
+    """The shaft air swings by 25 K and the ropes lengthen with it, so the platform hangs lower than the
+    model puts it; the temperature is on a topic of its own in the bag, which the model does not read."""
+    plant = plant_file(tmp_path, "elastic", SEED002, ELASTIC)
+    recording = simulate_bag(tmp_path, "nominal", plant, {})
+    bag = tmp_path / "with_temperature"
+
+    def temperature(t: np.ndarray) -> np.ndarray:  # [deg C]: ventilation cycles
+        return 5.0 + 25.0 * np.sin(2.0 * np.pi * t / 70.0)
+
+    with BagWriter(bag) as writer:
+        for item in BagReader(recording):
+            writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
+        for t in np.arange(0.0, 110.0, 1.0):
+            stamp = {"sec": int(t), "nanosec": 0}
+            writer.write("/shaft/temperature", "sensor_msgs/msg/Temperature", int(t * 1e9), build(
+                "sensor_msgs/msg/Temperature", {"header": {"stamp": stamp, "frame_id": "shaft"},
+                                                "temperature": float(temperature(t)), "variance": 0.0}))
+    data = read_bag(bag)
+    depth = data.channels.index("depth")
+    data.measured[:, depth] -= STEEL * data.lengths.mean(axis=1) * (temperature(data.times) - 5.0)  # z is up
+    result = compare(PlantModel.from_plant(load_plant(plant)), data, read_fields(bag))
+    found = {f.target: f for f in result.follows}
+    assert found["depth"].regressor == "/shaft/temperature.temperature" and found["depth"].r < -0.8
+    assert found["depth"].sentence.startswith("depth residual follows /shaft/temperature.temperature, r = -0.")
