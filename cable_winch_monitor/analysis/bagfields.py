@@ -165,7 +165,7 @@ def read_fields(bag: str | Path, exclude: Iterable[str] | None = None, max_serie
         topic.add(_stamp(item.message, item.msgtype, reader.store, item.log_time), values)
     for (topic, reason), count in reader.report.skipped.items():
         if topic not in excluded and reason != "not an input topic":
-            result.skipped[topic] = f"{reason} ({count} messages)"
+            result.skipped[topic] = f"{reason}, {count} messages"
     if dropped:
         result.notes.append(f"more than {max_series} numeric fields: {len(dropped)} not read "
                             f"(e.g. {', '.join(sorted(dropped)[:3])})")
