@@ -178,9 +178,9 @@ def test_compare_names_the_payout_for_a_hidden_rope_weight(tmp_path):
     assert_clean(result, 0)
     first = json.loads(out.read_text())["follows"][0]
     assert first["channel"] == LOAD_PINS and first["regressor"] == "payout" and first["r"] > 0.8
-    noise = json.loads(out.read_text())["channels"]["tension_cable_1"]["noise"]
     # the rope below each sheave adds w per metre of payout: the slope is the hidden weight per metre
-    assert first["slope_sigma_per_unit"] * noise == pytest.approx(60.0, rel=0.1)
+    assert first["unit"] == "N" and first["slope"] == pytest.approx(60.0, rel=0.1)
+    assert first["slope"] == pytest.approx(first["slope_sigma_per_unit"] * first["sigma"])
     assert "what the remaining error follows:\n  load-pin residuals follow the payout, r = " in result.stdout
     assert "What the remaining error follows" in page.read_text() and first["sentence"] in page.read_text()
 
@@ -215,7 +215,8 @@ def test_load_pins_carrying_the_platform_inertia_follow_the_payout_acceleration(
     result = compare(model, data)
     first = result.follows[0]
     assert first.target == LOAD_PINS and first.regressor == "acceleration" and first.r < -0.7, first.sentence
-    assert first.slope * result.noise[pins[0]] == pytest.approx(-model.plant.mass / 4.0, rel=0.1)  # N per m/s^2
+    assert first.sigma == result.noise[pins[0]] and first.unit == "N"
+    assert first.slope * first.sigma == pytest.approx(-model.plant.mass / 4.0, rel=0.1)  # N per m/s^2
     assert first.sentence.startswith("load-pin residuals follow the payout acceleration, r = -0.")
 
 

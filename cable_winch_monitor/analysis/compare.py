@@ -58,7 +58,7 @@ def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -
     result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
     result.score = score(result.residuals, data.measured, sigma)
     result.regions = failure_regions(result)
-    result.follows = what_follows(data, result.residuals / sigma, fields=fields)
+    result.follows = what_follows(data, result.residuals, sigma, fields=fields)
     result.follows_notes = fields.remarks() if fields else []
     return result
 

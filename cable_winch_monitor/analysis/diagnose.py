@@ -141,7 +141,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     for candidate in ranking:
         candidate.selected = candidate.name in [step.added for step in ladder]
     channels = channel_stats(held.residuals(base), held.data.measured, noise, held.data.channels)
-    follows = what_follows(data, held.residuals(current) / noise, held_rows, fields)
+    follows = what_follows(data, held.residuals(current), noise, held_rows, fields)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
                      screen.solves + train.solves + held.solves, channels, follows,
                      fields.remarks() if fields else [])

@@ -5,7 +5,8 @@ time, the payout, its speed or acceleration, the direction of motion, an extra i
 field of some other topic in the bag. Each residual (each channel, and the load pins
 together as their mean) is correlated with each of these regressors at the rows:
 
-* Pearson's r for a continuous regressor (with the slope, in sigma per unit);
+* Pearson's r for a continuous regressor (with the slope, in sigma and in the channel's unit per unit
+  of the regressor: "+59 N per m" of payout is a rope weighing 59 N/m);
 * for a discrete one (at most MAX_LEVELS integer values: the direction of motion, a flag,
   a mode) the correlation ratio eta, the share of the residual's spread explained by the
   level means (for two levels eta = |r|, and the sign of r is kept).
@@ -31,6 +32,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import stats
 
+from .. import channels as declared
 from ..channels import TENSION_CHANNELS
 from .bagfields import BagFields
 from .data import Dataset
@@ -66,7 +68,8 @@ class Regressor:
 @dataclass(frozen=True)
 class Finding:
     """A residual that follows a regressor: r (or eta, `measure`), pairs n and independent pairs n_eff,
-    p-value, slope [sigma per unit] or level means [sigma], the regressors as close, and the sentence."""
+    p-value, slope [sigma per unit] or level means [sigma], the residual's sigma in `unit` (NaN where its
+    channels differ), the regressors as close, and the sentence."""
 
     target: str
     channels: tuple[str, ...]
@@ -78,6 +81,8 @@ class Finding:
     p: float
     slope: float | None
     level_means: dict[str, float]
+    sigma: float
+    unit: str
     also: tuple[tuple[str, float], ...]
     sentence: str
 
@@ -85,6 +90,8 @@ class Finding:
         return {"channel": self.target, "channels": list(self.channels), "regressor": self.regressor,
                 "measure": self.measure, "r": self.r, "n": self.n, "n_effective": self.n_eff, "p": self.p,
                 "slope_sigma_per_unit": self.slope, "level_means_sigma": self.level_means,
+                "sigma": self.sigma, "unit": self.unit,
+                "slope": self.slope * self.sigma if self.slope is not None else None,
                 "as_close": [{"regressor": name, "r": r} for name, r in self.also], "sentence": self.sentence}
 
 
@@ -219,14 +226,21 @@ def _words(target: str, channels: Sequence[str]) -> tuple[str, str]:
         "follows"
 
 
-def _sentence(target: str, channels: Sequence[str], best: _Test, also: list[_Test]) -> str:
+def _sentence(target: str, channels: Sequence[str], best: _Test, also: list[_Test], scale: tuple[float, str]) -> str:
     subject, verb = _words(target, channels)
+    sigma, unit = scale
+
+    def amount(value: float, per: str = "") -> str:
+        """'+0.118 sigma per m (+59.2 N per m)': in sigma, and in the channel's unit where known."""
+        return f"{value:+.3g} sigma{per}" + (f" ({value * sigma:+.3g} {unit}{per})" if np.isfinite(sigma) and unit
+                                             else "")
+
     text = f"{subject} {verb} {best.regressor.label}, {best.measure} = {best.r:.2f} (n = {best.n}"
     text += f", {best.n_eff:.0f} independent, p = {best.p:.1g})"
     if best.level_means:
-        text += ": " + ", ".join(f"{word} {mean:+.1f} sigma" for word, mean in best.level_means.items())
+        text += ": " + ", ".join(f"{word} {amount(mean)}" for word, mean in best.level_means.items())
     elif best.slope is not None:
-        text += f": {best.slope:+.3g} sigma per {best.regressor.unit or 'unit'}"
+        text += ": " + amount(best.slope, f" per {best.regressor.unit or 'unit'}")
     if also:
         text += "; as closely " + ", ".join(f"{t.regressor.label} ({t.measure} = {t.r:.2f})" for t in also)
     return text
@@ -237,11 +251,13 @@ def _significant(test: _Test | None) -> bool:
 
 
 def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regressor],
-            groups: Mapping[str, Sequence[str]] | None = None) -> list[Finding]:
+            groups: Mapping[str, Sequence[str]] | None = None,
+            scales: Mapping[str, tuple[float, str]] | None = None) -> list[Finding]:
     """What each residual follows, strongest first. `z`: (rows, channels) noise-normalised residuals in
     time order (NaN: not measured or not solved); `candidates`: regressors at the same rows; `groups`:
-    targets made of several channels, residual = their mean (default: the load pins together). A channel
-    of a group is named on its own only where it follows something the group does not."""
+    targets made of several channels, residual = their mean (default: the load pins together); `scales`:
+    each channel's sigma and unit, to say slopes in the channel's unit too. A channel of a group is named
+    on its own only where it follows something the group does not."""
     if groups is None:
         pins = [c for c in channels if c in TENSION_CHANNELS]
         groups = {LOAD_PINS: pins} if len(pins) > 1 else {}
@@ -261,17 +277,21 @@ def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regress
         for member in members if len(members) > 1 else ():
             group_regressor.setdefault(member, set()).add(best.regressor.name)
         also = [t for t in tests[1:3] if abs(t.r) >= abs(best.r) - ALSO_WITHIN]
+        shared = {(scales or {}).get(c, (np.nan, "")) for c in members}
+        scale = shared.pop() if len(shared) == 1 else (np.nan, "")
         findings.append(Finding(target, members, best.regressor.name, best.measure, best.r, best.n, best.n_eff,
-                                best.p, best.slope, best.level_means,
-                                tuple((t.regressor.name, t.r) for t in also), _sentence(target, members, best, also)))
+                                best.p, best.slope, best.level_means, float(scale[0]), scale[1],
+                                tuple((t.regressor.name, t.r) for t in also),
+                                _sentence(target, members, best, also, scale)))
     return sorted(findings, key=lambda f: -abs(f.r))[:MAX_FINDINGS]
 
 
-def what_follows(data: Dataset, z: np.ndarray, rows: np.ndarray | None = None,
+def what_follows(data: Dataset, residuals: np.ndarray, noise: np.ndarray, rows: np.ndarray | None = None,
                  fields: BagFields | None = None) -> list[Finding]:
-    """`follows` for residuals z (rows, data.channels) at `rows` of a dataset (all rows if None), against
-    every regressor of the dataset and the bag's other topics."""
+    """`follows` for residuals (rows, data.channels) with their channels' 1-sigma noise, at `rows` of a
+    dataset (all rows if None), against every regressor of the dataset and the bag's other topics."""
     candidates = regressors(data, fields)
     if rows is not None:
         candidates = [r.take(rows) for r in candidates]
-    return follows(z, list(data.channels), candidates)
+    scales = {name: (float(sigma), declared.get(name).unit) for name, sigma in zip(data.channels, noise)}
+    return follows(residuals / noise, list(data.channels), candidates, scales=scales)
