@@ -170,9 +170,16 @@ def test_bag_fields_are_capped_and_thinned_evenly(tmp_path):
     assert any("thinned evenly" in note for note in fields.notes)
 
 
-def test_compare_names_the_payout_for_a_hidden_rope_weight(tmp_path):
-    plant = plant_file(tmp_path, "elastic", SEED002, ELASTIC)
-    bag = simulate_bag(tmp_path, "rope_weight", plant, {"rope_weight": {"w": 60.0}})
+@pytest.fixture(scope="module")
+def rope_weight_bag(tmp_path_factory):
+    """A recording whose ropes weigh 60 N/m, and a plant file that does not know it."""
+    directory = tmp_path_factory.mktemp("rope_weight")
+    plant = plant_file(directory, "elastic", SEED002, ELASTIC)
+    return simulate_bag(directory, "rope_weight", plant, {"rope_weight": {"w": 60.0}}), plant
+
+
+def test_compare_names_the_payout_for_a_hidden_rope_weight(tmp_path, rope_weight_bag):
+    bag, plant = rope_weight_bag
     out, page = tmp_path / "compare.json", tmp_path / "compare.html"
     result = run_cli("compare", bag, "--config", plant, "--json", out, "--html", page)
     assert_clean(result, 0)
@@ -183,6 +190,20 @@ def test_compare_names_the_payout_for_a_hidden_rope_weight(tmp_path):
     assert first["slope"] == pytest.approx(first["slope_sigma_per_unit"] * first["sigma"])
     assert "what the remaining error follows:\n  load-pin residuals follow the payout, r = " in result.stdout
     assert "What the remaining error follows" in page.read_text() and first["sentence"] in page.read_text()
+
+
+def test_diagnose_without_the_effect_in_its_library_names_the_payout(tmp_path, rope_weight_bag):
+    bag, plant = rope_weight_bag
+    out = tmp_path / "diagnose.json"
+    result = run_cli("diagnose", bag, "--config", plant, "--candidates", "cog_offset,sheave_friction", "--json", out)
+    assert_clean(result, 0)
+    report = json.loads(out.read_text())
+    assert report["selected"] == []  # neither stands in for the rope's weight ...
+    first = report["follows"][0]      # ... and the held-out error still follows the payout
+    assert first["channel"] == LOAD_PINS and first["regressor"] == "payout" and first["r"] > 0.8
+    assert first["n"] == report["split"]["held_out_rows"] - sum(
+        report["channels"][name]["count"] for name in ("roll", "depth"))  # winch rows of the held-out set
+    assert f"what the remaining error follows:\n  {first['sentence']}" in result.stdout
 
 
 def test_directions_of_a_series_as_sample_by_sample():
