@@ -34,8 +34,9 @@ LENGTH_TOL = 1e-8    # [m] a slack span this far beyond its length is at its len
 BALANCE_TOL = 1e-9   # largest accepted scaled residual
 ROUNDING = 1e-13     # a scaled residual this small is rounding: solved
 FD_STEP = 1e-7       # relative finite-difference step of the Jacobian
-MAX_EVALUATIONS = 400
+MAX_EVALUATIONS = 100
 SETS = tuple(tuple(s) for k in (4, 3, 2) for s in itertools.combinations(range(4), k))
+MANY = tuple(s for s in SETS if len(s) > 2)  # tried first when cold; two taut ropes only if none of these holds
 
 
 @dataclass(frozen=True)
@@ -216,8 +217,8 @@ class Trajectory:
 
     The previous taut set is tried first, from the previous two states extrapolated to the new
     time; if it is no longer admissible, the sets one rope away, then the others; with no
-    history (or when those all fail), every set from the level pose. Of the admissible sets
-    of a group the one of lowest energy is taken.
+    history (or when those all fail), every set from the level pose, three and four taut
+    ropes before two. Of the admissible sets of a group the one of lowest energy is taken.
     """
 
     def __init__(self, rig: Rig):
@@ -241,7 +242,7 @@ class Trajectory:
         return state
 
     def _solve(self, t: float, lengths: np.ndarray, load: np.ndarray) -> State:
-        rig, groups = self.rig, [(SETS, None)]
+        rig, groups = self.rig, [(MANY, None), (SETS[len(MANY):], None)]
         if self.history:
             last = self.history[-1][1]
             taut = tuple(np.flatnonzero(last.taut).tolist())
@@ -249,7 +250,7 @@ class Trajectory:
             if state is not None:
                 return state
             near = [s for s in SETS if len(set(s) ^ set(taut)) <= 2 and s != taut]
-            groups = [(near, last), ([s for s in SETS if s not in near and s != taut], last), (SETS, None)]
+            groups = [(near, last), ([s for s in SETS if s not in near and s != taut], last)] + groups
         for sets, start in groups:
             found = [solve_set(rig, lengths, load, s, _level(rig, lengths, s) if start is None
                                else _unknowns(start, s, rig.weight_scale)) for s in sets]
