@@ -62,7 +62,7 @@ class Plant:
 
     @property
     def wrench(self) -> np.ndarray:
-        """External wrench F = (0, 0, -mg, 0, 0, 0) of eq. (7)."""
+        """Gravity as a load, F = (0, 0, -mg, 0, 0, 0) of eq. (7): every solver's default `load` (model.load)."""
         return np.array([0.0, 0.0, -self.weight, 0.0, 0.0, 0.0])
 
     @property
