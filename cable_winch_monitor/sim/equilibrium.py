@@ -125,6 +125,7 @@ class _Equations:
         self.scaled_load = np.concatenate([load[:3] / rig.weight_scale,
                                            load[3:] / (rig.weight_scale * rig.lever_scale)])
         self.last: tuple[bytes, np.ndarray] | None = None
+        self.last_jacobian: tuple[bytes, np.ndarray] | None = None
 
     def geometry(self, x: np.ndarray) -> dict[str, np.ndarray]:
         rig = self.rig
@@ -156,7 +157,7 @@ class _Equations:
     def function(self, x: np.ndarray) -> np.ndarray:
         """The residual of one set of unknowns; exactly zero once it is at rounding level, which ends
         Powell's method there (it has no residual tolerance and would go on halving its step). The
-        last value is kept: root evaluates its start twice."""
+        last value is kept: root evaluates its start twice (a shape check)."""
         key = x.tobytes()
         if self.last is None or self.last[0] != key:
             residual = self.residual(x[None])[0]
@@ -164,10 +165,13 @@ class _Equations:
         return self.last[1]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        """Forward differences, all columns in one stacked evaluation."""
-        steps = FD_STEP * np.maximum(np.abs(x), 1.0)
-        values = self.residual(np.vstack([x, x + np.diag(steps)]))
-        return ((values[1:] - values[0]) / steps[:, None]).T
+        """Forward differences, all columns in one stacked evaluation (kept, as root checks its shape first)."""
+        key = x.tobytes()
+        if self.last_jacobian is None or self.last_jacobian[0] != key:
+            steps = FD_STEP * np.maximum(np.abs(x), 1.0)
+            values = self.residual(np.vstack([x, x + np.diag(steps)]))
+            self.last_jacobian = key, ((values[1:] - values[0]) / steps[:, None]).T
+        return self.last_jacobian[1]
 
 
 def solve_set(rig: Rig, lengths: np.ndarray, load: np.ndarray, taut: tuple[int, ...],
@@ -196,6 +200,12 @@ def solve_set(rig: Rig, lengths: np.ndarray, load: np.ndarray, taut: tuple[int, 
                   tensions=tensions, points_b=g["points_b"], point_c=g["point_c"], exits=np.array(g["exits"]),
                   spans=g["spans"], free_lengths=g["free"], evaluations=int(found.nfev))
     return state, energy
+
+
+def imbalance(state: State, load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Resultant force [N] and moment about C [N m] of the ropes and the load on a state (zero in balance)."""
+    pulls = (state.tensions / state.spans)[:, None] * (state.exits - state.points_b)
+    return pulls.sum(axis=0) + load[:3], _moment((state.points_b - state.point_c)[None], pulls[None])[0] + load[3:]
 
 
 def _level(rig: Rig, lengths: np.ndarray, taut: tuple[int, ...]) -> np.ndarray:

@@ -29,7 +29,7 @@ from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus, failed
 from ..monitor.residuals import TENSION_CHANNELS
 from . import physics
-from .equilibrium import NoEquilibrium, Rig, State, Trajectory
+from .equilibrium import NoEquilibrium, Rig, State, Trajectory, imbalance
 from .hidden import hidden_effects
 
 METHOD = "truth"
@@ -102,10 +102,9 @@ class TruthModel:
         return solution, self._readings(state, solution, sample)
 
     def _solution(self, state: State, load: np.ndarray) -> Solution:
-        pulls = state.tensions[:, None] * (state.exits - state.points_b) / state.spans[:, None]
-        force = np.linalg.norm(pulls.sum(axis=0) + load[:3]) / self.rig.weight_scale
-        moment = np.linalg.norm(np.cross(state.points_b - state.point_c, pulls).sum(axis=0) + load[3:]) \
-            / (self.rig.weight_scale * self.rig.lever_scale)
+        force, moment = imbalance(state, load)
+        force = np.linalg.norm(force) / self.rig.weight_scale
+        moment = np.linalg.norm(moment) / (self.rig.weight_scale * self.rig.lever_scale)
         return Solution(status=SolveStatus.SOLVED, message="true equilibrium", method=METHOD,
                         lengths=state.free_lengths, taut=state.taut, tensions=state.tensions,
                         rotation=state.rotation, position=state.position, points_b=state.points_b,
