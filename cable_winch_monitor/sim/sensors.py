@@ -17,8 +17,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..model.plant import CABLE_NAMES
-from ..monitor.fields import IMU, JOINT_STATE, POINT, Stamp, header
-from ..monitor.residuals import TENSION_CHANNELS
+from ..bagio.fields import Stamp, header
+from ..channels import IMU, JOINT_STATE, POINT, TENSION_CHANNELS
 
 NAN = float("nan")
 UNKNOWN = -1.0  # covariance[0] of a quantity that is not measured (sensor_msgs convention)

@@ -24,15 +24,16 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..channels import TENSION_CHANNELS
 from ..effects import Conditions
 from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus, failed
-from ..monitor.residuals import TENSION_CHANNELS
 from . import physics
 from .equilibrium import NoEquilibrium, Rig, State, Trajectory, imbalance
 from .hidden import hidden_effects
 
 METHOD = "truth"
+AIR_TEMPERATURE = "/shaft/temperature.temperature"  # the input key a user's effect reads the air temperature by
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,9 @@ class TruthModel:
         channels.update(roll=roll, pitch=pitch, x=float(state.position[0]), y=float(state.position[1]),
                         depth=float(state.position[2]))
         if self.user_effects:
-            conditions = Conditions(speeds=np.asarray(sample.speeds, dtype=float), direction=self.direction.copy())
+            conditions = Conditions(time=sample.time, speeds=np.asarray(sample.speeds, dtype=float),
+                                    accelerations=np.full(4, sample.acceleration), direction=self.direction.copy(),
+                                    inputs={AIR_TEMPERATURE: sample.temperature})
             for effect in self.user_effects:
                 effect.measure(channels, solution, self.physical, conditions)
         return channels
