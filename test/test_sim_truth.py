@@ -184,3 +184,25 @@ def test_a_users_geometry_effect_cannot_enter_the_truth(tmp_path):
     path.write_text(yaml.safe_dump({"effects": {ShiftedAnchors.name: {}}}))
     with pytest.raises(ScenarioError, match="only measurement effects of a user's module .* acts on the geometry"):
         load_scenario(path)
+
+
+def test_a_users_measurement_effect_edits_the_truths_channels(tmp_path):
+    """A user's measurement effect is applied after the built-in ones, seeing the sample's conditions."""
+    from cable_winch_monitor.effects import Effect, Parameter, register
+
+    @register
+    class PinBias(Effect):
+        name = "test_pin_bias"
+        acts = "measurement"
+        parameters = (Parameter("b", "N", 0.0, (-1e4, 1e4), 100.0),)
+
+        def measure(self, channels, solution, plant, conditions):
+            channels["tension_cable_2"] += self["b"] + conditions.inputs["/shaft/temperature.temperature"]
+
+    plain = truth_model(tmp_path, {"rope_weight": {"w": 50.0}})
+    biased = truth_model(tmp_path, {"rope_weight": {"w": 50.0}, PinBias.name: {"b": 700.0}})
+    sample = Sample(0.0, np.zeros(4), 0.0, 12.0)
+    lengths = np.array([40.0, 40.01, 40.0, 39.99])
+    (_, want), (_, got) = plain(lengths, sample), biased(lengths, sample)
+    assert got["tension_cable_2"] == pytest.approx(want["tension_cable_2"] + 712.0)
+    assert got["tension_cable_1"] == want["tension_cable_1"]
