@@ -4,6 +4,7 @@
 # mode. Idempotent: each step runs only when what it depends on has changed (stamp
 # files in .venv keyed on content hashes), so a re-run without changes takes ~1 s.
 #
+# Argument: --test also installs what only the tests need (Chromium, Node, test/viewer).
 # Environment: PYTHON=/path/to/python3.11 to choose the interpreter,
 #              FORCE=1 to redo every step.
 set -euo pipefail
@@ -155,12 +156,28 @@ else
     fi
 fi
 
-# --- 5. headless Chromium for the HTML report test ---------------------------------------
-# Installed from Debian when missing, only as root with apt-get (a clean CI machine).
-if ! command -v chromium >/dev/null 2>&1 && [[ "$(id -u)" == 0 ]] && command -v apt-get >/dev/null 2>&1; then
-    log "installing chromium (Debian) for the HTML report test"
-    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; } >/dev/null 2>&1 \
-        || log "warning: apt-get could not install chromium; the HTML report test will fail"
+# --- 5. test tools (--test only): headless Chromium and Node --------------------------------
+# The package needs neither: Chromium renders the HTML report and the scene page in tests,
+# Node runs Foxglove's own bag readers (test/viewer, versions pinned in its package-lock.json).
+# Missing Debian packages are installed only as root with apt-get (a clean CI machine).
+if [[ "${1:-}" == "--test" ]]; then
+    missing=()
+    command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+    command -v node >/dev/null 2>&1 || missing+=(nodejs)
+    command -v npm >/dev/null 2>&1 || missing+=(npm)
+    if (( ${#missing[@]} )) && [[ "$(id -u)" == 0 ]] && command -v apt-get >/dev/null 2>&1; then
+        log "installing ${missing[*]} (Debian) for the viewer and report tests"
+        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}"; } >/dev/null 2>&1 \
+            || log "warning: apt-get could not install ${missing[*]}; the viewer and report tests will fail"
+    fi
+    VIEWER="$ROOT/test/viewer"
+    VIEWER_HASH=$(hash_files "$VIEWER/package.json" "$VIEWER/package-lock.json")
+    if command -v npm >/dev/null 2>&1 && ! { stamp_ok viewer "$VIEWER_HASH" && [[ -d "$VIEWER/node_modules" ]]; }; then
+        log "npm ci in test/viewer (Foxglove's MCAP and ROS 2 message readers)"
+        (cd "$VIEWER" && npm ci --no-audit --no-fund --loglevel=error >/dev/null) \
+            || die "npm ci in test/viewer failed"
+        stamp_set viewer "$VIEWER_HASH"
+    fi
 fi
 
 log "ready: .venv ($("$VENV/bin/python" -V 2>&1))"

@@ -1,0 +1,103 @@
+"""A replayed bag as a viewer reads it: Foxglove's own MCAP and ROS 2 readers (npm, test/viewer) decode every
+message of every topic, the same values as rosbags; the 3-D scene of one moment drawn from those values."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Reader
+
+from cable_winch_monitor.bagio.records import OUTPUT_TYPES, SCENE, TF, TF_STATIC
+from cable_winch_monitor.bagio.typestore import typestore
+from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.solve import solve
+from cable_winch_monitor.monitor.alarm import AlarmLevel
+from cable_winch_monitor.paths import demo_bag
+from cable_winch_monitor.replay import replay
+from scene_checks import check_scene, check_static_tf
+from scene_picture import render
+
+ROOT = Path(__file__).resolve().parent.parent
+VIEWER = ROOT / "test" / "viewer"
+PICTURE = ROOT / "build" / "viewer" / "scene.png"  # docs/scene.png is a copy
+
+
+def plain(value):
+    """A rosbags message as the JSON the Node reader prints: nested dicts, lists, NaN and infinities as text."""
+    if dataclasses.is_dataclass(value):  # ROS 2 field names are lower case; constants and __msgtype__ are not
+        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name.islower()
+                and not f.name.startswith("__")}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return "NaN" if math.isnan(value) else ("Infinity" if value > 0 else "-Infinity")
+    return value
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory):
+    """The bundled all-channels recording (lowering, stop, hoist; winch 4 lagging) replayed, read by Foxglove's
+    readers and by rosbags."""
+    node = shutil.which("node")
+    assert node and (VIEWER / "node_modules").is_dir(), "make setup-test installs Node and test/viewer's packages"
+    out = tmp_path_factory.mktemp("viewer") / "replayed"
+    summary = replay(demo_bag(), out, progress=False)
+    (mcap,) = out.glob("*.mcap")
+    result = subprocess.run([node, str(VIEWER / "read_bag.mjs"), str(mcap), "all"], capture_output=True, text=True,
+                            timeout=120, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    store = typestore()
+    with Reader(out) as reader:
+        ours = [(c.topic, c.msgtype, t, store.deserialize_cdr(raw, c.msgtype)) for c, t, raw in reader.messages()]
+    return summary, json.loads(result.stdout)["topics"], ours
+
+
+def test_every_message_of_every_topic_decodes_with_foxglove_readers(replayed):
+    summary, foxglove, ours = replayed
+    counts = {topic: sum(t == topic for t, *_ in ours) for topic in {t for t, *_ in ours}}
+    assert set(OUTPUT_TYPES) <= set(counts), "every output topic is in the bag"
+    assert {topic: info["messages"] for topic, info in foxglove.items()} == counts
+    for topic, info in foxglove.items():
+        assert info["decoded"] == info["messages"] and not info["errors"], (topic, info["errors"])
+        assert info["schemaEncoding"] == "ros2msg" and info["messageEncoding"] == "cdr"
+    assert foxglove[TF]["schema"] == foxglove[TF_STATIC]["schema"] == "tf2_msgs/msg/TFMessage"
+    assert foxglove[SCENE]["schema"] == "visualization_msgs/msg/MarkerArray"
+    assert counts[TF_STATIC] == 1 and counts[TF] == summary.stats.solved and counts[SCENE] >= 90
+
+
+def test_foxglove_reads_the_values_rosbags_reads(replayed):
+    _, foxglove, ours = replayed
+    for topic, info in foxglove.items():
+        mine = [(t, plain(m)) for name, _, t, m in ours if name == topic]
+        theirs = [(v["logTime"], v["message"]) for v in info["values"]]
+        assert theirs == mine, f"{topic}: Foxglove's readers decode other values"
+
+
+def test_scene_of_the_lag_drawn_from_what_foxglove_read(replayed):
+    """The moment winch 4 lags most: cable 3 slack, a WARNING; the scene checked and drawn."""
+    _, foxglove, ours = replayed
+    plant = load_plant()
+    check_static_tf(next(m for topic, _, _, m in ours if topic == TF_STATIC), plant)
+    tensions = {int(t): m for topic, _, t, m in ours if topic == "/cables/tension"}
+    alarms = {int(t): m for topic, _, t, m in ours if topic == "/platform/collision_alarm"}
+    scenes = {int(v["logTime"]): v["message"] for v in foxglove[SCENE]["values"]}
+    transforms = {int(v["logTime"]): v["message"]["transforms"][0] for v in foxglove[TF]["values"]}
+
+    def looseness(t: int) -> float:
+        return max(c.length - c.span for c in tensions[t].cables)
+
+    moment = max(scenes, key=looseness)
+    assert alarms[moment].level == AlarmLevel.WARNING and "slack: cable_3" in alarms[moment].reason
+    lengths = [c.length for c in tensions[moment].cables]
+    check_scene(next(m for topic, _, t, m in ours if topic == SCENE and t == moment), plant,
+                solve(plant, lengths, warm_start=None), AlarmLevel(alarms[moment].level), alarms[moment].clearance)
+    render(scenes[moment], transforms[moment], PICTURE)
+    assert PICTURE.stat().st_size > 20_000
