@@ -8,11 +8,13 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pytest
 
 from cable_winch_monitor.model.plant import CABLE_NAMES, Plant
 from cable_winch_monitor.model.result import Solution
 from cable_winch_monitor.monitor.alarm import AlarmLevel
-from cable_winch_monitor.monitor.scene import DELETEALL, LEVEL_COLOURS, LINE_LIST, LINE_STRIP, SLACK_COLOUR
+from cable_winch_monitor.monitor.scene import (DELETEALL, LEVEL_COLOURS, LINE_LIST, LINE_STRIP, SLACK_COLOUR,
+                                               tension_colour)
 
 LENGTH_TOL = 1e-3  # [m]
 
@@ -48,13 +50,12 @@ def check_static_tf(message: Any, plant: Plant) -> None:
 
 def check_scene(scene: Any, plant: Plant, solution: Solution, level: AlarmLevel, clearance: float) -> None:
     """The scene of a solved sample drawn as it should be: ropes from A_i to B_i no longer than their
-    length (taut ones exactly as long), slack ropes grey and dashed, taut ropes hotter the more they
-    carry, decks locked to `platform`, the closest point on the wall side at its clearance, the alarm."""
+    length (taut ones exactly as long), slack ropes grey and dashed, taut ropes in the colour of their
+    share of the weight, decks locked to `platform`, the closest point on the wall side at its clearance, the alarm."""
     assert scene.markers[0].action == DELETEALL, "each scene replaces the last"
     markers = by_ns(scene)
     ropes = sorted(markers["ropes"], key=lambda m: m.id)
     assert [m.id for m in ropes] == [0, 1, 2, 3]
-    reds = {}
     for i, rope in enumerate(ropes):
         ends = np.array([xyz(p) for p in rope.points])
         np.testing.assert_allclose(ends[0], plant.anchors[i], atol=1e-9)
@@ -63,11 +64,9 @@ def check_scene(scene: Any, plant: Plant, solution: Solution, level: AlarmLevel,
         assert span <= solution.lengths[i] + LENGTH_TOL, f"{CABLE_NAMES[i]} drawn longer than its rope"
         if (i + 1) in solution.taut_set:
             assert rope.type == LINE_STRIP and abs(span - solution.lengths[i]) < LENGTH_TOL
-            reds[i] = float(rope.color.r) - float(rope.color.b)
+            assert rgba(rope.color) == pytest.approx(tension_colour(solution.tensions[i] / plant.weight), abs=1e-6)
         else:
             assert rope.type == LINE_LIST and len(rope.points) > 2 and rgba(rope.color) == SLACK_COLOUR
-    order = sorted(reds, key=lambda i: solution.tensions[i])
-    assert [reds[i] for i in order] == sorted(reds.values()), "the higher the tension, the redder the rope"
     labels = {m.id: m.text for m in markers["rope_labels"]}
     for i in range(4):
         assert labels[i].startswith(CABLE_NAMES[i]) and (("slack" in labels[i]) != ((i + 1) in solution.taut_set))

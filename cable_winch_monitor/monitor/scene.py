@@ -33,11 +33,13 @@ LEVEL_COLOURS: dict[AlarmLevel, RGBA] = {AlarmLevel.OK: (0.15, 0.75, 0.25, 1.0),
                                          AlarmLevel.COLLISION: (0.9, 0.0, 0.1, 1.0)}
 SLACK_COLOUR: RGBA = (0.6, 0.6, 0.6, 1.0)
 WALL_COLOUR: RGBA = (0.55, 0.6, 0.7, 0.25)
-DECK_COLOUR: RGBA = (0.2, 0.45, 0.9, 1.0)
+DECK_COLOUR: RGBA = (0.9, 0.9, 0.95, 1.0)
 SHEAVE_COLOUR: RGBA = (0.3, 0.3, 0.3, 1.0)
 TEXT_COLOUR: RGBA = (1.0, 1.0, 1.0, 1.0)
-# Rope colour scale, tension as a share of the platform's weight: blue (none) -> yellow -> red (all of it).
-TENSION_SCALE = ((0.0, (0.15, 0.35, 1.0)), (0.5, (1.0, 0.85, 0.1)), (1.0, (0.9, 0.05, 0.05)))
+# Rope colour scale, tension as a share of the platform's weight: blue (none) -> cyan -> yellow -> red (all of
+# it); saturated all along, so that no taut rope looks like a grey slack one.
+TENSION_SCALE = ((0.0, (0.2, 0.3, 1.0)), (1 / 3, (0.0, 0.85, 0.85)), (2 / 3, (1.0, 0.85, 0.0)),
+                 (1.0, (0.95, 0.1, 0.05)))
 
 LIVE_RATE = 10.0    # [1/s] the node's default: smooth enough to watch
 REPLAY_RATE = 2.0   # [1/s] replay's default: a scene is ~8 kB, at 10 Hz it would triple a bag's size
@@ -114,7 +116,7 @@ class SceneBuilder:
         if solution.ok:
             heights = solution.position[2] + self.plant.outline_array @ solution.rotation[2]
             bottom = float(heights.min())
-            label_at = (*solution.position[:2].tolist(), float(heights.max()) + 2.0)
+            label_at = (*solution.position[:2].tolist(), float(heights.max()) + 5.0)
             markers += self._decks(header(stamp, PLATFORM_FRAME)) + self._ropes(head, solution)
         markers.append(self._wall(head, bottom - WALL_BELOW))
         markers += self._closest(head, alarm, level_colour)
