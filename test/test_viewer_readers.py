@@ -5,12 +5,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import shutil
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from rosbags.rosbag2 import Reader
 
 from cable_winch_monitor.bagio.records import OUTPUT_TYPES, SCENE, TF, TF_STATIC
@@ -26,6 +28,9 @@ from scene_picture import render
 ROOT = Path(__file__).resolve().parent.parent
 VIEWER = ROOT / "test" / "viewer"
 PICTURE = ROOT / "build" / "viewer" / "scene.png"  # docs/scene.png is a copy
+FOXGLOVE_LAYOUT = ROOT / "config" / "foxglove" / "cable_winch_monitor.json"
+RVIZ_CONFIG = ROOT / "config" / "rviz" / "cable_winch_monitor.rviz"
+SCRIPT_TOPIC = "/studio_script/residuals_sigma"  # the layout's user script: /model/residuals by channel
 
 
 def plain(value):
@@ -101,3 +106,49 @@ def test_scene_of_the_lag_drawn_from_what_foxglove_read(replayed):
                 solve(plant, lengths, warm_start=None), AlarmLevel(alarms[moment].level), alarms[moment].clearance)
     render(scenes[moment], transforms[moment], PICTURE)
     assert PICTURE.stat().st_size > 20_000
+
+
+def resolve(message, path: str):
+    """A Foxglove message path's value in a decoded message (fields and [index] only, as the layout uses)."""
+    value = message
+    for name, index in re.findall(r"\.(\w+)|\[(\d+)\]", path):
+        value = value[name] if name else value[int(index)]
+    return value
+
+
+def test_foxglove_layout_plots_what_the_bag_holds(replayed):
+    _, foxglove, ours = replayed
+    layout = json.loads(FOXGLOVE_LAYOUT.read_text())
+    panels = layout["configById"]
+    scene = panels["3D!scene"]
+    assert scene["followTf"] == "platform" and set(scene["topics"]) <= set(foxglove)
+    plotted = [p["value"] for key, panel in panels.items() if key.startswith("Plot!") for p in panel["paths"]]
+    assert {"/cables/tension", "/platform/collision_alarm", SCRIPT_TOPIC} == {p.split(".")[0] for p in plotted}
+    for path in plotted:
+        topic, rest = path.split(".", 1)
+        if topic == SCRIPT_TOPIC:
+            continue
+        values = [resolve(v["message"], "." + rest) for v in foxglove[topic]["values"]]
+        assert values and all(isinstance(v, (int, float)) for v in values), path
+    script = next(iter(layout["userNodes"].values()))["sourceCode"]
+    assert f'output = "{SCRIPT_TOPIC}"' in script and 'inputs = ["/model/residuals"]' in script
+    channels = {name for v in foxglove["/model/residuals"]["values"] for name in v["message"]["channels"]}
+    assert all(f"{channel}: number" in script for channel in channels), "the script knows every residual channel"
+    assert {p.split(".", 1)[1] for p in plotted if p.startswith(SCRIPT_TOPIC)} == channels
+    assert {panels[k]["topicToRender"] for k in panels if k.startswith("Diagnostic")} == {"/diagnostics"}
+
+
+def test_rviz_config_shows_the_scene_in_the_shaft_frame(replayed):
+    _, foxglove, _ = replayed
+    config = yaml.safe_load(RVIZ_CONFIG.read_text())["Visualization Manager"]
+    transforms = [t for v in foxglove[TF]["values"] for t in v["message"]["transforms"]]
+    assert config["Global Options"]["Fixed Frame"] == transforms[0]["header"]["frame_id"] == "shaft"
+    assert config["Views"]["Current"]["Target Frame"] == transforms[0]["child_frame_id"] == "platform"
+    displays = {d["Class"]: d for d in config["Displays"]}
+    expected = {"rviz_default_plugins/MarkerArray": "visualization_msgs/msg/MarkerArray",
+                "rviz_default_plugins/Pose": "geometry_msgs/msg/PoseStamped"}
+    for kind, schema in expected.items():
+        assert foxglove[displays[kind]["Topic"]["Value"]]["schema"] == schema
+    namespaces = {m["ns"] for v in foxglove[SCENE]["values"] for m in v["message"]["markers"]} - {""}
+    assert set(displays["rviz_default_plugins/MarkerArray"]["Namespaces"]) == namespaces
+    assert "rviz_default_plugins/TF" in displays
