@@ -10,8 +10,8 @@ from .bagio.reader import BagError
 from .effects.base import EffectError
 from .formatting import format_solution
 from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
-from .model.solve import METHODS, solve
-from .monitor.scene import LIVE_RATE, REPLAY_RATE
+from .bagio.scene import LIVE_RATE, REPLAY_RATE
+from .model.solve import METHODS
 from .paths import config_dir
 from .sim.scenario import ScenarioError
 
@@ -36,8 +36,9 @@ def _positive(text: str) -> float:
 
 
 def _solve(args: argparse.Namespace) -> int:
-    plant = load_plant(args.config)
-    solution = solve(plant, args.lengths, method=args.method)  # bad numbers come back as INVALID_INPUT
+    from .effects import PlantModel
+
+    solution = PlantModel.from_plant(load_plant(args.config), args.method).solve(args.lengths)  # bad numbers: INVALID_INPUT
     if args.json:
         print(json.dumps(solution.to_dict(), indent=2))
     else:
@@ -115,10 +116,11 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _limits(args: argparse.Namespace) -> int:
+    from .effects import PlantModel
     from .monitor.limits import format_limits, synchronisation_limits
 
     plant = load_plant(args.config)
-    limits = synchronisation_limits(plant, args.length)
+    limits = synchronisation_limits(PlantModel.from_plant(plant), args.length)
     if args.json:
         print(json.dumps({"length": args.length, "limits": [
             {"change": limit.label, "cables": [CABLE_NAMES[c] for c in limit.cables], "direction": limit.direction,
@@ -136,7 +138,8 @@ def _analysis_inputs(args: argparse.Namespace):
 
     for path in args.effect_module:
         load_module(path)
-    return PlantModel.from_plant(load_plant(args.config)), read_bag(args.bag)
+    model = PlantModel.from_plant(load_plant(args.config))
+    return model, read_bag(args.bag, model.inputs)
 
 
 def _write_json(path: str | None, content: dict) -> None:

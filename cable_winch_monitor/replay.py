@@ -1,7 +1,7 @@
 """`replay`: a recorded bag through the monitor, every output into a new bag beside the inputs.
 
 The pipeline code and the field mapping are the live node's own (MonitorPipeline,
-monitor.fields); messages are fed in the bag's log order (monitor.lookahead merges and
+bagio.fields); messages are fed in the bag's log order (lookahead.py merges and
 solves a window ahead, then takes them one at a time), so a replay gives what the node
 gave. No ROS runtime is needed. Memory stays at about one chunk of
 the input whatever the length of the bag. Outputs carry their input's header stamp, and
@@ -19,16 +19,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
-from .bagio import records
+from .bagio import fields, records
 from .bagio.reader import BagMessage, BagReader, ReadReport
+from .bagio.scene import REPLAY_RATE, SceneBuilder, SceneThrottle
 from .bagio.writer import BagWriter
+from .lookahead import LookaheadPipeline
 from .model.plant import Plant, load_plant
-from .monitor import fields
 from .monitor.alarm import AlarmLevel
-from .monitor.lookahead import LookaheadPipeline
 from .monitor.pipeline import MonitorOutput, MonitorStats
 from .monitor.residuals import Residuals
-from .monitor.scene import REPLAY_RATE, SceneBuilder, SceneThrottle
 from .progress import Progress
 
 
@@ -154,16 +153,17 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
-    solved at once (monitor.lookahead); the outputs are the per-sample pipeline's.
+    solved at once (lookahead.py); the outputs are the per-sample pipeline's.
 
     Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
     while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
-    reader = BagReader(bag, fields.INPUT_TOPICS)
     plant = plant or load_plant()
     pipeline = LookaheadPipeline(plant, solver, staleness, batched)
     scenes = _Scenes(plant, scene_rate)
+    inputs = fields.input_topics(pipeline.model.inputs)
+    reader = BagReader(bag, inputs)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():
@@ -190,6 +190,6 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
             summary.interrupted = True
         finally:
             bar.finish()
-            summary.written = Counter({t: n for t, n in writer.counts.items() if t not in fields.INPUT_TOPICS})
+            summary.written = Counter({t: n for t, n in writer.counts.items() if t not in inputs})
     summary.wall = time.perf_counter() - started
     return summary

@@ -13,7 +13,7 @@ import pytest
 from cable_winch_monitor.model.plant import CABLE_NAMES, Plant
 from cable_winch_monitor.model.result import Solution
 from cable_winch_monitor.monitor.alarm import AlarmLevel
-from cable_winch_monitor.monitor.scene import (DELETEALL, LEVEL_COLOURS, LINE_LIST, LINE_STRIP, SLACK_COLOUR,
+from cable_winch_monitor.bagio.scene import (DELETEALL, LEVEL_COLOURS, LINE_LIST, LINE_STRIP, SLACK_COLOUR,
                                                tension_colour)
 
 LENGTH_TOL = 1e-3  # [m]

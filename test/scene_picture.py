@@ -17,7 +17,7 @@ import numpy as np  # noqa: E402
 
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from cable_winch_monitor.monitor.scene import CYLINDER, LINE_LIST, LINE_STRIP, SPHERE, SPHERE_LIST, TEXT  # noqa: E402
+from cable_winch_monitor.bagio.scene import CYLINDER, LINE_LIST, LINE_STRIP, SPHERE, SPHERE_LIST, TEXT  # noqa: E402
 
 
 def _points(marker: dict[str, Any]) -> np.ndarray:

@@ -16,21 +16,16 @@ import numpy as np
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
+from .. import channels
 from .compare import THRESHOLD, Comparison
-from .data import CHANNELS
 from .motion import MOTIONS, motions
 
 STYLE = ("body{font-family:sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse;margin:.5em 0}"
          "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#eee}"
          ".region{background:#fde2e2}")
-UNITS = {"roll": "rad", "pitch": "rad", "depth": "m"}
 MOTION_COLOURS = {"lowering": "#1f77b4", "hoisting": "#ff7f0e", "standing": "#7f7f7f"}
 REGION_COLOUR = "#d62728"
 EPOCH_AFTER = 1e8  # [s] stamps beyond this are clock time (a real recording), not simulation time from 0
-
-
-def _unit(channel: str) -> str:
-    return UNITS.get(channel, "N")
 
 
 def time_axis_title(start: float) -> str:
@@ -52,10 +47,10 @@ def _channel_figure(c: Comparison, index: int, name: str, kinds: np.ndarray, sta
     """Residual against time, payout and (load pins) tension, and measured against predicted, by motion."""
     seen = np.isfinite(c.data.measured[:, index])
     residual, measured = c.residuals[:, index], c.data.measured[:, index]
-    unit, band = _unit(name), THRESHOLD * c.noise[index]
+    unit, band = channels.get(name).unit, THRESHOLD * c.noise[index]
     times, payout = c.data.times - start, c.data.lengths.mean(axis=1)
     panels = [("time", times, time_axis_title(start)), ("payout", payout, "payout [m]")]
-    if name.startswith("tension_"):
+    if name in channels.TENSION_CHANNELS:
         panels.append(("tension", measured, "measured tension [N]"))
     fig = make_subplots(rows=1, cols=len(panels) + 1, horizontal_spacing=0.06,
                         subplot_titles=[f"residual vs {label}" for label, *_ in panels] + ["measured vs predicted"])
@@ -97,7 +92,7 @@ def _overview(c: Comparison, kinds: np.ndarray, start: float) -> go.Figure:
     fig = go.Figure()
     z = c.residuals / c.noise
     times = c.data.times - start
-    for index, name in enumerate(CHANNELS):
+    for index, name in enumerate(c.data.channels):
         rows = np.isfinite(z[:, index])
         if not rows.any():
             continue
@@ -134,7 +129,7 @@ def render(c: Comparison) -> str:
                    f"<td>{s.noise:.4g} ({escape(c.noise_source.get(n, ''))})</td><td>{s.score:.3f}</td></tr>"
                    for n, s in c.channels.items())
     effects = ", ".join(escape(repr(e)) for e in c.model.effects) or "none (rigid ropes)"
-    figures = [_overview(c, kinds, start)] + [_channel_figure(c, CHANNELS.index(name), name, kinds, start)
+    figures = [_overview(c, kinds, start)] + [_channel_figure(c, c.data.channels.index(name), name, kinds, start)
                                               for name in c.channels]
     plots = "".join(fig.to_html(full_html=False, include_plotlyjs=k == 0, config={"displaylogo": False})
                     for k, fig in enumerate(figures))

@@ -47,6 +47,7 @@ class Solution:
     iterations: int = 0
     single_cable: int | None = None
     rotation_range: tuple[tuple[float, float], ...] = ()
+    load: np.ndarray | None = None  # the external wrench solved for (model.load); None: gravity
     extras: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -134,26 +135,31 @@ def validate_lengths(lengths: Any) -> tuple[np.ndarray | None, str]:
 
 
 def single_cable_result(plant: Plant, method: str, lengths: np.ndarray, cable: int,
-                        intervals: tuple[tuple[float, float], ...], extras: dict[str, Any]) -> Solution:
-    """The platform hangs from `cable` alone: that rope carries mg (A, B and C on a plumb
-    line), the others are slack, and the pose is known only up to a turn within `intervals`."""
+                        intervals: tuple[tuple[float, float], ...], extras: dict[str, Any],
+                        load: np.ndarray | None = None) -> Solution:
+    """The platform hangs from `cable` alone: that rope carries the load's force (A, B and C on a
+    plumb line), the others are slack, and the pose is known only up to a turn within `intervals`."""
+    load = plant.wrench if load is None else load
     ranges = " U ".join(f"[{lo:.3f}, {hi:.3f}]" for lo, hi in intervals)
     return failed(SolveStatus.SINGLE_CABLE_INDETERMINATE,
                   f"platform hangs from {CABLE_NAMES[cable]} alone: pose indeterminate, it can turn through "
                   f"{ranges} rad about the cable", method, lengths, taut=np.arange(4) == cable,
-                  tensions=np.where(np.arange(4) == cable, plant.weight, 0.0), single_cable=cable,
-                  rotation_range=intervals, extras=extras)
+                  tensions=np.where(np.arange(4) == cable, float(np.linalg.norm(load[:3])), 0.0), single_cable=cable,
+                  rotation_range=intervals, load=load, extras=extras)
 
 
-def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray], Solution]) -> Solution:
-    """Validate the lengths, then solve; a bad input or a numerical failure becomes a status.
+def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray], Solution],
+                  load_problem: str = "") -> Solution:
+    """Validate the lengths (and take `load_problem`, why the load is unusable, as invalid input),
+    then solve; a bad input or a numerical failure becomes a status.
 
     The contract of every solver: whatever the input, a Solution comes back, never an
     exception (a live monitor must report and go on).
     """
     array, reason = validate_lengths(lengths)
-    if array is None:
-        return failed(SolveStatus.INVALID_INPUT, reason, method, np.full(4, np.nan))
+    if array is None or load_problem:
+        return failed(SolveStatus.INVALID_INPUT, reason or load_problem, method,
+                      np.full(4, np.nan) if array is None else array)
     try:
         with np.errstate(all="ignore"):
             return solve_valid(array)
@@ -164,26 +170,30 @@ def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray],
 
 def solved(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
            tensions: np.ndarray, taut: np.ndarray, iterations: int, message: str = "static equilibrium found",
-           **extras: Any) -> Solution:
-    """A SOLVED Solution with its points, spans and equilibrium residuals filled in."""
+           load: np.ndarray | None = None, **extras: Any) -> Solution:
+    """A SOLVED Solution with its points, spans and equilibrium residuals (under `load`; None: gravity)."""
+    loads = None if load is None else np.asarray(load, dtype=float)[None]
     return solved_rows(plant, method, lengths[None], rotation[None], position[None], np.asarray(tensions)[None],
-                       np.asarray(taut)[None], [iterations], message, extras)[0]
+                       np.asarray(taut)[None], [iterations], message, extras, loads)[0]
 
 
 def solved_rows(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
                 tensions: np.ndarray, taut: np.ndarray, iterations: Sequence[int],
-                message: str = "static equilibrium found", extras: dict[str, Any] | None = None) -> list[Solution]:
-    """`solved` for N stacked samples (lengths (N, 4), rotation (N, 3, 3), ...): the points, spans
-    and residuals of all rows are computed together."""
+                message: str = "static equilibrium found", extras: dict[str, Any] | None = None,
+                loads: np.ndarray | None = None) -> list[Solution]:
+    """`solved` for N stacked samples (lengths (N, 4), rotation (N, 3, 3), loads (N, 6) or None for
+    gravity, ...): the points, spans and residuals of all rows are computed together."""
     points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
     point_c = position + rotation @ plant.cog
-    force, moment = wrench_residuals(plant, points_b, point_c, tensions)
+    loads = np.broadcast_to(plant.wrench, (len(lengths), 6)) if loads is None else loads
+    force, moment = wrench_residuals(plant, points_b, point_c, tensions, loads)
     spans = np.linalg.norm(points_b - plant.anchors, axis=-1)
     taut, tensions = np.asarray(taut, dtype=bool), np.asarray(tensions, dtype=float)
     return [Solution(status=SolveStatus.SOLVED, message=message, method=method, lengths=lengths[i], taut=taut[i],
                      tensions=tensions[i], rotation=rotation[i], position=position[i], points_b=points_b[i],
                      point_c=point_c[i], spans=spans[i], force_residual=float(force[i]),
-                     moment_residual=float(moment[i]), iterations=int(iterations[i]), extras=dict(extras or {}))
+                     moment_residual=float(moment[i]), iterations=int(iterations[i]), load=loads[i],
+                     extras=dict(extras or {}))
             for i in range(len(lengths))]
 
 
@@ -212,7 +222,7 @@ def check_physics(plant: Plant, solution: Solution) -> PhysicsCheck:
     if solution.status is not SolveStatus.SOLVED:
         raise ValueError(f"no pose to check: {solution.tension_state}")
     points_b, point_c = solution.points_b, solution.point_c
-    force, moment = wrench_residual(plant, points_b, point_c, solution.tensions)
+    force, moment = wrench_residual(plant, points_b, point_c, solution.tensions, solution.load)
     spans = np.linalg.norm(points_b - plant.anchors, axis=1)
     excess = spans - solution.lengths
     body = np.vstack([plant.attachments, plant.cog])

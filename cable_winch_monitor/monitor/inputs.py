@@ -113,3 +113,34 @@ class CableLengthMerger:
 def _floats(values: Sequence[float]) -> list[float]:
     """A message array (list, array.array or numpy array) as Python floats."""
     return values.tolist() if hasattr(values, "tolist") else [float(v) for v in values]
+
+
+class InputSeries:
+    """Recent values of one extra input (a shaft temperature): the value at a stamp is interpolated
+    between the readings around it, or the nearest reading where the stamp lies outside them (live,
+    the latest one). Readings older than HISTORY seconds before the newest are dropped."""
+
+    HISTORY = 600.0  # [s]
+
+    def __init__(self) -> None:
+        self.stamps: list[float] = []
+        self.values: list[float] = []
+
+    def add(self, stamp: float, value: float) -> None:
+        if self.stamps and stamp <= self.stamps[-1]:
+            if stamp < self.stamps[-1]:  # out of order: insert, keeping the series sorted
+                k = int(np.searchsorted(self.stamps, stamp))
+                self.stamps.insert(k, stamp)
+                self.values.insert(k, value)
+            return
+        self.stamps.append(stamp)
+        self.values.append(value)
+        if self.stamps[0] < stamp - self.HISTORY and len(self.stamps) > 2:
+            cut = int(np.searchsorted(self.stamps, stamp - self.HISTORY)) - 1
+            del self.stamps[:cut], self.values[:cut]
+
+    def value_at(self, stamp: float) -> float:
+        """The value at `stamp` (NaN while there is no reading)."""
+        if not self.stamps:
+            return NAN
+        return float(np.interp(stamp, self.stamps, self.values))

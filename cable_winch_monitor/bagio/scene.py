@@ -18,7 +18,7 @@ import numpy as np
 
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
-from .alarm import Alarm, AlarmLevel
+from ..monitor.alarm import Alarm, AlarmLevel
 from .fields import FRAME, Fields, Stamp, header
 from .frames import PLATFORM_FRAME
 
