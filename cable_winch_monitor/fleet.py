@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from .bagio.reader import BagError
+from .bagio.scene import REPLAY_RATE
 from .model.plant import Plant
 from .monitor.alarm import AlarmLevel
-from .monitor.scene import REPLAY_RATE
 
 Row = dict[str, Any]            # one bag's result: column -> value (numbers are summed in the total)
 Job = Callable[[Path, Path], Row]
