@@ -6,7 +6,7 @@ solves a window ahead, then takes them one at a time), so a replay gives what th
 gave. No ROS runtime is needed. Memory stays at about one chunk of
 the input whatever the length of the bag. Outputs carry their input's header stamp, and
 that stamp is their log time; inputs keep their own log time and bytes. The head-sheave
-frames (/tf_static) are written once, at the first message; the 3-D scene at most
+frames (/tf_static) and deck outlines are written once, at the first message; the 3-D scene at most
 `scene_rate` times per second of recording.
 """
 from __future__ import annotations
@@ -171,7 +171,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
             for count, (item, result) in enumerate(pipeline.run(reader), 1):
                 if count == 1:
                     first = divmod(item.log_time, 1_000_000_000)
-                    for topic, msgtype, data in records.static_records(first, plant):
+                    for topic, msgtype, data in records.static_records(first, scenes.builder):
                         writer.write_raw(topic, msgtype, item.log_time, data, latched=True)
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
                 try:

@@ -1,7 +1,7 @@
 """A picture of one 3-D scene as a viewer reads it: markers in their frames, frame-locked ones moved by /tf.
 
-Input is the decoded JSON of Foxglove's readers (test/viewer/read_bag.mjs): a MarkerArray and
-the platform transform of the same stamp. Left, the whole shaft from the head sheaves; right,
+Input is the decoded JSON of Foxglove's readers (test/viewer/read_bag.mjs): the scene, the
+latched deck outlines and the platform transform of the scene's stamp. Left, the whole shaft from the head sheaves; right,
 the platform close up, with the rope labels, the closest point and the alarm.
 """
 from __future__ import annotations
@@ -81,12 +81,13 @@ def _draw(ax: Any, markers: list[dict[str, Any]], platform: tuple[np.ndarray, np
                 ax.text(p["x"], p["y"], p["z"], m["text"], color=_colour(m), fontsize=8)
 
 
-def render(scene: dict[str, Any], transform: dict[str, Any], path: Path) -> None:
-    """Draw `scene` (a decoded MarkerArray) with the platform at `transform` (a decoded TransformStamped)."""
+def render(scene: dict[str, Any], outline: dict[str, Any], transform: dict[str, Any], path: Path) -> None:
+    """Draw `scene` and the deck `outline` (decoded MarkerArrays) with the platform at `transform` (a decoded
+    TransformStamped)."""
     t, q = transform["transform"]["translation"], transform["transform"]["rotation"]
     platform = (Rotation.from_quat([q["x"], q["y"], q["z"], q["w"]]).as_matrix(),
                 np.array([t["x"], t["y"], t["z"]]))
-    markers = [m for m in scene["markers"] if m["action"] == 0]
+    markers = [m for m in scene["markers"] + outline["markers"] if m["action"] == 0]
     plt.style.use("dark_background")  # as Foxglove's 3-D panel
     fig = plt.figure(figsize=(10, 6.2), dpi=90)
     whole = fig.add_subplot(1, 3, 1, projection="3d")

@@ -10,7 +10,8 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
-from cable_winch_monitor.bagio.records import ALARM, OUTPUT_TYPES, POSE, RESIDUALS, SCENE, TENSION, TF, TF_STATIC
+from cable_winch_monitor.bagio.records import (ALARM, OUTLINE, OUTPUT_TYPES, POSE, RESIDUALS, SCENE, TENSION, TF,
+                                               TF_STATIC)
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
 from cable_winch_monitor.bagio.fields import input_topics
@@ -28,7 +29,7 @@ def header(item):
     """The header of a stamped output (of the first transform or marker for /tf, /tf_static and the scene)."""
     if item.topic in (TF, TF_STATIC):
         return item.message.transforms[0].header
-    return item.message.markers[0].header if item.topic == SCENE else item.message.header
+    return item.message.markers[0].header if item.topic in (SCENE, OUTLINE) else item.message.header
 
 
 @pytest.fixture(scope="module")
@@ -103,9 +104,9 @@ def test_outputs_carry_input_stamps_and_physics(all_channels):
     first = min(m.log_time for m in messages(bag))
     for item in outputs:
         stamp = ns(header(item).stamp)
-        assert item.log_time == stamp and header(item).frame_id == "shaft"
-        if item.topic == TF_STATIC:
-            assert stamp == first, "the static frames come first"
+        assert item.log_time == stamp and header(item).frame_id == ("platform" if item.topic == OUTLINE else "shaft")
+        if item.topic in (TF_STATIC, OUTLINE):
+            assert stamp == first, "what does not change comes first"
         else:
             assert stamp in (input_stamps if item.topic == RESIDUALS else joint_stamps)
     poses = {ns(m.message.header.stamp) for m in outputs if m.topic == POSE}

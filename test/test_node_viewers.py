@@ -13,7 +13,7 @@ from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel
 from cable_winch_monitor.seed002 import TABLE_1
 from ros_harness import DEEP_QOS, Collector, LiveNode, stamped
-from scene_checks import check_scene, check_static_tf, check_transform
+from scene_checks import check_outline, check_scene, check_static_tf, check_transform
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -25,18 +25,20 @@ LATCHED = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPoli
 @pytest.fixture(scope="module")
 def live():
     node = LiveNode({"scene_rate": SCENE_RATE})
-    collectors = {"tf": Collector(), "tf_static": Collector(), "scene": Collector()}
-    # subscribed after the node has published /tf_static: only a latched topic reaches this late subscriber
+    collectors = {"tf": Collector(), "tf_static": Collector(), "scene": Collector(), "outline": Collector()}
+    # subscribed after the node has published them: only a latched topic reaches this late subscriber
     node.client.node.create_subscription(TFMessage, "/tf_static", collectors["tf_static"], LATCHED)
+    node.client.node.create_subscription(MarkerArray, "/platform/outline", collectors["outline"], LATCHED)
     node.client.node.create_subscription(TFMessage, "/tf", collectors["tf"], DEEP_QOS)
     node.client.node.create_subscription(MarkerArray, "/platform/scene", collectors["scene"], DEEP_QOS)
     yield node, collectors
     assert node.close() == 0
 
 
-def test_static_sheave_frames_reach_a_late_subscriber(live, plant):
+def test_sheave_frames_and_deck_outlines_reach_a_late_subscriber(live, plant):
     _, collectors = live
     check_static_tf(collectors["tf_static"].wait_for(lambda m: True, "/tf_static"), plant)
+    check_outline(collectors["outline"].wait_for(lambda m: True, "/platform/outline"), plant)
 
 
 def test_tf_and_scene_of_a_solved_sample(live, plant):

@@ -15,14 +15,14 @@ import pytest
 import yaml
 from rosbags.rosbag2 import Reader
 
-from cable_winch_monitor.bagio.records import OUTPUT_TYPES, SCENE, TF, TF_STATIC
+from cable_winch_monitor.bagio.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
-from scene_checks import check_scene, check_static_tf
+from scene_checks import check_outline, check_scene, check_static_tf
 from scene_picture import render
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -74,8 +74,8 @@ def test_every_message_of_every_topic_decodes_with_foxglove_readers(replayed):
         assert info["decoded"] == info["messages"] and not info["errors"], (topic, info["errors"])
         assert info["schemaEncoding"] == "ros2msg" and info["messageEncoding"] == "cdr"
     assert foxglove[TF]["schema"] == foxglove[TF_STATIC]["schema"] == "tf2_msgs/msg/TFMessage"
-    assert foxglove[SCENE]["schema"] == "visualization_msgs/msg/MarkerArray"
-    assert counts[TF_STATIC] == 1 and counts[TF] == summary.stats.solved and counts[SCENE] >= 90
+    assert foxglove[SCENE]["schema"] == foxglove[OUTLINE]["schema"] == "visualization_msgs/msg/MarkerArray"
+    assert counts[TF_STATIC] == counts[OUTLINE] == 1 and counts[TF] == summary.stats.solved and counts[SCENE] >= 90
 
 
 def test_foxglove_reads_the_values_rosbags_reads(replayed):
@@ -91,6 +91,7 @@ def test_scene_of_the_lag_drawn_from_what_foxglove_read(replayed):
     _, foxglove, ours = replayed
     plant = load_plant()
     check_static_tf(next(m for topic, _, _, m in ours if topic == TF_STATIC), plant)
+    check_outline(next(m for topic, _, _, m in ours if topic == OUTLINE), plant)
     tensions = {int(t): m for topic, _, t, m in ours if topic == "/cables/tension"}
     alarms = {int(t): m for topic, _, t, m in ours if topic == "/platform/collision_alarm"}
     scenes = {int(v["logTime"]): v["message"] for v in foxglove[SCENE]["values"]}
@@ -104,7 +105,7 @@ def test_scene_of_the_lag_drawn_from_what_foxglove_read(replayed):
     lengths = [c.length for c in tensions[moment].cables]
     check_scene(next(m for topic, _, t, m in ours if topic == SCENE and t == moment), plant,
                 solve(plant, lengths, warm_start=None), AlarmLevel(alarms[moment].level), alarms[moment].clearance)
-    render(scenes[moment], transforms[moment], PICTURE)
+    render(scenes[moment], foxglove[OUTLINE]["values"][0]["message"], transforms[moment], PICTURE)
     assert PICTURE.stat().st_size > 20_000
 
 
@@ -122,6 +123,7 @@ def test_foxglove_layout_plots_what_the_bag_holds(replayed):
     panels = layout["configById"]
     scene = panels["3D!scene"]
     assert scene["followTf"] == "platform" and set(scene["topics"]) <= set(foxglove)
+    assert {topic for topic, shown in scene["topics"].items() if shown["visible"]} == {SCENE, OUTLINE}
     plotted = [p["value"] for key, panel in panels.items() if key.startswith("Plot!") for p in panel["paths"]]
     assert {"/cables/tension", "/platform/collision_alarm", SCRIPT_TOPIC} == {p.split(".")[0] for p in plotted}
     for path in plotted:
@@ -149,6 +151,12 @@ def test_rviz_config_shows_the_scene_in_the_shaft_frame(replayed):
                 "rviz_default_plugins/Pose": "geometry_msgs/msg/PoseStamped"}
     for kind, schema in expected.items():
         assert foxglove[displays[kind]["Topic"]["Value"]]["schema"] == schema
-    namespaces = {m["ns"] for v in foxglove[SCENE]["values"] for m in v["message"]["markers"]} - {""}
-    assert set(displays["rviz_default_plugins/MarkerArray"]["Namespaces"]) == namespaces
+    arrays = [d for d in config["Displays"] if d["Class"] == "rviz_default_plugins/MarkerArray"]
+    assert {d["Topic"]["Value"] for d in arrays} == {SCENE, OUTLINE}
+    for display in arrays:
+        topic = display["Topic"]["Value"]
+        namespaces = {m["ns"] for v in foxglove[topic]["values"] for m in v["message"]["markers"]} - {""}
+        assert set(display["Namespaces"]) == namespaces
+        latched = display["Topic"]["Durability Policy"] == "Transient Local"
+        assert latched == (topic == OUTLINE), "the outline comes once: RViz must ask for it latched"
     assert "rviz_default_plugins/TF" in displays

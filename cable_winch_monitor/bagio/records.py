@@ -14,7 +14,6 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
 from . import fields, frames
-from ..model.plant import Plant
 from ..model.result import Solution
 from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
@@ -25,11 +24,11 @@ from .typestore import typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
 POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
-TF, TF_STATIC, SCENE = "/tf", "/tf_static", "/platform/scene"
+TF, TF_STATIC, SCENE, OUTLINE = "/tf", "/tf_static", "/platform/scene", "/platform/outline"
 OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/TensionDistribution",
                 ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals",
                 TF: "tf2_msgs/msg/TFMessage", TF_STATIC: "tf2_msgs/msg/TFMessage",
-                SCENE: "visualization_msgs/msg/MarkerArray"}
+                SCENE: "visualization_msgs/msg/MarkerArray", OUTLINE: "visualization_msgs/msg/MarkerArray"}
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
 Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
@@ -78,9 +77,9 @@ def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
     return records + residual_records(stamp, output.residuals)
 
 
-def static_records(stamp: fields.Stamp, plant: Plant) -> list[Record]:
-    """/tf_static: the head-sheave frames, once per bag."""
-    return [_record(TF_STATIC, frames.static_tf(stamp, plant))]
+def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:
+    """What does not change, once per bag (latched): the head-sheave frames and the deck outlines."""
+    return [_record(TF_STATIC, frames.static_tf(stamp, builder.plant)), _record(OUTLINE, builder.outline(stamp))]
 
 
 def scene_records(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> list[Record]:

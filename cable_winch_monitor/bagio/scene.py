@@ -1,13 +1,13 @@
 """The 3-D scene an operator watches, as plain field values of a visualization_msgs/msg/MarkerArray.
 
 One sample's scene in `shaft`: the shaft wall (a translucent cylinder from the head
-sheaves to below the platform), the head sheaves, each deck outline (drawn in `platform`
-and locked to it, so a viewer moves it with /tf at every solved pose), every rope from
-its sheave A_i to its attachment B_i coloured by its tension (a slack rope grey and
-dashed), the outline point of smallest clearance with the gap to the wall and its value,
-and the alarm level as colour and text. The first marker deletes the previous scene, so
-nothing stale stays on screen when a sample has no pose. The live node and replay both
-draw with `SceneBuilder` and thin the scenes by header stamp with `SceneThrottle`.
+sheaves to below the platform), the head sheaves, every rope from its sheave A_i to its
+attachment B_i coloured by its tension (a slack rope grey and dashed), the outline point
+of smallest clearance with the gap to the wall and its value, and the alarm level as
+colour and text. The first marker deletes the previous scene, so nothing stale stays on
+screen when a sample has no pose. The deck outlines do not change: `outline` gives them
+once, in `platform`, and a viewer moves them with /tf. The live node and replay both draw
+with `SceneBuilder` and thin the scenes by header stamp with `SceneThrottle`.
 """
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ TENSION_SCALE = ((0.0, (0.2, 0.3, 1.0)), (1 / 3, (0.0, 0.85, 0.85)), (2 / 3, (1.
                  (1.0, (0.95, 0.1, 0.05)))
 
 LIVE_RATE = 10.0    # [1/s] the node's default: smooth enough to watch
-REPLAY_RATE = 2.0   # [1/s] replay's default: a scene is ~8 kB, at 10 Hz it would triple a bag's size
+REPLAY_RATE = 2.0   # [1/s] replay's default: a scene is ~4 kB, at 10 Hz it would double a bag's size
 ROPE_WIDTH, DECK_WIDTH = 0.06, 0.05  # [m] line widths
 TEXT_HEIGHT = 0.4       # [m]
 WALL_BELOW = 3.0        # [m] the wall is drawn this far below the lowest deck
@@ -105,7 +105,8 @@ class SceneBuilder:
         self.sheaves = points(plant.anchors.tolist())
 
     def scene(self, stamp: Stamp, solution: Solution, alarm: Alarm) -> Fields:
-        """The MarkerArray fields of one sample (wall, sheaves and alarm always; the rest with a pose)."""
+        """The MarkerArray fields of one sample (wall, sheaves and alarm always; ropes and closest point with a
+        pose or a clearance)."""
         head = header(stamp, FRAME)
         markers = [marker(head, "", 0, action=DELETEALL),
                    marker(head, "sheaves", SPHERE_LIST, vertices=self.sheaves, colour=SHEAVE_COLOUR,
@@ -117,7 +118,7 @@ class SceneBuilder:
             heights = solution.position[2] + self.plant.outline_array @ solution.rotation[2]
             bottom = float(heights.min())
             label_at = (*solution.position[:2].tolist(), float(heights.max()) + 5.0)
-            markers += self._decks(header(stamp, PLATFORM_FRAME)) + self._ropes(head, solution)
+            markers += self._ropes(head, solution)
         markers.append(self._wall(head, bottom - WALL_BELOW))
         markers += self._closest(head, alarm, level_colour)
         clearance = "" if alarm.clearance is None else f", clearance {alarm.clearance.value:.3f} m"
@@ -131,11 +132,13 @@ class SceneBuilder:
         return marker(head, "shaft_wall", CYLINDER, colour=WALL_COLOUR, scale=(diameter, diameter, -bottom),
                       position=centre)
 
-    def _decks(self, head: Fields) -> list[Fields]:
-        """Each deck's outline in `platform` (header `head`), locked to that frame: a viewer draws it at the pose
-        of /tf, which comes with every solved sample."""
-        return [marker(head, "decks", LINE_STRIP, marker_id=k, vertices=deck, colour=DECK_COLOUR,
-                       scale=(DECK_WIDTH, 0.0, 0.0), frame_locked=True) for k, deck in enumerate(self.decks)]
+    def outline(self, stamp: Stamp) -> Fields:
+        """The MarkerArray fields of the platform's deck outlines in `platform`, locked to that frame: sent once
+        (latched, like a robot description), a viewer draws them at the pose of /tf at every solved sample."""
+        head = header(stamp, PLATFORM_FRAME)
+        return {"markers": [marker(head, "decks", LINE_STRIP, marker_id=k, vertices=deck, colour=DECK_COLOUR,
+                                   scale=(DECK_WIDTH, 0.0, 0.0), frame_locked=True)
+                            for k, deck in enumerate(self.decks)]}
 
     def _ropes(self, head: Fields, solution: Solution) -> list[Fields]:
         """Rope i from A_i to B_i: coloured by tension when taut, grey and dashed when slack; a label near B_i."""

@@ -46,10 +46,11 @@ DEFAULT_WINCH_TOPICS = [f"/winch_{i}/joint_states" for i in range(1, 5)]
 # burst of 1,000 lost 40-50 % of its messages once the CPU was shared.)
 SENSOR_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1000)
 OUTPUT_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=10)
-# As tf2's broadcasters: /tf reliable and 100 deep, /tf_static latched (transient local) for late subscribers.
+# As tf2's broadcasters: /tf reliable and 100 deep; what never changes (/tf_static, the deck outlines) latched
+# (transient local) for late subscribers.
 TF_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
-TF_STATIC_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_THROTTLE = 5.0  # [s] between log lines about rejected input
 
 
@@ -102,9 +103,11 @@ class WinchMonitorNode(Node):
         self.tf_pub = self.create_publisher(TFMessage, "/tf", TF_QOS)
         self.scene_pub = self.create_publisher(MarkerArray, "/platform/scene", OUTPUT_QOS)
         self.scene, self.scene_throttle = SceneBuilder(plant), SceneThrottle(value("scene_rate"))
-        self.tf_static_pub = self.create_publisher(TFMessage, "/tf_static", TF_STATIC_QOS)
+        self.tf_static_pub = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
+        self.outline_pub = self.create_publisher(MarkerArray, "/platform/outline", LATCHED_QOS)
         now = self.get_clock().now().to_msg()
         self.tf_static_pub.publish(build(TFMessage, frames.static_tf((now.sec, now.nanosec), plant)))
+        self.outline_pub.publish(build(MarkerArray, self.scene.outline((now.sec, now.nanosec))))
 
         for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")]):
             self.create_subscription(JointState, topic, self._guarded(topic, self._on_joint_state, topic), SENSOR_QOS)
