@@ -1,8 +1,9 @@
 """A picture of one 3-D scene as a viewer reads it: markers in their frames, frame-locked ones moved by /tf.
 
 Input is the decoded JSON of Foxglove's readers (test/viewer/read_bag.mjs): the scene, the
-latched deck outlines and the platform transform of the scene's stamp. Left, the whole shaft from the head sheaves; right,
-the platform close up, with the rope labels, the closest point and the alarm.
+latched deck outlines and the platform transform of the scene's stamp. Left, the whole
+shaft from the head sheaves; right, the platform close up, with the rope labels, the
+closest point and the alarm.
 """
 from __future__ import annotations
 

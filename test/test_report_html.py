@@ -49,13 +49,15 @@ def truth_shares(bag: Path, start: float, end: float) -> dict[str, float]:
     speed = np.gradient(payout, times)
     inside = (times >= start) & (times <= end)
     lowering, hoisting = speed[inside] > 0.02, speed[inside] < -0.02
-    return {"lowering": lowering.mean(), "hoisting": hoisting.mean(), "standing": 1.0 - lowering.mean() - hoisting.mean()}
+    return {"lowering": lowering.mean(), "hoisting": hoisting.mean(),
+            "standing": 1.0 - lowering.mean() - hoisting.mean()}
 
 
 def test_a_region_over_27_moves_is_described_by_the_motions_it_spans(moves):
     bag, result = moves
     region = max(result.regions, key=lambda r: r["end"] - r["start"])
-    assert region["end"] - region["start"] > 0.9 * (result.data.times[-1] - result.data.times[0]), "one region, all moves"
+    span = result.data.times[-1] - result.data.times[0]
+    assert region["end"] - region["start"] > 0.9 * span, "one region over all the moves"
     truth = truth_shares(bag, region["start"], region["end"])
     for motion, share in truth.items():
         assert share > 0.1 and region["motion"][motion] == pytest.approx(share, abs=0.06), (motion, region["motion"])
@@ -69,8 +71,9 @@ def chromium(*args: str, profile: Path) -> subprocess.CompletedProcess:
     binary = shutil.which("chromium") or shutil.which("chromium-browser")
     assert binary, "chromium is needed for this test: make setup-test installs it (as root with apt-get)"
     return subprocess.run([binary, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                           "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={profile}",
-                           "--host-resolver-rules=MAP * ~NOTFOUND", "--enable-logging=stderr", "--v=0", *args],
+                           "--disable-component-update", "--disable-sync", "--no-first-run",
+                           f"--user-data-dir={profile}", "--host-resolver-rules=MAP * ~NOTFOUND",
+                           "--enable-logging=stderr", "--v=0", *args],
                           check=False, capture_output=True, text=True, timeout=180)
 
 

@@ -82,6 +82,12 @@ def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:
     return [_record(TF_STATIC, frames.static_tf(stamp, builder.plant)), _record(OUTLINE, builder.outline(stamp))]
 
 
+def scene_cdr(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> bytes:
+    """The 3-D scene of one sample as CDR bytes (the live node publishes these raw: building the rclpy
+    MarkerArray instead cost four times as much)."""
+    return encoder(OUTPUT_TYPES[SCENE])(builder.scene(stamp, solution, alarm))
+
+
 def scene_records(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> list[Record]:
     """The 3-D scene of one sample."""
-    return [_record(SCENE, builder.scene(stamp, solution, alarm))]
+    return [(SCENE, OUTPUT_TYPES[SCENE], scene_cdr(stamp, builder, solution, alarm))]

@@ -153,8 +153,9 @@ class SceneBuilder:
                                   colour=tension_colour(tension / weight), scale=(ROPE_WIDTH, 0.0, 0.0)))
                 label = f"{name} {tension / 1000.0:.1f} kN"
             else:
-                out.append(marker(head, "ropes", LINE_LIST, marker_id=i, vertices=points((a + DASH_ENDS * (b - a)).tolist()),
-                                  colour=SLACK_COLOUR, scale=(ROPE_WIDTH, 0.0, 0.0)))
+                dashes = points((a + DASH_ENDS * (b - a)).tolist())
+                out.append(marker(head, "ropes", LINE_LIST, marker_id=i, vertices=dashes, colour=SLACK_COLOUR,
+                                  scale=(ROPE_WIDTH, 0.0, 0.0)))
                 label = f"{name} slack, loose by {float(solution.lengths[i] - solution.spans[i]):.3f} m"
             direction = (a - b) / max(float(np.linalg.norm(a - b)), 1e-9)
             out.append(marker(head, "rope_labels", TEXT, marker_id=i, scale=(0.0, 0.0, TEXT_HEIGHT),
@@ -171,8 +172,8 @@ class SceneBuilder:
         radial = offset / max(math.hypot(*offset.tolist()), 1e-9)
         wall = (*(self.plant.shaft_centre + self.plant.shaft_radius * radial).tolist(), float(point[2]))
         return [marker(head, "closest_point", SPHERE, colour=colour, scale=(0.3, 0.3, 0.3), position=point.tolist()),
-                marker(head, "closest_point", LINE_LIST, marker_id=1, vertices=points([point.tolist(), wall]), colour=colour,
-                       scale=(ROPE_WIDTH, 0.0, 0.0)),
+                marker(head, "closest_point", LINE_LIST, marker_id=1, vertices=points([point.tolist(), wall]),
+                       colour=colour, scale=(ROPE_WIDTH, 0.0, 0.0)),
                 marker(head, "closest_point", TEXT, marker_id=2, colour=colour, scale=(0.0, 0.0, TEXT_HEIGHT),
                        position=(point + np.array([0.0, 0.0, 0.8])).tolist(),
                        text=f"{clearance.value:.3f} m at {clearance.point_name}")]

@@ -27,7 +27,7 @@ from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, Tension
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
 from .. import channels
-from ..bagio import fields, frames
+from ..bagio import fields, frames, records
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..model.plant import PlantConfigError, load_plant
@@ -162,7 +162,7 @@ class WinchMonitorNode(Node):
         self.alarm_pub.publish(build(CollisionAlarm, fields.collision_alarm(stamp, output.alarm)))
         self._publish_residuals(stamp, output.residuals)
         if self.scene_throttle.due(output.stamp):
-            self.scene_pub.publish(build(MarkerArray, self.scene.scene(stamp, output.solution, output.alarm)))
+            self.scene_pub.publish(records.scene_cdr(stamp, self.scene, output.solution, output.alarm))
 
     def _publish_residuals(self, stamp: fields.Stamp, residuals: Residuals | None) -> None:
         if residuals is not None:
