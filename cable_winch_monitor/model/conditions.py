@@ -72,7 +72,8 @@ def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.n
 def _windows(times: np.ndarray, window: float, centred: bool) -> tuple[np.ndarray, np.ndarray]:
     before = window / 2.0 if centred else window
     after = window / 2.0 if centred else 0.0
-    return np.searchsorted(times, times - before, "left"), np.searchsorted(times, times + after, "right")
+    slack = 1e-9 * max(window, 1.0)  # stamps exactly half a window away belong to it on both sides
+    return np.searchsorted(times, times - before - slack, "left"), np.searchsorted(times, times + after + slack, "right")
 
 
 def derivatives(times: np.ndarray, lengths: np.ndarray, speeds: np.ndarray, window: float = ACCELERATION_WINDOW,
