@@ -10,6 +10,7 @@ from .bagio.reader import BagError
 from .effects.base import EffectError
 from .formatting import format_solution
 from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
+from .bagio.scene import LIVE_RATE, REPLAY_RATE
 from .model.solve import METHODS
 from .paths import config_dir
 from .sim.scenario import ScenarioError
@@ -21,6 +22,17 @@ def _length(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"cable length must be a number, got {text!r}") from None
+
+
+def _positive(text: str) -> float:
+    """A command-line rate: a positive number."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
 
 
 def _solve(args: argparse.Namespace) -> int:
@@ -55,7 +67,8 @@ def _simulate(args: argparse.Namespace) -> int:
 def _replay_summary(bag: str, args: argparse.Namespace) -> int:
     from .replay import replay
 
-    summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet)
+    summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet,
+                     scene_rate=args.scene_rate)
     print(summary.format())
     return 0 if summary.complete else 1
 
@@ -80,7 +93,7 @@ def _replay(args: argparse.Namespace) -> int:
 
     if not is_fleet(args.bag):
         return _replay_summary(args.bag, args)
-    return _fleet(args, replay_job(load_plant(args.config), args.solver, args.staleness))
+    return _fleet(args, replay_job(load_plant(args.config), args.solver, args.staleness, args.scene_rate))
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -271,6 +284,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--solver", choices=METHODS, default="energy", help="solver (default: energy, as the node)")
         p.add_argument("--staleness", type=float, default=0.5,
                        help="[s] oldest cable length a sample may use (default: 0.5, as the node)")
+        p.add_argument("--scene-rate", type=_positive, default=REPLAY_RATE, metavar="HZ",
+                       help=f"most 3-D scenes (/platform/scene) per second of recording (default: {REPLAY_RATE:g}; "
+                       f"the node draws {LIVE_RATE:g} live)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
         p.set_defaults(run=_replay if name == "replay" else _demo)
 

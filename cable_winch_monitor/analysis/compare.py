@@ -2,8 +2,9 @@
 
 A failure region is a stretch of time where some channel's error exceeds 3 sigma in most
 samples (isolated 3-sigma samples are noise: 0.3 % of them exceed it by chance),
-described by what the plant was doing: payout, speed and direction, tension state, and
-which channels and cables miss in which direction.
+described by what the plant was doing: payout, the share of lowering, hoisting and
+standing within it (a region may span many moves), tension state, and which channels and
+cables miss in which direction.
 """
 from __future__ import annotations
 
@@ -19,13 +20,13 @@ from .bagfields import BagFields
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
 from .follows import Finding, what_follows
+from .motion import describe, motions, shares
 
 THRESHOLD = 3.0    # [sigma]
 MERGE_GAP = 1.0    # [s] exceedances closer than this belong to one region
 MIN_SAMPLES = 3    # a region has at least this many exceeding values ...
 MIN_DENSITY = 0.3  # ... and this share of its rows exceeding somewhere
 MAX_REGIONS = 20
-STOPPED = 0.02     # [m/s] mean payout speed below which the plant is standing
 
 
 @dataclass
@@ -67,7 +68,7 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
     data = c.data
     payout = data.lengths[rows].mean(axis=1)
     speed = float(np.nanmean(data.speeds[rows]))
-    motion = "standing" if abs(speed) < STOPPED else ("lowering" if speed > 0 else "hoisting")
+    motion = shares(motions(data.speeds[rows]))
     states = Counter(c.solutions[k].tension_state for k in rows)
     z = c.residuals[rows] / c.noise
     misses = []
@@ -77,8 +78,9 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
             sign = "above" if np.nanmean(z[hits, ch]) > 0 else "below"
             misses.append({"channel": name, "count": int(hits.sum()), "mean_sigma": float(np.nanmean(z[hits, ch])),
                            "measured": sign + " model"})
-    text = (f"{data.times[rows[0]]:.1f}-{data.times[rows[-1]]:.1f} s: payout {payout.min():.1f}-{payout.max():.1f} m, "
-            f"{motion} ({speed:+.2f} m/s), {states.most_common(1)[0][0]}; "
+    start, end = data.times[rows[0]] - data.times[0], data.times[rows[-1]] - data.times[0]
+    text = (f"{start:.1f}-{end:.1f} s from the start: payout {payout.min():.1f}-{payout.max():.1f} m, "
+            f"{describe(motion)} (mean {speed:+.2f} m/s), {states.most_common(1)[0][0]}; "
             + ", ".join(f"{m['channel']} {m['measured']} by {abs(m['mean_sigma']):.1f} sigma" for m in misses))
     return {"start": float(data.times[rows[0]]), "end": float(data.times[rows[-1]]),
             "payout": [float(payout.min()), float(payout.max())], "speed": speed, "motion": motion,

@@ -12,6 +12,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.errors import WriterError
@@ -22,6 +23,10 @@ from .typestore import typestore
 
 MESSAGE = struct.Struct("<BQHIQQ")  # opcode 0x05, record length, channel, sequence, log time, publish time
 CHUNK_SIZE = 2 ** 20  # rosbags closes a chunk past this many bytes
+_FOREVER = QosTime(0x7FFFFFFF, 0xFFFFFFFF)  # rosbag2's "infinite" deadline, lifespan and lease
+# What tf2's static broadcaster offers: a player republishes the topic latched, so a late subscriber still gets it.
+LATCHED = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
+              QosLiveliness.AUTOMATIC, _FOREVER, False)
 
 
 class BagWriter:
@@ -41,11 +46,13 @@ class BagWriter:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
         self._storage: McapWriter = self._writer.storage
 
-    def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes) -> None:
-        """CDR bytes as they are, at `log_time` [ns]."""
+    def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes, latched: bool = False) -> None:
+        """CDR bytes as they are, at `log_time` [ns]; a `latched` topic is recorded as offered transient-local
+        (its first message decides)."""
         connection = self._connections.get(topic)
         if connection is None:
-            connection = self._connections[topic] = self._writer.add_connection(topic, msgtype, typestore=self.store)
+            connection = self._connections[topic] = self._writer.add_connection(
+                topic, msgtype, typestore=self.store, offered_qos_profiles=[LATCHED] if latched else ())
         self._append(connection.id, log_time if log_time > 0 else 0, data)
         self.counts[topic] += 1
 

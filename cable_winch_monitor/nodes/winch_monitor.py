@@ -1,4 +1,5 @@
-"""The live monitor node: winch joint states in; pose, tensions, alarm, residuals and diagnostics out.
+"""The live monitor node: winch joint states in; pose, /tf, tensions, alarm, residuals, the 3-D scene and
+diagnostics out.
 
 A thin adapter around MonitorPipeline: every callback converts a message, calls the
 pipeline and publishes what it returns, stamped with the input's own stamp. Callbacks
@@ -17,18 +18,21 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import MarkerArray
 
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
 from .. import channels
-from ..bagio import fields
+from ..bagio import fields, frames, records
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
+from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
 from ..monitor.pipeline import MonitorOutput, MonitorPipeline
 from ..monitor.residuals import Residuals
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
@@ -42,6 +46,11 @@ DEFAULT_WINCH_TOPICS = [f"/winch_{i}/joint_states" for i in range(1, 5)]
 # burst of 1,000 lost 40-50 % of its messages once the CPU was shared.)
 SENSOR_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1000)
 OUTPUT_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=10)
+# As tf2's broadcasters: /tf reliable and 100 deep; what never changes (/tf_static, the deck outlines) latched
+# (transient local) for late subscribers.
+TF_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
+LATCHED_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_THROTTLE = 5.0  # [s] between log lines about rejected input
 
 
@@ -63,6 +72,9 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
     ("diagnostics_period", 1.0, ParameterDescriptor(
         description="[s] period of /diagnostics (at most 1 s)", floating_point_range=_range(0.01, 1.0),
         read_only=True)),
+    ("scene_rate", LIVE_RATE, ParameterDescriptor(
+        description="[1/s] most 3-D scenes (/platform/scene) per second of sample stamps",
+        floating_point_range=_range(0.1, 100.0), read_only=True)),
     ("winch_topics", DEFAULT_WINCH_TOPICS, ParameterDescriptor(
         description=f"per-winch sensor_msgs/JointState topics, merged by cable name with {MERGED_TOPIC}",
         read_only=True)),
@@ -88,6 +100,14 @@ class WinchMonitorNode(Node):
         self.alarm_pub = self.create_publisher(CollisionAlarm, "/platform/collision_alarm", OUTPUT_QOS)
         self.residuals_pub = self.create_publisher(ModelResiduals, "/model/residuals", OUTPUT_QOS)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.tf_pub = self.create_publisher(TFMessage, "/tf", TF_QOS)
+        self.scene_pub = self.create_publisher(MarkerArray, "/platform/scene", OUTPUT_QOS)
+        self.scene, self.scene_throttle = SceneBuilder(plant), SceneThrottle(value("scene_rate"))
+        self.tf_static_pub = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
+        self.outline_pub = self.create_publisher(MarkerArray, "/platform/outline", LATCHED_QOS)
+        now = self.get_clock().now().to_msg()
+        self.tf_static_pub.publish(build(TFMessage, frames.static_tf((now.sec, now.nanosec), plant)))
+        self.outline_pub.publish(build(MarkerArray, self.scene.outline((now.sec, now.nanosec))))
 
         for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")]):
             self.create_subscription(JointState, topic, self._guarded(topic, self._on_joint_state, topic), SENSOR_QOS)
@@ -137,9 +157,12 @@ class WinchMonitorNode(Node):
     def _publish(self, stamp: fields.Stamp, output: MonitorOutput) -> None:
         if output.solution.ok:  # never a pose that was not solved
             self.pose_pub.publish(build(PoseStamped, fields.pose_stamped(stamp, output.solution)))
+            self.tf_pub.publish(build(TFMessage, frames.platform_tf(stamp, output.solution)))
         self.tension_pub.publish(build(TensionDistribution, fields.tension_distribution(stamp, output.solution)))
         self.alarm_pub.publish(build(CollisionAlarm, fields.collision_alarm(stamp, output.alarm)))
         self._publish_residuals(stamp, output.residuals)
+        if self.scene_throttle.due(output.stamp):
+            self.scene_pub.publish(records.scene_cdr(stamp, self.scene, output.solution, output.alarm))
 
     def _publish_residuals(self, stamp: fields.Stamp, residuals: Residuals | None) -> None:
         if residuals is not None:
