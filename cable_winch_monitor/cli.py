@@ -15,6 +15,10 @@ from .paths import config_dir
 from .sim.scenario import ScenarioError
 
 
+class UsageError(Exception):
+    """A command line that cannot be carried out; the message says why."""
+
+
 def _length(text: str) -> float:
     """A command-line length: any float, so that nan, inf and negatives reach the solver's checks."""
     try:
@@ -54,9 +58,19 @@ def _simulate(args: argparse.Namespace) -> int:
 def _replay_summary(bag: str, args: argparse.Namespace) -> int:
     from .replay import replay
 
-    summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet)
+    summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet,
+                     stamp_window=_stamp_window(args))
     print(summary.format())
     return 0 if summary.complete else 1
+
+
+def _stamp_window(args: argparse.Namespace):
+    from .monitor.inputs import StampWindow
+
+    try:
+        return StampWindow(*args.stamp_window) if args.stamp_window else StampWindow()
+    except ValueError as error:
+        raise UsageError(f"--stamp-window: {error}") from None
 
 
 def _fleet(args: argparse.Namespace, job) -> int:
@@ -267,6 +281,10 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--solver", choices=METHODS, default="energy", help="solver (default: energy, as the node)")
         p.add_argument("--staleness", type=float, default=0.5,
                        help="[s] oldest cable length a sample may use (default: 0.5, as the node)")
+        p.add_argument("--stamp-window", type=float, nargs=3,
+                       metavar=("AHEAD", "BEHIND", "SKEW"),
+                       help="[s] a winch stamp more than AHEAD after or BEHIND before its log time, or more than "
+                       "SKEW after the other winches' newest reading, is refused (default: 2 10 2, as the node)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
         p.set_defaults(run=_replay if name == "replay" else _demo)
 
@@ -294,7 +312,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
-    except (PlantConfigError, ScenarioError, BagError, EffectError) as error:
+    except (PlantConfigError, ScenarioError, BagError, EffectError, UsageError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
 

@@ -23,6 +23,7 @@ from .bagio.writer import BagWriter
 from .model.plant import Plant, load_plant
 from .monitor import fields
 from .monitor.alarm import AlarmLevel
+from .monitor.inputs import StampWindow
 from .monitor.lookahead import LookaheadPipeline
 from .monitor.pipeline import MonitorOutput, MonitorStats
 from .monitor.residuals import Residuals
@@ -133,7 +134,8 @@ def _fewer_collections(threshold: int = 20_000) -> Iterator[None]:
 
 
 def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
-           staleness: float = 0.5, progress: bool = True, batched: bool = True) -> ReplaySummary:
+           staleness: float = 0.5, progress: bool = True, batched: bool = True,
+           stamp_window: StampWindow | None = None) -> ReplaySummary:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
@@ -144,7 +146,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     """
     started = time.perf_counter()
     reader = BagReader(bag, fields.INPUT_TOPICS)
-    pipeline = LookaheadPipeline(plant or load_plant(), solver, staleness, batched)
+    pipeline = LookaheadPipeline(plant or load_plant(), solver, staleness, batched, stamp_window=stamp_window)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():

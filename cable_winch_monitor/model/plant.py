@@ -18,6 +18,8 @@ import yaml
 from ..paths import default_plant_file
 
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
+DEFAULT_MAX_PAYOUT = 3000.0  # [m] deeper than any shaft sunk with a hanging platform
+DEFAULT_MAX_PAYOUT_SPEED = 5.0  # [m/s] sinking winches run below 1 m/s
 
 
 class PlantConfigError(ValueError):
@@ -53,6 +55,8 @@ class Plant:
     shaft_radius: float = float("inf")
     shaft_centre: np.ndarray = field(default_factory=lambda: np.zeros(2))
     outline: tuple[OutlinePoint, ...] = ()
+    max_payout: float = DEFAULT_MAX_PAYOUT  # [m] longest cable length a winch can pay out
+    max_payout_speed: float = DEFAULT_MAX_PAYOUT_SPEED  # [m/s]
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -140,6 +144,14 @@ def _outline(section: Any) -> tuple[OutlinePoint, ...]:
     return tuple(points)
 
 
+def _limits(section: Any) -> tuple[float, float]:
+    """Maximum payout [m] and payout speed [m/s] from 'plant.limits' (defaults where not given)."""
+    if not isinstance(section, Mapping):
+        raise PlantConfigError("plant file: key 'plant.limits' must be a mapping")
+    return tuple(_number(section, key, "plant.limits.", positive=True) if key in section else default
+                 for key, default in (("max_payout", DEFAULT_MAX_PAYOUT), ("max_payout_speed", DEFAULT_MAX_PAYOUT_SPEED)))
+
+
 def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
     """Build a Plant from the parsed YAML document; errors name the offending key."""
     if not isinstance(config, Mapping) or "plant" not in config:
@@ -180,6 +192,7 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         raise PlantConfigError("plant file: key 'plant.shaft' must be a mapping")
     shaft_radius = _number(shaft, "radius", "plant.shaft.", positive=True) if "radius" in shaft else float("inf")
     shaft_centre = _points([shaft.get("centre", [0.0, 0.0])], "plant.shaft.centre", 1, dim=2)[0]
+    max_payout, max_payout_speed = _limits(section.get("limits", {}) or {})
     return Plant(
         name=str(section.get("name", name)),
         anchors=anchors,
@@ -191,6 +204,8 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         shaft_radius=shaft_radius,
         shaft_centre=shaft_centre,
         outline=_outline(section.get("outline")),
+        max_payout=max_payout,
+        max_payout_speed=max_payout_speed,
         raw=config,
     )
 

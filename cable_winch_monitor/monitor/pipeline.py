@@ -19,7 +19,7 @@ from ..model.result import Solution, SolveStatus
 from ..model.solve import METHODS, solve
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
-from .inputs import CableLengthMerger, JointSample
+from .inputs import CableLengthMerger, InputLimits, JointSample, StampWindow, orientation_reason, position_reason
 from .residuals import TENSION_CHANNELS, Residuals, imu_channels, noise_levels, position_channels, predicted_channels, residuals
 
 
@@ -67,11 +67,13 @@ class MonitorStats:
 class MonitorPipeline:
     """Merges inputs, solves each complete sample (warm-started), and derives alarm and residuals."""
 
-    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5):
+    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
+                 stamp_window: StampWindow | None = None):
         if solver not in METHODS:
             raise ValueError(f"unknown solver {solver!r}; use one of {', '.join(METHODS)}")
         self.plant, self.solver = plant, solver
-        self.merger = CableLengthMerger(staleness)
+        self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
+        self.merger = CableLengthMerger(staleness, stamp_window, self.limits)
         self.alarms = AlarmTracker(AlarmPolicy.from_plant(plant))
         self.stats = MonitorStats()
         self.last: MonitorOutput | None = None
@@ -171,12 +173,18 @@ class MonitorPipeline:
     def on_imu(self, stamp: float, quaternion_xyzw: Sequence[float], topic: str = "/platform/imu") -> Residuals | None:
         """An inclinometer reading: roll and pitch residuals against the latest solved pose."""
         quaternion = [float(v) for v in quaternion_xyzw]
-        if not all(math.isfinite(v) for v in quaternion) or math.hypot(*quaternion) < 1e-9:
+        reason = orientation_reason(quaternion)
+        if reason:
             self.stats.messages[topic] += 1
-            self._reject(topic, "bad measurement: orientation is not a unit quaternion")
+            self._reject(topic, reason)
             return None
         return self._measurement(topic, stamp, imu_channels(quaternion))
 
     def on_position(self, stamp: float, xyz: Sequence[float], topic: str = "/platform/position") -> Residuals | None:
         """A depth-gauge reading (x, y may be NaN): residuals against the latest solved pose."""
+        reason = position_reason([float(v) for v in xyz], self.limits)
+        if reason:
+            self.stats.messages[topic] += 1
+            self._reject(topic, reason)
+            return None
         return self._measurement(topic, stamp, position_channels(xyz))
