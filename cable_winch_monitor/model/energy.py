@@ -51,7 +51,7 @@ class _State:
 
 def solve_energy(plant: Plant, lengths: object, warm_start: Solution | None = None) -> Solution:
     """Equilibrium for four cable lengths; never raises, the status says what happened."""
-    return guarded_solve(METHOD, lengths, lambda array: _solve(plant, array, warm_start))
+    return guarded_solve(METHOD, lengths, lambda array: _solve(plant, array, warm_start), plant)
 
 
 def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> Solution:

@@ -184,4 +184,4 @@ def solve_traversal(plant: Plant, lengths: Any, *, method_name: str = "traversal
     is accepted, SOLVER_FAILED on a numerical exception. `iterations` counts the residual
     and Jacobian evaluations of every hybr run.
     """
-    return guarded_solve(method_name, lengths, lambda array: _traverse(plant, array, method_name))
+    return guarded_solve(method_name, lengths, lambda array: _traverse(plant, array, method_name), plant)
