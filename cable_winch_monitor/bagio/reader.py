@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
-import yaml
 from rosbags.typesys.store import Typestore
 
+from ..safe_yaml import YamlLimitError, load_yaml_file
 from .decode import decode
 from .mcapfile import McapError, McapFile
 from .typestore import typestore
@@ -59,11 +59,11 @@ def _metadata(path: Path) -> tuple[list[Path] | None, int | None, str]:
     if not meta.is_file():
         return None, None, f"{path} has no metadata.yaml"
     try:
-        info = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
+        info = load_yaml_file(meta)["rosbag2_bagfile_information"]
         storage = info.get("storage_identifier", "mcap")
-        files = [path / name for name in info["relative_file_paths"]]
+        files = [path / str(name) for name in info["relative_file_paths"]]
         count = info.get("message_count")
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as error:
+    except (OSError, YamlLimitError, KeyError, TypeError, AttributeError) as error:
         return None, None, f"{meta} is unreadable ({type(error).__name__}: {error})"
     if storage != "mcap":
         raise BagError(f"{path}: storage '{storage}' is not supported; only MCAP bags are read")
