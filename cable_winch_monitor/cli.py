@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from pathlib import Path
 from typing import Sequence
 
 from .bagio.reader import BagError
@@ -17,6 +19,34 @@ from .sim.scenario import ScenarioError
 
 class UsageError(Exception):
     """A command line that cannot be carried out; the message says why."""
+
+
+def _check_writable(path: str | None, option: str) -> None:
+    """Refuse an output path that cannot be written, before any work is done for it."""
+    if not path:
+        return
+    target = Path(path)
+    parent = target.parent if str(target.parent) else Path(".")
+    if target.is_dir():
+        raise UsageError(f"{option} {path}: is a directory, give a file name")
+    if not parent.is_dir():
+        raise UsageError(f"{option} {path}: folder {parent} does not exist")
+    if not os.access(target if target.exists() else parent, os.W_OK):
+        raise UsageError(f"{option} {path}: not writable (permission denied)")
+
+
+def _effect_names(text: str | None, option: str) -> list[str] | None:
+    """Comma-separated effect names, each one known (None for none given)."""
+    if text is None:
+        return None
+    from .effects.registry import effect_class
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise UsageError(f"{option}: no effect name given")
+    for name in names:
+        effect_class(name)  # EffectError naming the known ones
+    return names
 
 
 def _length(text: str) -> float:
@@ -119,6 +149,9 @@ def _limits(args: argparse.Namespace) -> int:
     from .monitor.limits import format_limits, synchronisation_limits
 
     plant = load_plant(args.config)
+    if not 0.0 < args.length <= plant.max_payout:
+        raise UsageError(f"--length {args.length}: the payout must lie in (0, {plant.max_payout:g}] m "
+                         "(plant.limits.max_payout)")
     limits = synchronisation_limits(plant, args.length)
     if args.json:
         print(json.dumps({"length": args.length, "limits": [
@@ -137,7 +170,19 @@ def _analysis_inputs(args: argparse.Namespace):
 
     for path in args.effect_module:
         load_module(path)
-    return PlantModel.from_plant(load_plant(args.config)), read_bag(args.bag)
+    model = PlantModel.from_plant(load_plant(args.config))
+    data = read_bag(args.bag)
+    _require_measurements(data)
+    return model, data
+
+
+def _require_measurements(data) -> None:
+    """Refuse a bag that holds no measurement the model could be compared with."""
+    import numpy as np
+
+    if not len(data) or not np.isfinite(data.measured).any():
+        raise UsageError(f"{data.bag}: no measurements to compare the model with (load pins, inclinometer or "
+                         "depth gauge readings with the four cable lengths): nothing to compare")
 
 
 def _write_json(path: str | None, content: dict) -> None:
@@ -151,6 +196,8 @@ def _compare(args: argparse.Namespace) -> int:
     from .analysis.compare import compare
     from .analysis.html import write_report
 
+    _check_writable(args.json, "--json")
+    _check_writable(args.html, "--html")
     model, data = _analysis_inputs(args)
     result = compare(model, data)
     print(report.compare_text(result))
@@ -167,12 +214,14 @@ def _diagnose(args: argparse.Namespace) -> int:
     from .effects import load_module
     from .fleet import diagnose_job, is_fleet
 
-    candidates = [n.strip() for n in args.candidates.split(",") if n.strip()] if args.candidates else None
-    if is_fleet(args.bag):
-        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
+    _check_writable(args.json, "--json")
     for path in args.effect_module:
         load_module(path)
+    candidates = _effect_names(args.candidates, "--candidates")
+    if is_fleet(args.bag):
+        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
     result, data = diagnose_bag(args.bag, load_plant(args.config), candidates)
+    _require_measurements(data)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0
@@ -182,8 +231,10 @@ def _fit(args: argparse.Namespace) -> int:
     from .analysis import report
     from .analysis.refit import fit_command, write_plant
 
+    _check_writable(args.json, "--json")
+    _check_writable(args.write_config, "--write-config")
     model, data = _analysis_inputs(args)
-    result = fit_command(model, data, [n.strip() for n in args.effects.split(",") if n.strip()])
+    result = fit_command(model, data, _effect_names(args.effects, "--effects"))
     print(report.fit_text(result))
     _write_json(args.json, report.fit_json(result, data.bag, len(data)))
     if args.write_config:
@@ -314,6 +365,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.run(args)
     except (PlantConfigError, ScenarioError, BagError, EffectError, UsageError) as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:  # an output that could not be written after all (disk full, removed folder)
+        print(f"error: {error.filename or ''}: {error.strerror or error}", file=sys.stderr)
         return 2
 
 
