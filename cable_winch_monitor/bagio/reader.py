@@ -52,6 +52,11 @@ class ReadReport:
         """True if every part of every file was read."""
         return not self.damage
 
+    @property
+    def missing(self) -> int | None:
+        """Messages the bag says it holds that were not found (None when it does not say)."""
+        return None if self.expected is None else max(self.expected - sum(self.read.values()), 0)
+
 
 def _metadata(path: Path) -> tuple[list[Path] | None, int | None, str]:
     """Files and message count listed by metadata.yaml, or None and why it cannot be used."""
@@ -135,6 +140,10 @@ class BagReader:
         for file in self.files:
             with McapFile(file) as mcap:
                 yield from self._file_messages(mcap)
+        report = self.report
+        if report.damage and report.missing is not None:
+            report.damage.append(f"in all {report.missing} of the {report.expected} messages the bag lists "
+                                 "were not found")
 
     def _file_messages(self, mcap: McapFile) -> Iterator[BagMessage]:
         report = self.report
