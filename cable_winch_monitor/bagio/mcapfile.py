@@ -181,6 +181,7 @@ class McapFile:
         self._file.seek(max(footer_offset, 0))
         tail = self._file.read(FOOTER_SIZE)
         footer = footer_offset >= len(MAGIC) and tail[-len(MAGIC):] == MAGIC
+        self._cut_short = not footer
         if not footer or RECORD_HEADER.unpack_from(tail) != (Opcode.FOOTER, 20):
             self.notes.append(f"{self.path.name}: no footer (the recording was cut short?): reading it from the start")
             return None
@@ -297,7 +298,7 @@ class McapFile:
                 else:
                     _definition(opcode, body, offset, self.schemas, self.channels)
         except McapDamage as error:
-            cut = self._cut_chunk(error.offset)
+            cut = self._cut_chunk(error.offset) if self._cut_short else None
             if cut is not None:
                 yield cut
                 self.damage.append(Damage(error.offset, f"chunk at byte {error.offset} cut short at byte {self.size} "
@@ -318,7 +319,8 @@ class McapFile:
 
     def _cut_chunk(self, offset: int) -> tuple[int, list[RawMessage]] | None:
         """Start time and complete messages of an uncompressed chunk at `offset` that the end of the file cuts off
-        (None if no such chunk starts there)."""
+        (None if no such chunk starts there). Only for a file without footer: a cut changes no byte before it,
+        while a chunk that runs past the footer has a damaged header and its contents are not to be trusted."""
         self._file.seek(offset)
         head = self._file.read(RECORD_HEADER.size + CHUNK_HEAD.size)
         if len(head) < RECORD_HEADER.size + CHUNK_HEAD.size or head[0] != Opcode.CHUNK:
