@@ -12,7 +12,7 @@ from .bagio.reader import BagError
 from .effects.base import EffectError
 from .formatting import format_solution
 from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
-from .model.solve import METHODS, solve
+from .model.solve import METHODS
 from .paths import config_dir
 from .sim.scenario import ScenarioError
 
@@ -58,8 +58,9 @@ def _length(text: str) -> float:
 
 
 def _solve(args: argparse.Namespace) -> int:
-    plant = load_plant(args.config)
-    solution = solve(plant, args.lengths, method=args.method)  # bad numbers come back as INVALID_INPUT
+    from .effects import PlantModel
+
+    solution = PlantModel.from_plant(load_plant(args.config), args.method).solve(args.lengths)  # bad numbers: INVALID_INPUT
     if args.json:
         print(json.dumps(solution.to_dict(), indent=2))
     else:
@@ -146,13 +147,14 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _limits(args: argparse.Namespace) -> int:
+    from .effects import PlantModel
     from .monitor.limits import format_limits, synchronisation_limits
 
     plant = load_plant(args.config)
     if not 0.0 < args.length <= plant.max_payout:
         raise UsageError(f"--length {args.length}: the payout must lie in (0, {plant.max_payout:g}] m "
                          "(plant.limits.max_payout)")
-    limits = synchronisation_limits(plant, args.length)
+    limits = synchronisation_limits(PlantModel.from_plant(plant), args.length)
     if args.json:
         print(json.dumps({"length": args.length, "limits": [
             {"change": limit.label, "cables": [CABLE_NAMES[c] for c in limit.cables], "direction": limit.direction,
@@ -164,14 +166,22 @@ def _limits(args: argparse.Namespace) -> int:
 
 
 def _analysis_inputs(args: argparse.Namespace):
-    """The plant model (with its effects) and the bag's measurements for compare, diagnose and fit."""
-    from .analysis.data import read_bag
-    from .effects import PlantModel, load_module
+    """The plant model (with its effects) and the bag's measurements for compare and fit."""
+    from .effects import load_module
 
     for path in args.effect_module:
         load_module(path)
+    return _model_and_measurements(args)
+
+
+def _model_and_measurements(args: argparse.Namespace):
+    """The plant model (with its effects, user modules loaded) and the bag's measurements; UsageError
+    if the bag holds none."""
+    from .analysis.data import read_bag
+    from .effects import PlantModel
+
     model = PlantModel.from_plant(load_plant(args.config))
-    data = read_bag(args.bag)
+    data = read_bag(args.bag, model.inputs)
     _require_measurements(data)
     return model, data
 
@@ -210,7 +220,8 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _diagnose(args: argparse.Namespace) -> int:
     from .analysis import report
-    from .analysis.diagnose import diagnose_bag
+    from .analysis.diagnose import diagnose
+    from .analysis.evaluate import noise
     from .effects import load_module
     from .fleet import diagnose_job, is_fleet
 
@@ -220,8 +231,8 @@ def _diagnose(args: argparse.Namespace) -> int:
     candidates = _effect_names(args.candidates, "--candidates")
     if is_fleet(args.bag):
         return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
-    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates)
-    _require_measurements(data)
+    model, data = _model_and_measurements(args)
+    result = diagnose(model, data, noise(model.plant, data)[0], candidates)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0

@@ -1,7 +1,7 @@
 """`replay`: a recorded bag through the monitor, every output into a new bag beside the inputs.
 
 The pipeline code and the field mapping are the live node's own (MonitorPipeline,
-monitor.fields); messages are fed in the bag's log order (monitor.lookahead merges and
+bagio.fields); messages are fed in the bag's log order (lookahead.py merges and
 solves a window ahead, then takes them one at a time), so a replay gives what the node
 gave. No ROS runtime is needed. Memory stays at about one chunk of
 the input whatever the length of the bag. Outputs carry their input's header stamp, and
@@ -21,10 +21,10 @@ from .bagio import records
 from .bagio.reader import BagMessage, BagReader, ReadReport
 from .bagio.writer import BagWriter
 from .model.plant import Plant, load_plant
-from .monitor import fields
+from .bagio import fields
 from .monitor.alarm import AlarmLevel
+from .lookahead import LookaheadPipeline
 from .monitor.inputs import StampWindow
-from .monitor.lookahead import LookaheadPipeline
 from .monitor.pipeline import MonitorOutput, MonitorStats
 from .monitor.residuals import Residuals
 from .progress import Progress
@@ -139,14 +139,15 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
-    solved at once (monitor.lookahead); the outputs are the per-sample pipeline's.
+    solved at once (lookahead.py); the outputs are the per-sample pipeline's.
 
     Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
     while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
-    reader = BagReader(bag, fields.INPUT_TOPICS)
     pipeline = LookaheadPipeline(plant or load_plant(), solver, staleness, batched, stamp_window=stamp_window)
+    inputs = fields.input_topics(pipeline.model.inputs)
+    reader = BagReader(bag, inputs)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():
@@ -156,7 +157,8 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 try:
                     if isinstance(result, Exception):
                         raise result
-                    stamp = fields.stamp_of(item.message)
+                    stamp = fields.stamp_of(item.message) if hasattr(item.message, "header") else \
+                        divmod(item.log_time, 1_000_000_000)
                     outputs = _records(item, stamp, result)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
@@ -169,6 +171,6 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
             summary.interrupted = True
         finally:
             bar.finish()
-            summary.written = Counter({t: n for t, n in writer.counts.items() if t not in fields.INPUT_TOPICS})
+            summary.written = Counter({t: n for t, n in writer.counts.items() if t not in inputs})
     summary.wall = time.perf_counter() - started
     return summary

@@ -13,7 +13,7 @@ from rosbags.rosbag2 import Reader
 from cable_winch_monitor.bagio.records import ALARM, OUTPUT_TYPES, POSE, RESIDUALS, TENSION
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
-from cable_winch_monitor.monitor.fields import INPUT_TOPICS
+from cable_winch_monitor.bagio.fields import input_topics
 from cable_winch_monitor.replay import replay
 from simbags import assert_clean, messages, run_cli, simulated, truth
 
@@ -74,7 +74,7 @@ def test_output_bag_reads_back_with_rosbags_and_mcap(all_channels):
     assert Counter(t for t, *_ in ours) == summary.written + summary.report.read
     # the inputs are in the output bag unchanged, at their own log times
     assert sorted((t, lt, raw) for t, lt, raw, _ in rosbags_messages(bag)) == sorted(
-        (t, lt, raw) for t, lt, raw, _ in ours if t in INPUT_TOPICS)
+        (t, lt, raw) for t, lt, raw, _ in ours if t in input_topics())
     # custom types decode the same from the bag's schemas (mcap) as from msg_defs (rosbags)
     decoded = {(t, lt): m for t, lt, _, m in theirs if t in (TENSION, ALARM)}
     for topic, log_time, _, message in ours:

@@ -1,6 +1,8 @@
 """Implausible winch stamps are refused with their reason and never block the good samples after them."""
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -88,10 +90,8 @@ def test_without_a_clock_a_kept_far_future_reading_does_not_block_its_cable(plan
 
 def test_the_same_in_replay_a_bad_stamp_costs_one_message(plant):
     """The replay feed gives the log time as the arrival time: the same window applies."""
-    from types import SimpleNamespace
-
-    from cable_winch_monitor.monitor import fields
-    from cable_winch_monitor.monitor.lookahead import LookaheadPipeline
+    from cable_winch_monitor.bagio import fields
+    from cable_winch_monitor.lookahead import LookaheadPipeline
 
     def item(stamp: float, log_time: float, lengths):
         header = SimpleNamespace(stamp=SimpleNamespace(sec=int(stamp), nanosec=int(round((stamp % 1) * 1e9))))
@@ -126,7 +126,8 @@ def test_lengths_beyond_the_maximum_payout_are_refused(plant, length):
 def test_absurd_orientations_are_refused(plant, quaternion):
     pipeline = MonitorPipeline(plant)
     pipeline.on_joint_state(merged(1.0, [20.0] * 4, received=1.0))
-    assert pipeline.on_imu(1.01, quaternion) is None
+    x, y, z, w = quaternion
+    assert pipeline.on_measurement("/platform/imu", 1.01, SimpleNamespace(orientation=SimpleNamespace(x=x, y=y, z=z, w=w))) is None
     assert "orientation is not a unit quaternion" in pipeline.stats.last_rejection
 
 
@@ -134,7 +135,8 @@ def test_absurd_orientations_are_refused(plant, quaternion):
 def test_absurd_positions_are_refused(plant, xyz):
     pipeline = MonitorPipeline(plant)
     pipeline.on_joint_state(merged(1.0, [20.0] * 4, received=1.0))
-    assert pipeline.on_position(1.01, xyz) is None
+    x, y, z = xyz
+    assert pipeline.on_measurement("/platform/position", 1.01, SimpleNamespace(point=SimpleNamespace(x=x, y=y, z=z))) is None
     assert "bad measurement: position" in pipeline.stats.last_rejection
 
 

@@ -128,7 +128,7 @@ def test_general_plant_uses_the_affine_b4():
         "anchors": [[2.2, 2.6, 0.0], [-1.8, 2.4, 0.1], [-2.1, -2.5, 0.0], [1.9, -2.7, -0.05]],
         "attachments": [[2.0, 2.5, 0.3], [-2.0, 2.3, 0.0], [-2.2, -2.4, 0.0], [2.1, -2.6, -0.2]],
         "centre_of_gravity": [0.3, 0.4, -9.0]}, "mass": 8000.0, "g": 9.81}})
-    assert solve_planar(plant, np.array([40.0, 40.0, 41.0, 41.0]), EQUAL_LENGTH_TOL) is None
+    assert solve_planar(plant, np.array([40.0, 40.0, 41.0, 41.0]), EQUAL_LENGTH_TOL, plant.wrench) is None
     for lengths in ([40.0, 40.3, 40.9, 40.1], [40.0, 40.0, 41.0, 41.0], [40.0] * 4):
         solution = solve_traversal(plant, lengths)
         assert solution.ok, solution.message

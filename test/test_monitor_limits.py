@@ -7,6 +7,7 @@ import pytest
 from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
 from cable_winch_monitor.monitor.clearance import solution_clearance
+from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.monitor.limits import BISECTION_TOL, synchronisation_limits
 
 PAYOUT = 300.0
@@ -14,7 +15,7 @@ PAYOUT = 300.0
 
 @pytest.fixture(scope="module")
 def limits(plant):
-    return synchronisation_limits(plant, PAYOUT)
+    return synchronisation_limits(PlantModel.from_plant(plant), PAYOUT)
 
 
 def lengths_for(limit, delta):

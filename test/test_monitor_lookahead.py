@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from cable_winch_monitor.model.plant import CABLE_NAMES
-from cable_winch_monitor.monitor import fields
-from cable_winch_monitor.monitor.lookahead import LookaheadPipeline
+from cable_winch_monitor import channels
+from cable_winch_monitor.bagio import fields
+from cable_winch_monitor.lookahead import LookaheadPipeline
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 
 
@@ -27,30 +28,31 @@ def stream(count: int) -> list[SimpleNamespace]:
         for i, name in enumerate(CABLE_NAMES):
             msg = SimpleNamespace(header=header(t + 0.01 * i), name=[name], position=[lengths[i]], velocity=[0.5],
                                   effort=[float("nan")])
-            items.append(SimpleNamespace(topic=f"/winch_{i + 1}/joint_states", msgtype=fields.JOINT_STATE, message=msg))
+            items.append(SimpleNamespace(topic=f"/winch_{i + 1}/joint_states", msgtype=channels.JOINT_STATE, message=msg))
         if k % 3 == 0:
             q = SimpleNamespace(x=0.001, y=-0.002, z=0.0, w=1.0)
-            items.append(SimpleNamespace(topic="/platform/imu", msgtype=fields.IMU,
+            items.append(SimpleNamespace(topic="/platform/imu", msgtype=channels.IMU,
                                          message=SimpleNamespace(header=header(t + 0.05), orientation=q)))
         if k % 7 == 0:
             point = SimpleNamespace(x=float("nan"), y=float("nan"), z=-30.0 - 0.05 * k)
-            items.append(SimpleNamespace(topic="/platform/position", msgtype=fields.POINT,
+            items.append(SimpleNamespace(topic="/platform/position", msgtype=channels.POINT,
                                          message=SimpleNamespace(header=header(t + 0.06), point=point)))
     broken = SimpleNamespace(header=header(5.0), position=[1.0])  # no `name`: reading it raises
-    items.insert(40, SimpleNamespace(topic="/winch/joint_states", msgtype=fields.JOINT_STATE, message=broken))
+    items.insert(40, SimpleNamespace(topic="/winch/joint_states", msgtype=channels.JOINT_STATE, message=broken))
     backwards = SimpleNamespace(header=header(1.0), name=["cable_1"], position=[30.0], velocity=[], effort=[])
-    items.insert(90, SimpleNamespace(topic="/winch_1/joint_states", msgtype=fields.JOINT_STATE, message=backwards))
+    items.insert(90, SimpleNamespace(topic="/winch_1/joint_states", msgtype=channels.JOINT_STATE, message=backwards))
+    for item in items:  # recorded 5 ms after its stamp, as a bag's messages are
+        stamp = item.message.header.stamp
+        item.log_time = stamp.sec * 1_000_000_000 + stamp.nanosec + 5_000_000
     return items
 
 
 def one_at_a_time(pipeline: MonitorPipeline, item: SimpleNamespace):
     """What the live node does with each message."""
     msg = item.message
-    if item.msgtype == fields.JOINT_STATE:
-        return pipeline.on_joint_state(fields.joint_sample(msg, item.topic))
-    if item.msgtype == fields.IMU:
-        return pipeline.on_imu(fields.seconds(msg.header.stamp), fields.imu_quaternion(msg))
-    return pipeline.on_position(fields.seconds(msg.header.stamp), fields.point_xyz(msg))
+    if item.msgtype == channels.JOINT_STATE:
+        return pipeline.on_joint_state(fields.joint_sample(msg, item.topic)._replace(received=item.log_time * 1e-9))
+    return pipeline.on_measurement(item.topic, fields.seconds(msg.header.stamp), msg)
 
 
 @pytest.mark.parametrize("batched", [True, False])

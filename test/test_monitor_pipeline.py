@@ -1,6 +1,8 @@
 """The monitor pipeline without ROS: merging by name, rejections with reasons, warm-started solves."""
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -95,14 +97,24 @@ def test_every_message_is_accounted_for(pipeline):
     assert stats.solved == 300 - 43
 
 
+
+def point(x: float, y: float, z: float) -> SimpleNamespace:
+    """A geometry_msgs/PointStamped's fields as the channels read them."""
+    return SimpleNamespace(point=SimpleNamespace(x=x, y=y, z=z))
+
+
+def orientation(x: float, y: float, z: float, w: float) -> SimpleNamespace:
+    """A sensor_msgs/Imu's orientation as the channels read it."""
+    return SimpleNamespace(orientation=SimpleNamespace(x=x, y=y, z=z, w=w))
+
 def test_measurements_give_residuals_against_the_latest_pose(plant, pipeline):
     output = pipeline.on_joint_state(all_cables(1.0, [20.3, 20.1, 20.5, 20.2], efforts=[6000.0, 49000.0, 0.0, 43000.0]))
     channels = dict(zip(output.residuals.channels, output.residuals.values))
     assert channels["tension_cable_1"] == pytest.approx(6000.0 - output.solution.tensions[0])
-    depth = pipeline.on_position(1.02, np.array([np.nan, np.nan, -25.0]))
+    depth = pipeline.on_measurement("/platform/position", 1.02, point(np.nan, np.nan, -25.0))
     assert depth.channels == ("depth",)
     assert depth.values[0] == pytest.approx(-25.0 - output.solution.position[2])
-    imu = pipeline.on_imu(1.03, np.array([0.0, 0.0, 0.0, 1.0]))
+    imu = pipeline.on_measurement("/platform/imu", 1.03, orientation(0.0, 0.0, 0.0, 1.0))
     assert set(imu.channels) == {"roll", "pitch"}
-    assert pipeline.on_imu(5.0, np.array([0.0, 0.0, 0.0, 1.0])) is None
+    assert pipeline.on_measurement("/platform/imu", 5.0, orientation(0.0, 0.0, 0.0, 1.0)) is None
     assert "staleness" in pipeline.stats.last_rejection

@@ -16,7 +16,7 @@ from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
 from cable_winch_monitor.monitor.clearance import solution_clearance
-from cable_winch_monitor.monitor.fields import STATUS_NUMBERS
+from cable_winch_monitor.bagio.fields import STATUS_NUMBERS
 from cable_winch_monitor.nodes.winch_monitor import NODE_NAME, PARAMETERS
 from cable_winch_monitor.seed002 import TABLE_1
 from ros_harness import PARAMS_FILE, ROOT, LiveNode, stamped

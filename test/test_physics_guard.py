@@ -34,7 +34,7 @@ def test_a_batch_refuses_the_absurd_rows_and_solves_the_others(plant):
 def test_the_guard_turns_a_solution_that_does_not_balance_into_a_failure(plant):
     good = solve_energy(plant, [20.3, 20.1, 20.5, 20.2])
     unbalanced = replace(good, tensions=good.tensions * 1.01)
-    guarded = guarded_solve("energy", good.lengths, lambda _: unbalanced, plant)
+    guarded = guarded_solve("energy", good.lengths, lambda _: unbalanced, plant=plant)
     assert guarded.status is SolveStatus.SOLVER_FAILED
     assert "fails the physics check (force residual 0.01 mg" in guarded.message
     assert physics_guard(plant, good) is good

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..model.result import Solution
-from .data import CHANNELS, Dataset
+from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
 
 THRESHOLD = 3.0    # [sigma]
@@ -50,7 +50,7 @@ def compare(model: PlantModel, data: Dataset) -> Comparison:
     evaluator = Evaluator(data)
     predicted = evaluator.predicted(model)
     result = Comparison(data.bag, model, data, predicted, sigma, source, evaluator.solutions(model))
-    result.channels = channel_stats(result.residuals, data.measured, sigma)
+    result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
     result.score = score(result.residuals, data.measured, sigma)
     result.regions = failure_regions(result)
     return result
@@ -64,7 +64,7 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
     states = Counter(c.solutions[k].tension_state for k in rows)
     z = c.residuals[rows] / c.noise
     misses = []
-    for ch, name in enumerate(CHANNELS):
+    for ch, name in enumerate(data.channels):
         hits = exceed[:, ch]
         if hits.any():
             sign = "above" if np.nanmean(z[hits, ch]) > 0 else "below"

@@ -2,110 +2,139 @@
 
 Every measurement message is one row: a winch message (load-pin tensions) at its stamp
 with the four lengths merged as the monitor merges them (carried to the stamp with the
-payout speed), an inclinometer (roll, pitch) or depth-gauge message at its stamp with
-the lengths and speeds interpolated between the neighbouring winch samples. Rows are in
-time order, so solves can be warm-started along the trajectory.
+payout speed), any other channel's message (inclinometer, depth gauge, a declared sensor)
+at its stamp with the lengths, speeds and accelerations interpolated between the
+neighbouring winch samples. Each row also carries its conditions (channels and effects
+see the same ones live): speeds and accelerations differentiated over a centred window
+(model.conditions), the direction of motion, and the extra inputs the plant's effects
+declare, interpolated to the row's stamp. Rows are in time order, so solves can be
+warm-started along the trajectory.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..bagio.reader import BagReader
-from ..effects import Conditions
-from ..effects.sheave import motion_direction
-from ..monitor import fields
-from ..monitor.fields import IMU, INPUT_TOPICS, JOINT_STATE
+from .. import channels
+from ..bagio import fields
+from ..bagio.reader import BagError, BagReader
+from ..channels import JOINT_STATE, Input
+from ..model.conditions import Conditions, derivatives, directions
 from ..monitor.inputs import CableLengthMerger
-from ..monitor.residuals import TENSION_CHANNELS, imu_channels
 
-CHANNELS = TENSION_CHANNELS + ("roll", "pitch", "depth")
-NOISE_KEYS = {channel: ("tension" if channel.startswith("tension_") else channel) for channel in CHANNELS}
-KINDS = ("joint", "imu", "position")
-MAX_GAP = 0.5  # [s] an inclinometer or depth sample further than this from a winch sample has no lengths
+WINCH = "winches"  # the source of the winch rows (any joint-state topic)
+MAX_GAP = 0.5  # [s] a sensor sample further than this from a winch sample has no lengths
 
 
 @dataclass
 class Dataset:
-    """Rows of measurements: time [s], kind (index into KINDS), reported lengths (n, 4), payout speeds
-    (n, 4), measured channels (n, len(CHANNELS)), NaN where a row does not measure a channel."""
+    """Rows of measurements: time [s], source (index into `sources`: the winches, then each sensor
+    topic), reported lengths (n, 4), payout speeds and accelerations (n, 4), measured channels
+    (n, len(channels)) with NaN where a row does not measure a channel, and the extra inputs (n,)."""
 
     bag: str
     times: np.ndarray
     kinds: np.ndarray
     lengths: np.ndarray
     speeds: np.ndarray
+    accelerations: np.ndarray
     measured: np.ndarray
+    channels: tuple[str, ...] = field(default_factory=channels.names)
+    sources: tuple[str, ...] = (WINCH,)
+    inputs: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.times)
 
     @property
     def directions(self) -> np.ndarray:
-        """Direction of motion of each winch at each row, held through stops (see effects.sheave)."""
-        out, current = np.zeros_like(self.speeds), np.zeros(4)
-        for k, speeds in enumerate(self.speeds):
-            current = out[k] = motion_direction(speeds, current)
-        return out
+        """Direction of motion of each winch at each row, held through stops (model.conditions)."""
+        return directions(self.speeds)
 
     def conditions(self) -> list[Conditions]:
-        return [Conditions(s, d) for s, d in zip(self.speeds, self.directions)]
+        keys = list(self.inputs)
+        values = np.column_stack([self.inputs[k] for k in keys]) if keys else np.zeros((len(self), 0))
+        return [Conditions(t, s, a, d, dict(zip(keys, v.tolist())))
+                for t, s, a, d, v in zip(self.times.tolist(), self.speeds, self.accelerations, self.directions, values)]
 
     def subset(self, rows: np.ndarray) -> "Dataset":
         return Dataset(self.bag, self.times[rows], self.kinds[rows], self.lengths[rows], self.speeds[rows],
-                       self.measured[rows])
+                       self.accelerations[rows], self.measured[rows], self.channels, self.sources,
+                       {k: v[rows] for k, v in self.inputs.items()})
 
 
-def read_bag(bag: str | Path) -> Dataset:
-    """Every usable measurement of a bag as a Dataset (BagError if it is not a bag)."""
+def read_bag(bag: str | Path, inputs: tuple[Input, ...] = ()) -> Dataset:
+    """Every usable measurement of a bag as a Dataset, with the extra `inputs` the plant's effects read
+    (BagError if it is not a bag, or lacks an input's topic)."""
+    names = channels.names()
+    column = {name: k for k, name in enumerate(names)}
+    tension_columns = [column[name] for name in channels.TENSION_CHANNELS]
+    sensor_topics = [t for t, kind in channels.topic_types().items() if kind != JOINT_STATE]
     merger = CableLengthMerger(staleness=MAX_GAP)
     joints: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
     others: list[tuple[float, int, np.ndarray]] = []
-    for item in BagReader(bag, INPUT_TOPICS):
+    series: dict[str, list[tuple[float, float]]] = {spec.key: [] for spec in inputs}
+    by_topic = {spec.topic: [s for s in inputs if s.topic == spec.topic] for spec in inputs}
+    for item in BagReader(bag, fields.input_topics(inputs)):
         msg = item.message
-        stamp = fields.seconds(msg.header.stamp)
+        stamp = fields.message_seconds(msg, item.log_time)
+        for spec in by_topic.get(item.topic, ()):
+            series[spec.key].append((stamp, spec.read(msg)))
         if item.msgtype == JOINT_STATE:
             merged = merger.add(fields.joint_sample(msg, item.topic))
             lengths, _ = merger.complete(stamp)
             if merged.rejected or lengths is None:
                 continue
             tensions = merger.measured_tensions()
-            row = np.full(len(CHANNELS), np.nan)
-            row[merged.accepted] = tensions[merged.accepted]
-            speeds = np.array([r.velocity for r in merger.readings])
-            joints.append((stamp, lengths, speeds, row))
-        elif item.msgtype == IMU:
-            values = imu_channels(fields.imu_quaternion(msg))
-            others.append((stamp, 1, np.array([np.nan] * 4 + [values["roll"], values["pitch"], np.nan])))
-        else:
-            others.append((stamp, 2, np.array([np.nan] * 6 + [fields.point_xyz(msg)[2]])))
-    return _dataset(str(bag), joints, others)
+            row = np.full(len(names), np.nan)
+            row[[tension_columns[i] for i in merged.accepted]] = tensions[merged.accepted]
+            joints.append((stamp, lengths, np.array([r.velocity for r in merger.readings]), row))
+        elif item.topic in sensor_topics:
+            row = np.full(len(names), np.nan)
+            for channel in channels.on_topic(item.topic):
+                row[column[channel.name]] = channel.read(msg)
+            if np.isfinite(row).any():
+                others.append((stamp, 1 + sensor_topics.index(item.topic), row))
+    data = _dataset(str(bag), joints, others, names, (WINCH, *sensor_topics))
+    for spec in inputs:
+        points = np.array([p for p in series[spec.key] if np.isfinite(p[1])]).reshape(-1, 2)
+        if not len(points):
+            raise BagError(f"{bag}: the plant's effects read {spec.key} ({spec.msgtype}), which the bag does not "
+                           "have: record that topic, or switch the effect off")
+        points = points[np.argsort(points[:, 0], kind="stable")]
+        data.inputs[spec.key] = np.interp(data.times, points[:, 0], points[:, 1])
+    return data
 
 
-def _dataset(bag: str, joints: list, others: list) -> Dataset:
+def _dataset(bag: str, joints: list, others: list, names: tuple[str, ...], sources: tuple[str, ...]) -> Dataset:
     joints.sort(key=lambda j: j[0])
     times = np.array([j[0] for j in joints])
     lengths = np.array([j[1] for j in joints]).reshape(-1, 4)
-    speeds = np.array([j[2] for j in joints]).reshape(-1, 4)
-    rows_t, rows_kind, rows_l, rows_v, rows_m = [times], [np.zeros(len(times), int)], [lengths], [speeds], \
-        [np.array([j[3] for j in joints]).reshape(-1, len(CHANNELS))]
+    speeds, accelerations = derivatives(times, lengths, np.array([j[2] for j in joints]).reshape(-1, 4))
+    rows_t, rows_kind, rows_l, rows_v, rows_a = [times], [np.zeros(len(times), int)], [lengths], [speeds], \
+        [accelerations]
+    rows_m = [np.array([j[3] for j in joints]).reshape(-1, len(names))]
     if others and len(times):
         t = np.array([o[0] for o in others])
         nearest = np.abs(times[np.clip(np.searchsorted(times, t), 0, len(times) - 1)] - t)
         before = np.abs(times[np.clip(np.searchsorted(times, t) - 1, 0, len(times) - 1)] - t)
         keep = (np.minimum(nearest, before) <= MAX_GAP) & (t >= times[0]) & (t <= times[-1])
-        keep &= np.array([np.isfinite(o[2]).any() for o in others])
         t = t[keep]
         kept = [o for o, k in zip(others, keep) if k]
+
+        def interpolated(values: np.ndarray) -> np.ndarray:
+            return np.column_stack([np.interp(t, times, values[:, i]) for i in range(4)]).reshape(-1, 4)
+
         rows_t.append(t)
         rows_kind.append(np.array([o[1] for o in kept], int))
-        rows_l.append(np.column_stack([np.interp(t, times, lengths[:, i]) for i in range(4)]).reshape(-1, 4))
-        rows_v.append(np.column_stack([np.interp(t, times, np.nan_to_num(speeds[:, i])) for i in range(4)])
-                      .reshape(-1, 4))
-        rows_m.append(np.array([o[2] for o in kept]).reshape(-1, len(CHANNELS)))
+        rows_l.append(interpolated(lengths))
+        rows_v.append(interpolated(speeds))
+        rows_a.append(interpolated(accelerations))
+        rows_m.append(np.array([o[2] for o in kept]).reshape(-1, len(names)))
     all_t = np.concatenate(rows_t)
     order = np.argsort(all_t, kind="stable")
     return Dataset(bag, all_t[order], np.concatenate(rows_kind)[order], np.concatenate(rows_l)[order],
-                   np.concatenate(rows_v)[order], np.concatenate(rows_m)[order])
+                   np.concatenate(rows_v)[order], np.concatenate(rows_a)[order], np.concatenate(rows_m)[order],
+                   names, sources)

@@ -133,7 +133,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
         ladder.append(Step(best.name, float(np.sqrt(final.chi2 / max(final.count, 1))), score_now, final.bic))
     for candidate in ranking:
         candidate.selected = candidate.name in [step.added for step in ladder]
-    channels = channel_stats(held.residuals(base), held.data.measured, noise)
+    channels = channel_stats(held.residuals(base), held.data.measured, noise, held.data.channels)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
                      screen.solves + train.solves + held.solves, channels)
 
@@ -142,6 +142,6 @@ def diagnose_bag(bag: str | Path, plant: Plant | None = None,
                  candidates: list[str] | None = None) -> tuple[Diagnosis, Dataset]:
     """Read a bag and diagnose it against a plant (the bundled one by default), its effects included;
     the diagnosis and the bag's measurements."""
-    data = read_bag(bag)
     model = PlantModel.from_plant(plant or load_plant())
+    data = read_bag(bag, model.inputs)
     return diagnose(model, data, noise(model.plant, data)[0], candidates), data

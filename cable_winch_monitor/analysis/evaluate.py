@@ -14,8 +14,8 @@ import numpy as np
 from ..effects import PlantModel
 from ..model.plant import Plant
 from ..model.result import Solution
-from ..monitor.residuals import noise_levels
-from .data import CHANNELS, KINDS, NOISE_KEYS, Dataset
+from .. import channels
+from .data import Dataset
 
 FAILED_PENALTY = 30.0  # [sigma] residual of a measured channel whose row the model cannot solve
 BLOCKS = 20            # the bag is cut into this many blocks in time for the train / held-out split
@@ -41,27 +41,28 @@ class Evaluator:
         previous: Solution | None = None
         for k, lengths in enumerate(self.data.lengths):
             warm = self._warm[k] if self._warm[k] is not None else previous
-            solution = model.solve(lengths, warm)
+            solution = model.solve(lengths, warm, self.conditions[k])
             if not solution.ok and warm is not None:  # a warm start across a kink can fail: retry cold
-                solution = model.solve(lengths)
+                solution = model.solve(lengths, None, self.conditions[k])
             self.solves += 1
             if solution.ok:
                 self._warm[k] = previous = solution
             out.append(solution)
         for k in range(len(out) - 2, -1, -1):  # a failed cold start may succeed from the next row's solution
             if not out[k].ok and out[k + 1].ok:
-                out[k] = model.solve(self.data.lengths[k], out[k + 1])
+                out[k] = model.solve(self.data.lengths[k], out[k + 1], self.conditions[k])
                 self._warm[k] = out[k] if out[k].ok else None
         self._cached = (key, out)
         return out
 
     def predicted(self, model: PlantModel) -> np.ndarray:
         """(rows, channels) of what the model says each sensor reads (NaN where the solve failed)."""
-        out = np.full((len(self.data), len(CHANNELS)), np.nan)
+        names = self.data.channels
+        out = np.full((len(self.data), len(names)), np.nan)
         for k, (solution, conditions) in enumerate(zip(self.solutions(model), self.conditions)):
             if solution.ok:
-                channels = model.predict(solution, conditions)
-                out[k] = [channels[c] for c in CHANNELS]
+                predicted = model.predict(solution, conditions)
+                out[k] = [predicted[c] for c in names]
         return out
 
     def residuals(self, model: PlantModel) -> np.ndarray:
@@ -101,10 +102,11 @@ class ChannelStats:
                 "count": self.count, "unsolved": self.failed}
 
 
-def channel_stats(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray) -> dict[str, ChannelStats]:
-    """RMS, largest error and noise-normalised RMS of every measured channel."""
+def channel_stats(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray,
+                  names: tuple[str, ...]) -> dict[str, ChannelStats]:
+    """RMS, largest error and noise-normalised RMS of every measured channel (columns named `names`)."""
     out = {}
-    for c, name in enumerate(CHANNELS):
+    for c, name in enumerate(names):
         seen = np.isfinite(measured[:, c])
         if not seen.any():
             continue
@@ -120,10 +122,9 @@ def channel_stats(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray
 def noise(plant: Plant, data: Dataset) -> tuple[np.ndarray, dict[str, str]]:
     """1-sigma noise of each channel and where it came from: the plant file's `noise:` section, or an
     estimate from the data (second differences of consecutive samples, robust: 1.4826 MAD / sqrt 6)."""
-    levels = noise_levels(plant)
-    sigma, source = np.full(len(CHANNELS), np.nan), {}
-    for c, name in enumerate(CHANNELS):
-        value = levels.get(NOISE_KEYS[name], np.nan)
+    sigma, source = np.full(len(data.channels), np.nan), {}
+    for c, name in enumerate(data.channels):
+        value = plant.noise.get(channels.get(name).noise_key, np.nan)
         if np.isfinite(value) and value > 0.0:
             sigma[c], source[name] = value, "plant file"
             continue
@@ -145,9 +146,9 @@ def split(data: Dataset) -> tuple[np.ndarray, np.ndarray]:
 
 
 def thin(rows: np.ndarray, kinds: np.ndarray, per_kind: int) -> np.ndarray:
-    """At most `per_kind` rows of each kind (winch, inclinometer, depth gauge), evenly spread in time."""
+    """At most `per_kind` rows of each kind (winches, each sensor topic), evenly spread in time."""
     kept = []
-    for kind in range(len(KINDS)):
+    for kind in np.unique(kinds[rows]):
         mine = rows[kinds[rows] == kind]
         if mine.size > per_kind:
             mine = mine[np.linspace(0, mine.size - 1, per_kind).round().astype(int)]

@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 from .compare import THRESHOLD, Comparison
-from .data import CHANNELS
 from .svg import scatter
 
 STYLE = ("body{font-family:sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse;margin:.5em 0}"
@@ -43,7 +42,7 @@ def render(c: Comparison) -> str:
                    for n, s in c.channels.items())
     regions = "".join(f"<li>{escape(r['description'])}</li>" for r in c.regions) or "<li>none</li>"
     effects = ", ".join(escape(repr(e)) for e in c.model.effects) or "none (rigid ropes)"
-    plots = "".join(_channel_plots(c, CHANNELS.index(name), name) for name in c.channels)
+    plots = "".join(_channel_plots(c, c.data.channels.index(name), name) for name in c.channels)
     return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>compare: "
             f"{escape(c.bag)}</title><style>{STYLE}</style></head><body>"
             f"<h1>Model versus measurement</h1><p>bag {escape(c.bag)}: {len(c.data)} measurement samples; "

@@ -37,7 +37,7 @@ class FitReport:
 
 def _scores(model: PlantModel, evaluator: Evaluator, sigma: np.ndarray) -> PartScores:
     residuals = evaluator.residuals(model)
-    return PartScores(channel_stats(residuals, evaluator.data.measured, sigma),
+    return PartScores(channel_stats(residuals, evaluator.data.measured, sigma, evaluator.data.channels),
                       score(residuals, evaluator.data.measured, sigma))
 
 

@@ -1,9 +1,9 @@
-"""The monitor's outputs as CDR bytes, and messages of the type store, from the plain field values of monitor.fields.
+"""The monitor's outputs as CDR bytes, and messages of the type store, from the plain field values of bagio.fields.
 
 `build` turns any nested mapping of field values into a message of the type store, and
 the output records are those mappings encoded straight to the bytes that serialising
 the built message gives (bagio.cdr). This module holds no field mapping of its own:
-that lives in monitor/fields.py, shared with the live node.
+that lives in bagio/fields.py, shared with the live node.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from ..monitor import fields
+from . import fields
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from .cdr import encoder

@@ -24,7 +24,7 @@ from ..fleet import find_bags, replay_job, run_fleet
 from ..model.batched import solve_batch
 from ..model.plant import Plant, load_plant
 from ..model.solve import solve
-from ..monitor.fields import INPUT_TOPICS
+from ..bagio.fields import input_topics
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
 from .replay_throughput import replay_child
@@ -37,7 +37,7 @@ REPLAY_RUNS = 3
 def write_copies(source: Path, out: Path, megabytes: float) -> int:
     """A bag of about `megabytes` MiB at `out`: the input messages of `source` repeated, each copy's
     header stamps and log times shifted past the previous copy's. Returns the number of copies."""
-    messages = [(m.topic, m.msgtype, m.log_time, m.data) for m in BagReader(source, INPUT_TOPICS)]
+    messages = [(m.topic, m.msgtype, m.log_time, m.data) for m in BagReader(source, input_topics())]
     size = sum(f.stat().st_size for f in source.glob("*.mcap"))
     copies = max(1, math.ceil(megabytes * 2 ** 20 / size))
     shift = math.ceil((messages[-1][2] - messages[0][2]) / 1e9) + 1  # [s]

@@ -7,24 +7,31 @@ An effect acts on one part of the model (`acts`):
 * ``geometry`` -- the mechanism (encoder lengths to true lengths, anchors, centre of
   gravity, mass): it edits the plant or the lengths before the solve, or, where the
   geometry depends on the pose (a sheave's tangent point), refines them after it;
+* ``load`` -- the external wrench on the platform (gravity by default): inertia when the
+  winches accelerate, a side pull;
 * ``measurement`` -- what a sensor reads for a given equilibrium (load-pin friction,
   sensor calibration): it edits the predicted channels only, so fitting it needs no
   new solves.
 
-Hooks default to "no change"; an effect overrides the ones it needs. Parameters with
+Hooks default to "no change"; an effect overrides the ones it needs. The hooks that run
+per sample see its `Conditions` (time, payout speeds and accelerations, direction of
+motion, extra inputs): an effect that reads a topic declares it in `inputs`
+(channels.Input) and finds its value in `conditions.inputs[input.key]`. Parameters with
 ``fit=False`` are settings (a wrap angle, a sensor span), written in YAML but not fitted.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
+from ..channels import Input
+from ..model.conditions import Conditions
 from ..model.plant import Plant
 from ..model.result import Solution
 
-ACTS = ("rope_law", "geometry", "measurement")
+ACTS = ("rope_law", "geometry", "load", "measurement")
 
 
 class EffectError(ValueError):
@@ -52,19 +59,6 @@ class RopeLaw:
     weight: float = 0.0
 
 
-@dataclass(frozen=True)
-class Conditions:
-    """Operating conditions of one sample that measurement effects may need.
-
-    speeds     payout speed of each winch [m/s] (NaN where not reported)
-    direction  +1 paying out (lowering), -1 hauling in (hoisting), 0 not yet moved;
-               held through stops (see effects.sheave.motion_direction)
-    """
-
-    speeds: np.ndarray = field(default_factory=lambda: np.full(4, np.nan))
-    direction: np.ndarray = field(default_factory=lambda: np.zeros(4))
-
-
 class Effect:
     """Base class of a physical effect; a subclass sets the class attributes and its hooks."""
 
@@ -75,6 +69,7 @@ class Effect:
     signature: ClassVar[str] = ""     # the residual pattern it leaves when missing from the model
     source: ClassVar[str] = ""        # seed or reference of the formula
     order: ClassVar[int] = 50         # measurement effects apply in this order (physics before sensors)
+    inputs: ClassVar[tuple[Input, ...]] = ()  # extra topics the effect reads (their values in Conditions.inputs)
 
     def __init__(self, values: Mapping[str, Any] | None = None):
         values = dict(values or {})
@@ -119,9 +114,18 @@ class Effect:
         """geometry: the plant as it really is (centre of gravity, mass, anchors)."""
         return plant
 
-    def lengths(self, lengths: np.ndarray) -> np.ndarray:
+    def lengths(self, lengths: np.ndarray, conditions: Conditions) -> np.ndarray:
         """geometry: the true unstretched rope lengths for the lengths the winches report."""
         return lengths
+
+    def load(self, wrench: np.ndarray, plant: Plant, conditions: Conditions) -> np.ndarray:
+        """load: the external wrench on the platform (force [N], moment about C [N m], shaft frame)."""
+        return wrench
+
+    def input_value(self, conditions: Conditions, name: str) -> float:
+        """The value of the declared input `name` at this sample (NaN if the sample has none)."""
+        spec = next(i for i in self.inputs if i.name == name)
+        return float(conditions.inputs.get(spec.key, np.nan))
 
     def refine(self, plant: Plant, lengths: np.ndarray, solution: Solution) -> tuple[Plant, np.ndarray] | None:
         """geometry that depends on the pose: plant and lengths for the next solve (None: no such effect)."""

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.conditions import Conditions
 from .base import Effect, Parameter
 
 
@@ -26,7 +27,7 @@ class EncoderScale(Effect):
     signature = "tilt, depth and tension share drift in proportion to the payout"
     source = "drum kinematics: payout = drum angle * effective radius"
 
-    def lengths(self, lengths: np.ndarray) -> np.ndarray:
+    def lengths(self, lengths: np.ndarray, conditions: Conditions) -> np.ndarray:
         return lengths * (1.0 + np.array([self[f"k_{i}"] for i in range(1, 5)]))
 
 
@@ -44,5 +45,5 @@ class EncoderOffset(Effect):
     signature = "constant tilt, depth and tension-share errors at every payout"
     source = "encoder zeroing"
 
-    def lengths(self, lengths: np.ndarray) -> np.ndarray:
+    def lengths(self, lengths: np.ndarray, conditions: Conditions) -> np.ndarray:
         return lengths + np.array([self[f"d_{i}"] for i in range(1, 5)])

@@ -1,11 +1,14 @@
-"""A plant with its enabled physical effects: the equilibrium for reported lengths, and what sensors read.
+"""A plant with its enabled physical effects: the one solve path of the package.
 
 `PlantModel.solve` turns encoder lengths into true lengths (geometry effects), builds the
-rope law (rope-law effects) and solves with the matching solver -- the rigid energy
-solver, or the elastic one with EA and the rope's own-weight stretch -- then refines
+load on the platform (gravity, then load effects) and the rope law (rope-law effects),
+and solves with the matching solver -- the rigid one chosen (energy, or seed 002's
+traversal), or the elastic one with EA and the rope's own-weight stretch -- then refines
 pose-dependent geometry (sheave tangent points) by fixed-point iteration.
-`PlantModel.predict` gives the sensor readings for a solved state (measurement effects).
-A model without effects is exactly the monitor's rigid model.
+`PlantModel.predict` gives every declared channel's reading for a solved state
+(channels.predicted, then measurement effects). The live node, replay, the analysis,
+`limits`, the command check and the wall clearance all go through this object; a model
+without effects is exactly the monitor's rigid model.
 """
 from __future__ import annotations
 
@@ -16,16 +19,19 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from .. import channels
+from ..channels import Input
+from ..model.conditions import Conditions
 from ..model.elastic import solve_elastic
 from ..model.plant import Plant, PlantConfigError
-from ..model.result import Solution
-from ..model.solve import solve
-from ..monitor.residuals import predicted_channels
-from .base import Conditions, Effect, EffectError, RopeLaw
+from ..model.result import Solution, SolveStatus, failed
+from ..model.solve import METHODS, solve
+from .base import Effect, EffectError, RopeLaw
 from .registry import effect_class, load_module
 
 REFINE_STEPS = 6
 REFINE_TOL = 1e-7  # [m] pose change at which the pose-dependent geometry has settled
+NO_CONDITIONS = Conditions()
 
 
 def _overrides(cls: type[Effect], hook: str) -> bool:
@@ -55,19 +61,27 @@ def effects_from_mapping(section: Any, where: str) -> list[Effect]:
 
 @dataclass(frozen=True)
 class PlantModel:
-    """The nominal plant and its enabled effects (at most one of each name)."""
+    """The nominal plant, its enabled effects (at most one of each name) and the rigid-rope solver."""
 
     plant: Plant
     effects: tuple[Effect, ...] = field(default=())
+    solver: str = "energy"
+
+    def __post_init__(self) -> None:
+        if self.solver not in METHODS:
+            raise EffectError(f"unknown solver {self.solver!r}; use one of {', '.join(METHODS)}")
+        if self.solver != "energy" and self.rope_law.EA is not None:
+            elastic = ", ".join(e.name for e in self.effects if e.rope(RopeLaw()).EA is not None)
+            raise EffectError(f"solver '{self.solver}' is for rigid ropes, but the plant's effects ({elastic}) make "
+                              "them elastic: use the energy solver")
 
     @classmethod
-    def from_plant(cls, plant: Plant) -> "PlantModel":
+    def from_plant(cls, plant: Plant, solver: str = "energy") -> "PlantModel":
         """The effects the plant file switches on (`plant.effects`, user modules in `plant.effect_modules`)."""
-        section = plant.raw.get("plant", {}) if isinstance(plant.raw, Mapping) else {}
         try:
-            for path in section.get("effect_modules", []) or []:
+            for path in plant.effect_modules:
                 load_module(path)
-            return cls(plant, tuple(effects_from_mapping(section.get("effects"), "plant.effects")))
+            return cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects")), solver)
         except EffectError as error:
             raise PlantConfigError(f"plant file: {error}") from None
 
@@ -81,7 +95,7 @@ class PlantModel:
         """Add or replace effects by name."""
         replaced = {e.name: e for e in effects}
         kept = [replaced.pop(e.name, e) for e in self.effects]
-        return PlantModel(self.plant, tuple(kept + list(replaced.values())))
+        return PlantModel(self.plant, tuple(kept + list(replaced.values())), self.solver)
 
     @cached_property
     def physical(self) -> Plant:
@@ -106,51 +120,78 @@ class PlantModel:
     def _measurers(self) -> tuple[Effect, ...]:
         return tuple(sorted((e for e in self.effects if _overrides(type(e), "measure")), key=lambda e: e.order))
 
+    @cached_property
+    def _loaders(self) -> tuple[Effect, ...]:
+        return tuple(e for e in self.effects if _overrides(type(e), "load"))
+
+    @cached_property
+    def inputs(self) -> tuple[Input, ...]:
+        """The extra inputs the effects read (each once)."""
+        return tuple({i.key: i for e in self.effects for i in e.inputs}.values())
+
+    @property
+    def plain(self) -> bool:
+        """No effect at all: the rigid model, which the batched solver serves."""
+        return not self.effects
+
     def solve_key(self) -> tuple:
-        """Everything a solve depends on: two models with equal keys have the same equilibria."""
+        """Everything a solve depends on besides the sample: two models with equal keys have the same equilibria."""
         law = self.rope_law
         geometry = tuple((e.name, tuple(e.values.items())) for e in self.effects
-                         if any(_overrides(type(e), hook) for hook in ("plant", "lengths", "refine")))
-        return law.EA, law.weight if law.EA is not None else 0.0, geometry
+                         if any(_overrides(type(e), hook) for hook in ("plant", "lengths", "refine", "load")))
+        return law.EA, law.weight if law.EA is not None else 0.0, geometry, self.solver
 
-    def true_lengths(self, reported: np.ndarray) -> np.ndarray:
+    def true_lengths(self, reported: np.ndarray, conditions: Conditions = NO_CONDITIONS) -> np.ndarray:
         lengths = np.asarray(reported, dtype=float)
         for effect in self.effects:
-            lengths = effect.lengths(lengths)
+            lengths = effect.lengths(lengths, conditions)
         return lengths
 
-    def _solve_once(self, plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> Solution:
+    def load(self, conditions: Conditions = NO_CONDITIONS) -> np.ndarray:
+        """The external wrench on the platform at these conditions: gravity, then the load effects."""
+        wrench = self.physical.wrench
+        for effect in self._loaders:
+            wrench = effect.load(wrench, self.physical, conditions)
+        return wrench
+
+    def _solve_once(self, plant: Plant, lengths: np.ndarray, warm_start: Solution | None,
+                    load: np.ndarray) -> Solution:
         law = self.rope_law
         if law.EA is None:
-            return solve(plant, lengths, "energy", warm_start=warm_start)
+            return solve(plant, lengths, self.solver, warm_start=warm_start, load=load)
         own_weight_stretch = law.weight * lengths ** 2 / (2.0 * law.EA)
-        return solve_elastic(plant, lengths + own_weight_stretch, law.EA, warm_start=warm_start)
+        return solve_elastic(plant, lengths + own_weight_stretch, law.EA, warm_start=warm_start, load=load)
 
-    def solve(self, reported: object, warm_start: Solution | None = None) -> Solution:
-        """Equilibrium for the lengths the winches report; never raises (see model.result)."""
+    def solve(self, reported: object, warm_start: Solution | None = None,
+              conditions: Conditions = NO_CONDITIONS) -> Solution:
+        """Equilibrium for the lengths the winches report at these conditions; never raises (model.result)."""
         try:
-            lengths = self.true_lengths(np.asarray(reported, dtype=float))
-        except (TypeError, ValueError):
-            lengths = reported  # the solver's input check reports what is wrong
-        solution = self._solve_once(self.physical, lengths, warm_start)
+            lengths = self.true_lengths(np.asarray(reported, dtype=float), conditions)
+            load = self.load(conditions)
+        except (TypeError, ValueError) as error:
+            if np.shape(reported) == (4,):  # a reported length is not a number: the solver says which
+                lengths, load = reported, self.physical.wrench
+            else:
+                return failed(SolveStatus.INVALID_INPUT, f"cannot apply the plant's effects: {error}",
+                              self.solver, np.full(4, np.nan))
+        solution = self._solve_once(self.physical, lengths, warm_start, load)
         for _ in range(REFINE_STEPS if self._refiners else 0):
             if not solution.ok:
                 break
             plant, refined = self.physical, lengths
             for effect in self._refiners:
                 plant, refined = effect.refine(plant, refined, solution)
-            previous, solution = solution, self._solve_once(plant, refined, solution)
+            previous, solution = solution, self._solve_once(plant, refined, solution, load)
             if solution.ok and np.abs(solution.points_b - previous.points_b).max() < REFINE_TOL:
                 break
         return solution
 
-    def predict(self, solution: Solution, conditions: Conditions | None = None) -> dict[str, float]:
-        """What each sensor reads for a solved state: the rigid-model channels, then measurement effects."""
-        channels = predicted_channels(solution)
-        conditions = conditions or Conditions()
+    def predict(self, solution: Solution, conditions: Conditions = NO_CONDITIONS) -> dict[str, float]:
+        """What every declared channel reads for a solved state: the plain model, then measurement effects."""
+        predicted = channels.predicted(solution, self.physical, conditions)
         for effect in self._measurers:
-            effect.measure(channels, solution, self.physical, conditions)
-        return channels
+            effect.measure(predicted, solution, self.physical, conditions)
+        return predicted
 
     def effects_config(self) -> dict[str, dict[str, Any]]:
         """The `effects:` section of a plant file with these effects on."""

@@ -5,7 +5,7 @@ import numpy as np
 
 from ..model.plant import Plant
 from ..model.result import Solution
-from ..monitor.residuals import TENSION_CHANNELS
+from ..channels import TENSION_CHANNELS
 from .base import Conditions, Effect, Parameter
 
 MAX_BENDING = 0.5  # 3 sqrt(B/T)/l beyond this the sensor is outside its range: reading capped at 2 T

@@ -3,19 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.conditions import Conditions
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
-from .base import Conditions, Effect, Parameter
+from .base import Effect, Parameter
 
-DEADBAND = 0.02  # [m/s] slower payout counts as standing still (encoder speed noise is ~2 mm/s)
 MIN_SHARE = 0.05  # fraction of samples needed in each direction of motion to identify friction
-
-
-def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """+1 paying out, -1 hauling in; within the dead band the last direction holds (static friction
-    keeps the slip state the rope had when it stopped)."""
-    speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
-    return np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, previous))
 
 
 def radial_planes(plant: Plant) -> np.ndarray:

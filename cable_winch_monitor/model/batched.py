@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import load as loads_
 from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTON_TOL, SLACK_TOL, TENSION_TOL, \
     solve_energy
 from .geometry import skew
@@ -24,7 +25,6 @@ from .plant import Plant
 from .result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
 
 CHUNK = 1024              # samples solved together from one warm start
-EZ = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass
@@ -37,6 +37,7 @@ class BatchSolution:
 
     plant: Plant
     lengths: np.ndarray                 # (N, 4) [m]
+    loads: np.ndarray                   # (N, 6) external wrench of each sample (model.load)
     status: np.ndarray                  # (N,) SolveStatus values
     taut: np.ndarray                    # (N, 4) bool
     tensions: np.ndarray                # (N, 4) [N]
@@ -57,7 +58,7 @@ class BatchSolution:
         if i in self.fallback:
             return self.fallback[i]
         return solved(self.plant, METHOD, self.lengths[i], self.rotation[i], self.position[i], self.tensions[i],
-                      self.taut[i], int(self.iterations[i]))
+                      self.taut[i], int(self.iterations[i]), load=self.loads[i])
 
     def solutions(self) -> list[Solution]:
         """Every sample as a `Solution`; the solved rows are filled in together (`solved_rows`)."""
@@ -65,22 +66,25 @@ class BatchSolution:
         out = dict(self.fallback)
         out.update(zip(rows.tolist(), solved_rows(self.plant, METHOD, self.lengths[rows], self.rotation[rows],
                                                   self.position[rows], self.tensions[rows], self.taut[rows],
-                                                  self.iterations[rows])))
+                                                  self.iterations[rows], loads=self.loads[rows])))
         return [out[i] for i in range(len(self))]
 
 
-def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None = None) -> BatchSolution:
-    """Equilibria for the rows of `lengths` (N, 4), in order along a trajectory; never raises."""
+def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None = None,
+                loads: np.ndarray | None = None) -> BatchSolution:
+    """Equilibria for the rows of `lengths` (N, 4), in order along a trajectory, under `loads` (one
+    wrench per row (N, 6), one for all (6,), or None: gravity); never raises."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     count = len(lengths)
-    out = BatchSolution(plant, lengths, np.full(count, SolveStatus.SOLVER_FAILED.value, dtype=object),
+    out = BatchSolution(plant, lengths, loads_.loads_for(plant, loads, count), np.full(count, SolveStatus.SOLVER_FAILED.value, dtype=object),
                         np.zeros((count, 4), bool), np.full((count, 4), np.nan), np.full((count, 3, 3), np.nan),
                         np.full((count, 3), np.nan), np.zeros(count, int))
     seed = warm_start if warm_start is not None and warm_start.ok else None
     for start in range(0, count, CHUNK):
         rows = np.arange(start, min(start + CHUNK, count))
         valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= plant.max_payout),
-                            axis=1)]
+                            axis=1)
+                     & np.all(np.isfinite(out.loads[rows]), axis=1) & (out.loads[rows, 2] < 0.0)]
         if seed is None and valid.size:
             seed = _fallback(plant, out, int(valid[0]), None)
         if seed is not None and seed.ok:
@@ -100,7 +104,8 @@ def _unsolve_unphysical(plant: Plant, out: BatchSolution, rows: np.ndarray) -> N
     rotation, position = out.rotation[rows], out.position[rows]
     points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
     point_c = position + rotation @ plant.cog
-    check = check_physics_rows(plant, out.lengths[rows], points_b, point_c, out.tensions[rows], out.taut[rows])
+    check = check_physics_rows(plant, out.lengths[rows], points_b, point_c, out.tensions[rows], out.taut[rows],
+                               out.loads[rows])
     out.status[rows[~passing_rows(check)]] = SolveStatus.SOLVER_FAILED.value
 
 
@@ -111,7 +116,7 @@ def _previous(out: BatchSolution, i: int, seed: Solution | None) -> Solution | N
 
 def _fallback(plant: Plant, out: BatchSolution, i: int, warm: Solution | None) -> Solution:
     """Row i by the per-sample solver, recorded in `out`."""
-    solution = solve_energy(plant, out.lengths[i], warm_start=warm)
+    solution = solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i])
     out.fallback[i] = solution
     out.status[i] = solution.status.value
     out.iterations[i] = solution.iterations
@@ -124,7 +129,8 @@ def _fallback(plant: Plant, out: BatchSolution, i: int, warm: Solution | None) -
 
 @dataclass
 class _Group:
-    """Samples being solved on one taut set: pose, multipliers mu = tau / mg, steps."""
+    """Samples being solved on one taut set: pose, multipliers mu = tau / |f| under each sample's
+    load (normalised: `loads` / |f|), steps."""
 
     rows: np.ndarray
     active: np.ndarray   # (4,) bool, the taut set
@@ -132,15 +138,18 @@ class _Group:
     position: np.ndarray
     mu: np.ndarray       # (n, 4)
     steps: np.ndarray
+    loads: np.ndarray    # (n, 6) load / |f|
 
 
 def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:
     """Batched Newton on the rows of one chunk, every taut set from the same start pose (as `energy`)."""
     lengths = out.lengths[rows]
+    scales = np.linalg.norm(out.loads[rows, :3], axis=1)
+    unit_loads = out.loads[rows] / scales[:, None]
     start_rotation = np.broadcast_to(seed.rotation, (rows.size, 3, 3)).copy()
-    start_position = seed.position + np.outer(seed.lengths.mean() - lengths.mean(axis=1), EZ)
+    start_position = seed.position + np.outer(seed.lengths.mean() - lengths.mean(axis=1), [0.0, 0.0, 1.0])
     active = np.broadcast_to(seed.taut, (rows.size, 4)).copy()
-    mu = np.broadcast_to(seed.tensions / plant.weight, (rows.size, 4)).copy()
+    mu = seed.tensions / scales[:, None]
     pending = np.arange(rows.size)
     steps = np.zeros(rows.size, int)
     tried: list[np.ndarray] = []
@@ -150,12 +159,13 @@ def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solut
             local = pending[np.all(active[pending] == pattern, axis=1)]
             if pattern.sum() not in (2, 3):
                 continue  # four taut (nearly singular) or one taut (single-cable test): per sample
-            group = _Group(local, pattern, start_rotation[local], start_position[local], mu[local], steps[local])
+            group = _Group(local, pattern, start_rotation[local], start_position[local], mu[local], steps[local],
+                           unit_loads[local])
             converged = _newton(plant, lengths[local], group)
             steps[local] = group.steps
             mu[local] = group.mu
             done, nxt = _verdict(plant, lengths[local], group, converged, start_rotation[local])
-            _store(plant, out, rows[local[done]], group, done)
+            _store(out, rows[local[done]], group, done, scales[local[done]])
             active[local[~done]] = nxt[~done]
             mu[local[~done]] = np.where(nxt[~done], mu[local[~done]], 0.0)
         pending = pending[out.status[rows[pending]] != SolveStatus.SOLVED.value]
@@ -200,8 +210,9 @@ def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
         arms, levers, units, norms = _geometry(plant, group.rotation[live], group.position[live])
         r, q, u, mu = arms[:, idx], levers[:, idx], units[:, idx], group.mu[live][:, idx]
         moments = np.cross(q, u)
-        residual = np.concatenate([np.einsum("nc,nci->ni", mu, u) + EZ,
-                                   np.einsum("nc,nci->ni", mu, moments) / scale,
+        pull = group.loads[live]
+        residual = np.concatenate([np.einsum("nc,nci->ni", mu, u) - pull[:, :3],
+                                   (np.einsum("nc,nci->ni", mu, moments) - pull[:, 3:]) / scale,
                                    norms[:, idx] - lengths[live][:, idx]], axis=1)
         ok = np.abs(residual).max(axis=1) < tolerance[live]
         converged[live[ok]] = True
@@ -272,21 +283,21 @@ def _best_exchange(plant: Plant, group: _Group, units: np.ndarray, rows: np.ndar
     arms = np.einsum("nij,cj->nci", group.rotation[rows], plant.attachments)
     levers = arms - np.einsum("nij,j->ni", group.rotation[rows], plant.cog)[:, None, :]
     structure = np.concatenate([units[rows], np.cross(levers, units[rows])], axis=2)  # (n, 4, 6)
-    wrench, norm = plant.wrench, float(np.linalg.norm(plant.wrench))
+    wrench = group.loads[rows]  # per unit force: the misfits are relative
     misfits = []
     for out in taut:
         keep = np.stack([np.where(c == out, cable[rows], c) for c in taut], axis=1)  # (n, k)
         columns = np.take_along_axis(structure, keep[..., None], axis=1).transpose(0, 2, 1)  # (n, 6, k)
-        tensions = np.linalg.pinv(columns) @ wrench
+        tensions = np.einsum("nij,nj->ni", np.linalg.pinv(columns), wrench)
         residual = np.linalg.norm(np.einsum("nij,nj->ni", columns, tensions) - wrench, axis=1)
-        misfits.append(residual / norm + np.maximum(0.0, -tensions.min(axis=1)) / norm)
+        misfits.append(residual + np.maximum(0.0, -tensions.min(axis=1)))
     return taut[np.argmin(np.stack(misfits, axis=1), axis=1)]
 
 
-def _store(plant: Plant, out: BatchSolution, rows: np.ndarray, group: _Group, done: np.ndarray) -> None:
-    """Record the admissible samples as `energy._result` does (tensions below TENSION_TOL mg are zero)."""
-    tensions = np.where(group.active, group.mu[done], 0.0) * plant.weight
-    taut = tensions > TENSION_TOL * plant.weight
+def _store(out: BatchSolution, rows: np.ndarray, group: _Group, done: np.ndarray, scales: np.ndarray) -> None:
+    """Record the admissible samples as `energy._result` does (tensions below TENSION_TOL |f| are zero)."""
+    tensions = np.where(group.active, group.mu[done], 0.0) * scales[:, None]
+    taut = tensions > TENSION_TOL * scales[:, None]
     few = taut.sum(axis=1) < 2  # one taut cable: the single-cable test of the per-sample solver decides
     rows, tensions, taut = rows[~few], tensions[~few], taut[~few]
     out.status[rows] = SolveStatus.SOLVED.value

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import load as loads
 from .energy import solve_energy
 from .geometry import cross, rotation_from_vector, skew
 from .plant import Plant
@@ -24,8 +25,10 @@ ROUNDING_TOL = 1e-8  # accepted balance once Newton steps reach rounding level (
 
 
 def solve_elastic(plant: Plant, lengths: object, axial_stiffness: object,
-                  warm_start: Solution | None = None) -> Solution:
-    """Equilibrium of the platform on four elastic ropes of axial stiffness EA [N] each (scalar or 4)."""
+                  warm_start: Solution | None = None, load: np.ndarray | None = None) -> Solution:
+    """Equilibrium of the platform on four elastic ropes of axial stiffness EA [N] each (scalar or 4),
+    under `load` (model.load; None: gravity)."""
+    wrench = loads.resolve(plant, load)
     ea = np.broadcast_to(np.asarray(axial_stiffness, dtype=float), (4,))
     if not np.all(np.isfinite(ea)) or np.any(ea <= 0.0):
         return failed(SolveStatus.INVALID_INPUT, f"rope axial stiffness EA must be finite and positive, got {ea}",
@@ -33,25 +36,25 @@ def solve_elastic(plant: Plant, lengths: object, axial_stiffness: object,
 
     def from_rigid(array: np.ndarray) -> Solution:
         if warm_start is not None and warm_start.ok:
-            warm = _newton(plant, array, ea, warm_start)
+            warm = _newton(plant, array, ea, warm_start, wrench)
             if warm.ok:
                 return warm
-        rigid = solve_energy(plant, array)  # cold, or where the warm start failed (Newton across a kink)
+        rigid = solve_energy(plant, array, load=wrench)  # cold, or where the warm start failed (Newton across a kink)
         if not rigid.ok:
             return rigid  # a single elastic rope leaves the pose as indeterminate as a rigid one
         # Lowered by its ropes' static stretch, so that every taut rope pulls from the first step:
         # at the rigid pose itself the stretches are rounding errors of either sign.
-        return _newton(plant, array, ea, rigid, sag=float(np.max(rigid.tensions * array / ea)))
+        return _newton(plant, array, ea, rigid, wrench, sag=float(np.max(rigid.tensions * array / ea)))
 
-    return guarded_solve(METHOD, lengths, from_rigid)
+    return guarded_solve(METHOD, lengths, from_rigid, loads.check(wrench))
 
 
-def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution, sag: float = 0.0) -> Solution:
-    """Newton on the force and moment balance from `start`'s pose, lowered by `sag` [m]."""
+def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution, load: np.ndarray,
+            sag: float = 0.0) -> Solution:
+    """Newton on the force and moment balance under `load` from `start`'s pose, lowered by `sag` [m]."""
     rotation, position = start.rotation, start.position - np.array([0.0, 0.0, sag])
     stiffness = ea / lengths
-    weight, scale = plant.weight, plant.moment_scale
-    ez = np.array([0.0, 0.0, 1.0])
+    weight, scale = loads.magnitude(load), plant.moment_scale
     step_size = np.inf
     for step in range(MAX_STEPS):
         arms = plant.attachments @ rotation.T
@@ -61,12 +64,12 @@ def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution, 
         units = spans / norms[:, None]
         stretch = np.maximum(norms - lengths, 0.0)
         tensions = stiffness * stretch
-        force = (units.T @ tensions) / weight + ez
-        moment = cross(levers, units).T @ tensions / (weight * scale)
+        force = (units.T @ tensions - load[:3]) / weight
+        moment = (cross(levers, units).T @ tensions - load[3:]) / (weight * scale)
         residual = np.concatenate([force, moment])
         if np.abs(residual).max() < TOL or (step_size < 1e-13 and np.abs(residual).max() < ROUNDING_TOL):
             return solved(plant, METHOD, lengths, rotation, position, tensions, tensions > 0.0, step,
-                          stretch=stretch)
+                          load=load, stretch=stretch)
         jacobian = np.zeros((6, 6))
         for i in np.flatnonzero(stretch > 0.0):
             u, r, q = units[i], arms[i], levers[i]

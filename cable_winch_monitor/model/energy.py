@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import load as loads
 from .geometry import cross, rotation_from_vector, skew, structure_matrix
 from .equal_lengths import level_pose
 from .plant import Plant
@@ -33,42 +34,52 @@ NEWTON_MAX_STEPS = 15
 NEWTON_TOL = 1e-12          # relative force/moment balance and length error [m]
 ACTIVE_BAND = 1e-5          # [m] a cable this close to its length after the global search may be taut
 SLACK_TOL = 1e-13           # relative to the plant's size: a slack cable may exceed its length by rounding only
-TENSION_TOL = 1e-9          # relative to mg: smaller tensions are zero
+TENSION_TOL = 1e-9          # relative to the load's force: smaller tensions are zero
 ACTIVE_SET_ROUNDS = 12
 MAX_TURN = 0.3            # [rad] largest turn of the platform the polish may make from its start
 
 
 @dataclass
 class _State:
-    """Pose, active cables and normalised multipliers mu = tau / (m g) during the solve."""
+    """Pose, active cables and normalised multipliers mu = tau / |f| during the solve, under `load`
+    (the external wrench, see model.load; `scale` = |f|)."""
 
     rotation: np.ndarray
     position: np.ndarray
     active: np.ndarray
     mu: np.ndarray
+    load: np.ndarray
     steps: int = 0
 
+    @property
+    def scale(self) -> float:
+        return loads.magnitude(self.load)
 
-def solve_energy(plant: Plant, lengths: object, warm_start: Solution | None = None) -> Solution:
-    """Equilibrium for four cable lengths; never raises, the status says what happened."""
-    return guarded_solve(METHOD, lengths, lambda array: _solve(plant, array, warm_start), plant)
+
+def solve_energy(plant: Plant, lengths: object, warm_start: Solution | None = None,
+                 load: np.ndarray | None = None) -> Solution:
+    """Equilibrium for four cable lengths under `load` (model.load; None: gravity); never raises,
+    the status says what happened."""
+    wrench = loads.resolve(plant, load)
+    reason = loads.check(wrench)
+    return guarded_solve(METHOD, lengths, lambda array: _solve(plant, array, warm_start, wrench), reason, plant)
 
 
-def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None) -> Solution:
+def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None, load: np.ndarray) -> Solution:
     if warm_start is not None and warm_start.ok:
         state = _State(warm_start.rotation, warm_start.position, warm_start.taut.copy(),
-                       warm_start.tensions / plant.weight)
+                       warm_start.tensions / loads.magnitude(load), load)
         if _settle_active_set(plant, lengths, state):
             result = _result(plant, lengths, state)
             if len(result.taut_set) > 1:  # one taut cable: the single-cable test below decides
                 return result
-    single = _single_cable(plant, lengths)
+    single = _single_cable(plant, lengths, load)
     if single is not None:
         return single
-    state = _level_start(plant, lengths)  # settled already where it is not None
+    state = _level_start(plant, lengths, load)  # settled already where it is not None
     if state is not None:
         return _result(plant, lengths, state)
-    state = _global_minimum(plant, lengths)
+    state = _global_minimum(plant, lengths, load)
     if _settle_active_set(plant, lengths, state):
         return _result(plant, lengths, state)
     return failed(SolveStatus.SOLVER_FAILED, "energy solver: no admissible taut set found near the energy minimum",
@@ -100,8 +111,9 @@ def _settle_active_set(plant: Plant, lengths: np.ndarray, state: _State) -> bool
     return False
 
 
-def _single_cable(plant: Plant, lengths: np.ndarray) -> Solution | None:
-    """The single-cable state if the lowest-hanging cable can carry the platform alone."""
+def _single_cable(plant: Plant, lengths: np.ndarray, load: np.ndarray) -> Solution | None:
+    """The single-cable state if the lowest-hanging cable can carry the platform alone (a plumb
+    hang: the load's force is taken as vertical, as gravity and inertia along the shaft are)."""
     cable = lowest_hang_cable(plant, lengths)
     hang = PlumbHang(plant, cable, lengths[cable])
     others = np.arange(4) != cable
@@ -113,10 +125,10 @@ def _single_cable(plant: Plant, lengths: np.ndarray) -> Solution | None:
     rotation, position = hang.pose(0.0)
     return single_cable_result(plant, METHOD, lengths, cable, intervals,
                                {"B_hanging": position + rotation @ plant.attachments[cable],
-                                "C": position + rotation @ plant.cog})
+                                "C": position + rotation @ plant.cog}, load)
 
 
-def _level_start(plant: Plant, lengths: np.ndarray) -> _State | None:
+def _level_start(plant: Plant, lengths: np.ndarray, load: np.ndarray) -> _State | None:
     """The minimum found from the level pose at the mean length (settled, tensions set), or None
     where it is not clear-cut.
 
@@ -127,7 +139,7 @@ def _level_start(plant: Plant, lengths: np.ndarray) -> _State | None:
     global search decides the taut set, as it always has.
     """
     rotation, position = level_pose(plant, float(lengths.mean()))
-    state = _State(rotation, position, np.arange(4) != int(np.argmax(lengths)), np.zeros(4))
+    state = _State(rotation, position, np.arange(4) != int(np.argmax(lengths)), np.zeros(4), load)
     state.mu = _multipliers(plant, state)
     if not _settle_active_set(plant, lengths, state):
         return None
@@ -143,8 +155,10 @@ def _touching(lengths: np.ndarray, slack: np.ndarray) -> np.ndarray:
     return active
 
 
-def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
-    """SLSQP on z_C over (position, rotation vector) from the level pose at the shortest length."""
+def _global_minimum(plant: Plant, lengths: np.ndarray, load: np.ndarray) -> _State:
+    """SLSQP on the load's potential -f.C over (position, rotation vector) from the level pose at the
+    shortest length (the height of C under gravity)."""
+    pull = load[:3] / loads.magnitude(load)
     start = np.array([0.0, 0.0, -lengths.min(), 0.0, 0.0, 0.0])
     anchor_centre = plant.anchors.mean(axis=0)
     start[:2] = anchor_centre[:2]
@@ -161,11 +175,11 @@ def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
 
     def height(x: np.ndarray) -> float:
         rotation, position = pose(x)
-        return float(position[2] + rotation[2] @ plant.cog)
+        return float(-pull @ (position + rotation @ plant.cog))
 
     def height_gradient(x: np.ndarray) -> np.ndarray:
         rotation = rotation_from_vector(x[3:])
-        return np.concatenate([[0.0, 0.0, 1.0], left_jacobian(x[3:]).T @ cross(rotation @ plant.cog, [0.0, 0.0, 1.0])])
+        return np.concatenate([-pull, left_jacobian(x[3:]).T @ cross(rotation @ plant.cog, -pull)])
 
     def slack(x: np.ndarray) -> np.ndarray:
         rotation, position = pose(x)
@@ -183,7 +197,7 @@ def _global_minimum(plant: Plant, lengths: np.ndarray) -> _State:
                       constraints={"type": "ineq", "fun": slack, "jac": slack_jacobian},
                       options={"maxiter": 500, "ftol": 1e-10})
     rotation, position = pose(result.x)
-    state = _State(rotation, position, _touching(lengths, slack(result.x)), np.zeros(4), steps=int(result.nit))
+    state = _State(rotation, position, _touching(lengths, slack(result.x)), np.zeros(4), load, steps=int(result.nit))
     state.mu = _multipliers(plant, state)
     return state
 
@@ -197,12 +211,12 @@ def _geometry(plant: Plant, state: _State) -> tuple[np.ndarray, np.ndarray, np.n
 
 
 def _multipliers(plant: Plant, state: _State) -> np.ndarray:
-    """mu = tau / mg from the wrench balance on the active cables."""
+    """mu = tau / |f| from the wrench balance on the active cables."""
     _, arm_c, _, _ = _geometry(plant, state)
     points_b = state.position + plant.attachments @ state.rotation.T
     structure = structure_matrix(plant, points_b, state.position + arm_c)
     mu = np.zeros(4)
-    mu[state.active] = balance_tensions(structure[:, state.active], plant.wrench) / plant.weight
+    mu[state.active] = balance_tensions(structure[:, state.active], state.load) / state.scale
     return mu
 
 
@@ -216,14 +230,14 @@ def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
     """
     idx = np.flatnonzero(state.active)
     scale = plant.moment_scale
-    ez = np.array([0.0, 0.0, 1.0])
+    pull, turn = state.load[:3] / state.scale, state.load[3:] / (state.scale * scale)
     for _ in range(NEWTON_MAX_STEPS):
         arms, arm_c, spans, norms = _geometry(plant, state)
         units = spans / norms[:, None]
         levers = arms - arm_c
         mu = state.mu[idx]
-        force = units[idx].T @ mu + ez
-        moment = cross(levers[idx], units[idx]).T @ mu / scale
+        force = units[idx].T @ mu - pull
+        moment = cross(levers[idx], units[idx]).T @ mu / scale - turn
         length_error = norms[idx] - lengths[idx]
         residual = np.concatenate([force, moment, length_error])
         if np.abs(residual).max() < NEWTON_TOL * max(1.0, lengths.max() * 1e-2):
@@ -289,7 +303,7 @@ def _next_active_sets(plant: Plant, lengths: np.ndarray, state: _State, converge
     cable = int(np.argmax(overstretch))
     structure = structure_matrix(plant, state.position + plant.attachments @ state.rotation.T,
                                  state.position + state.rotation @ plant.cog)
-    swaps = sorted((toggled(cable, k) for k in by_load), key=lambda c: _balance_misfit(structure[:, c], plant.wrench))
+    swaps = sorted((toggled(cable, k) for k in by_load), key=lambda c: _balance_misfit(structure[:, c], state.load))
     # Four taut rigid ropes need l1 + l3 = l2 + l4 to the micrometre: from three, exchange first.
     return swaps + [toggled(cable)] if active.size >= 3 else [toggled(cable)] + swaps
 
@@ -302,7 +316,8 @@ def _balance_misfit(structure: np.ndarray, wrench: np.ndarray) -> float:
 
 
 def _result(plant: Plant, lengths: np.ndarray, state: _State) -> Solution:
-    tensions = np.where(state.active, state.mu, 0.0) * plant.weight
-    taut = tensions > TENSION_TOL * plant.weight
+    tensions = np.where(state.active, state.mu, 0.0) * state.scale
+    taut = tensions > TENSION_TOL * state.scale
     tensions = np.where(taut, tensions, 0.0)
-    return solved(plant, METHOD, lengths, state.rotation, state.position, tensions, taut, state.steps)
+    return solved(plant, METHOD, lengths, state.rotation, state.position, tensions, taut, state.steps,
+                  load=state.load)

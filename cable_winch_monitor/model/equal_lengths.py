@@ -58,19 +58,19 @@ def rectangle_tensions(k1: float, k2: float) -> np.ndarray:
     return np.array([(1.0 + k1) / 2.0, (k2 - k1) / 2.0, (1.0 - k2) / 2.0, 0.0]) + tau4 * np.array([-1.0, 1.0, -1.0, 1.0])
 
 
-def even_tensions(plant: Plant, points_b: np.ndarray, point_c: np.ndarray) -> np.ndarray | None:
-    """Least-Delta-T tensions [N] for the platform at (points_b, point_c).
+def even_tensions(plant: Plant, points_b: np.ndarray, point_c: np.ndarray, load: np.ndarray) -> np.ndarray | None:
+    """Least-Delta-T tensions [N] for the platform at (points_b, point_c) under a vertical `load`.
 
     For the paper's rectangle in its level pose this is eq. (12) with the tau4 rules;
     otherwise the least-norm non-negative balance (None where no tau >= 0 balances).
     """
     if plant.rectangle is not None and np.allclose(points_b[:, :2], plant.anchors[:, :2], rtol=0.0, atol=PLUMB_TOL):
         a, b = plant.rectangle
-        return rectangle_tensions(plant.cog[0] / a, plant.cog[1] / b) * plant.weight
-    return least_norm_tensions(structure_matrix(plant, points_b, point_c), plant.wrench)
+        return rectangle_tensions(plant.cog[0] / a, plant.cog[1] / b) * float(np.linalg.norm(load[:3]))
+    return least_norm_tensions(structure_matrix(plant, points_b, point_c), load)
 
 
-def solve_equal_lengths(plant: Plant, lengths: np.ndarray, method: str) -> Solution | None:
+def solve_equal_lengths(plant: Plant, lengths: np.ndarray, method: str, load: np.ndarray) -> Solution | None:
     """Step (ii): the level pose and least-Delta-T tensions, or None if equal lengths are not special here.
 
     None when the plant does not hang plumb at equal lengths or no tau >= 0 balances the
@@ -80,8 +80,9 @@ def solve_equal_lengths(plant: Plant, lengths: np.ndarray, method: str) -> Solut
         return None
     rotation, position = level_pose(plant, float(np.mean(lengths)))
     points_b = position + plant.attachments @ rotation.T
-    tensions = even_tensions(plant, points_b, position + rotation @ plant.cog)
+    tensions = even_tensions(plant, points_b, position + rotation @ plant.cog, load)
     if tensions is None:
         return None
     return solved(plant, method, lengths, rotation, position, tensions, tensions > 0.0, iterations=0,
-                  message="four equal lengths: level pose, least tension difference (seed 002, 3.2)", step="ii")
+                  message="four equal lengths: level pose, least tension difference (seed 002, 3.2)", load=load,
+                  step="ii")

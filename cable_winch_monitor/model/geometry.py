@@ -115,17 +115,20 @@ def structure_matrix(plant: Plant, points_b: np.ndarray, point_c: np.ndarray) ->
     return np.swapaxes(np.concatenate([units, moments], axis=-1), -1, -2)
 
 
-def wrench_residuals(plant: Plant, points_b: np.ndarray, point_c: np.ndarray,
-                     tensions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Force and moment imbalance of J^T tau = F, relative to mg and mg * max|CB_i|, for stacked
-    samples: points (..., 4, 3) and (..., 3), tensions (..., 4)."""
-    imbalance = (structure_matrix(plant, points_b, point_c) @ tensions[..., None])[..., 0] - plant.wrench
-    force = np.linalg.norm(imbalance[..., :3], axis=-1) / plant.weight
-    moment = np.linalg.norm(imbalance[..., 3:], axis=-1) / (plant.weight * plant.moment_scale)
+def wrench_residuals(plant: Plant, points_b: np.ndarray, point_c: np.ndarray, tensions: np.ndarray,
+                     load: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Force and moment imbalance of J^T tau = F, relative to |f| and |f| * max|CB_i|, for stacked
+    samples: points (..., 4, 3) and (..., 3), tensions (..., 4), loads (6,) or (..., 6) (None: gravity)."""
+    load = plant.wrench if load is None else np.asarray(load, dtype=float)
+    imbalance = (structure_matrix(plant, points_b, point_c) @ tensions[..., None])[..., 0] - load
+    scale = np.linalg.norm(load[..., :3], axis=-1)
+    force = np.linalg.norm(imbalance[..., :3], axis=-1) / scale
+    moment = np.linalg.norm(imbalance[..., 3:], axis=-1) / (scale * plant.moment_scale)
     return force, moment
 
 
-def wrench_residual(plant: Plant, points_b: np.ndarray, point_c: np.ndarray, tensions: np.ndarray) -> tuple[float, float]:
+def wrench_residual(plant: Plant, points_b: np.ndarray, point_c: np.ndarray, tensions: np.ndarray,
+                    load: np.ndarray | None = None) -> tuple[float, float]:
     """`wrench_residuals` of one sample, as floats."""
-    force, moment = wrench_residuals(plant, points_b, point_c, tensions)
+    force, moment = wrench_residuals(plant, points_b, point_c, tensions, load)
     return float(force), float(moment)

@@ -40,7 +40,7 @@ def adjacent_pairs(lengths: np.ndarray, tol: float) -> tuple[int, tuple[int, int
     return None
 
 
-def solve_planar(plant: Plant, lengths: np.ndarray, tol: float) -> PlanarResult | None:
+def solve_planar(plant: Plant, lengths: np.ndarray, tol: float, load: np.ndarray) -> PlanarResult | None:
     """Pose and tensions of the planar model, or None if the case does not apply or hybr fails."""
     pairs = adjacent_pairs(lengths, tol)
     if plant.rectangle is None or pairs is None:
@@ -75,9 +75,10 @@ def solve_planar(plant: Plant, lengths: np.ndarray, tol: float) -> PlanarResult 
     rotation, position = level_pose(plant, float(np.mean(lengths)))
     guess_b = position + plant.attachments @ rotation.T
     guess_c = position + rotation @ plant.cog
-    even = even_tensions(plant, guess_b, guess_c)
+    even = even_tensions(plant, guess_b, guess_c, load)
+    weight = float(np.linalg.norm(load[:3]))
     start = np.concatenate([guess_b[plus[0], plane], guess_b[minus[0], plane], guess_c[plane],
-                            [even[list(plus)].sum() / plant.weight, even[list(minus)].sum() / plant.weight]])
+                            [even[list(plus)].sum() / weight, even[list(minus)].sum() / weight]])
     from scipy.optimize import root  # imported on first use: scipy.optimize takes 0.4 s to load
     result = root(equations, start, method="hybr", options={"xtol": 1e-14})
     if not np.all(np.isfinite(result.x)):
@@ -87,5 +88,5 @@ def solve_planar(plant: Plant, lengths: np.ndarray, tol: float) -> PlanarResult 
         for k in cables:
             points_b[k, plane] = point
     point_c[plane] = result.x[4:6]
-    tensions = np.linalg.pinv(structure_matrix(plant, points_b, point_c)) @ plant.wrench
+    tensions = np.linalg.pinv(structure_matrix(plant, points_b, point_c)) @ load
     return PlanarResult(points_b, point_c, tensions, int(result.nfev))

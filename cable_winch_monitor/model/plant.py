@@ -21,6 +21,7 @@ from .plant_checks import degenerate_points
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
 DEFAULT_MAX_PAYOUT = 3000.0  # [m] deeper than any shaft sunk with a hanging platform
 DEFAULT_MAX_PAYOUT_SPEED = 5.0  # [m/s] sinking winches run below 1 m/s
+ALARM_KEYS = ("warning_margin", "critical_margin", "hysteresis", "slack_tolerance")
 
 
 class PlantConfigError(ValueError):
@@ -58,6 +59,10 @@ class Plant:
     outline: tuple[OutlinePoint, ...] = ()
     max_payout: float = DEFAULT_MAX_PAYOUT  # [m] longest cable length a winch can pay out
     max_payout_speed: float = DEFAULT_MAX_PAYOUT_SPEED  # [m/s]
+    noise: Mapping[str, float] = field(default_factory=dict)  # 1-sigma noise by channel noise key
+    alarm: Mapping[str, float] = field(default_factory=dict)  # alarm margins given (monitor.alarm)
+    effects: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # effect name -> its parameters
+    effect_modules: tuple[str, ...] = ()  # user files defining effects (and channels)
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -67,7 +72,7 @@ class Plant:
 
     @property
     def wrench(self) -> np.ndarray:
-        """External wrench F = (0, 0, -mg, 0, 0, 0) of eq. (7)."""
+        """Gravity as a load, F = (0, 0, -mg, 0, 0, 0) of eq. (7): every solver's default `load` (model.load)."""
         return np.array([0.0, 0.0, -self.weight, 0.0, 0.0, 0.0])
 
     @property
@@ -159,6 +164,41 @@ def _limits(section: Any) -> tuple[float, float]:
                  for key, default in (("max_payout", DEFAULT_MAX_PAYOUT), ("max_payout_speed", DEFAULT_MAX_PAYOUT_SPEED)))
 
 
+def _numbers(section: Any, where: str, keys: tuple[str, ...] | None = None) -> dict[str, float]:
+    """A mapping of names to finite numbers (only `keys` where given)."""
+    if section is None:
+        return {}
+    if not isinstance(section, Mapping):
+        raise PlantConfigError(f"plant file: key '{where}' must be a mapping of names to numbers")
+    unknown = sorted(set(map(str, section)) - set(keys)) if keys is not None else []
+    if unknown:
+        raise PlantConfigError(f"plant file: unknown key '{where}.{unknown[0]}' (known: {', '.join(keys)})")
+    return {str(key): _number(section, key, where + ".") for key in section}
+
+
+def _effects(section: Any) -> dict[str, dict[str, Any]]:
+    """`plant.effects`: {effect name: {enabled: bool, parameter: value, ...}}; the effect layer checks
+    the names and values (effects.model.effects_from_mapping)."""
+    if section is None:
+        return {}
+    if not isinstance(section, Mapping):
+        raise PlantConfigError("plant file: key 'plant.effects' must be a mapping of effect names to their parameters")
+    out = {}
+    for name, spec in section.items():
+        if spec is not None and not isinstance(spec, Mapping):
+            raise PlantConfigError(f"plant file: key 'plant.effects.{name}' must be a mapping of parameters")
+        out[str(name)] = dict(spec or {})
+    return out
+
+
+def _modules(value: Any) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise PlantConfigError("plant file: key 'plant.effect_modules' must be a list of file paths")
+    return tuple(value)
+
+
 def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
     """Build a Plant from the parsed YAML document; errors name the offending key."""
     if not isinstance(config, Mapping) or "plant" not in config:
@@ -217,6 +257,10 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         outline=_outline(section.get("outline")),
         max_payout=max_payout,
         max_payout_speed=max_payout_speed,
+        noise=_numbers(section.get("noise"), "plant.noise"),
+        alarm=_numbers(section.get("alarm"), "plant.alarm", ALARM_KEYS),
+        effects=_effects(section.get("effects")),
+        effect_modules=_modules(section.get("effect_modules")),
         raw=config,
     )
 

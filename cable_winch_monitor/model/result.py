@@ -47,6 +47,7 @@ class Solution:
     iterations: int = 0
     single_cable: int | None = None
     rotation_range: tuple[tuple[float, float], ...] = ()
+    load: np.ndarray | None = None  # the external wrench solved for (model.load); None: gravity
     extras: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -137,20 +138,23 @@ def validate_lengths(lengths: Any, max_length: float = np.inf) -> tuple[np.ndarr
 
 
 def single_cable_result(plant: Plant, method: str, lengths: np.ndarray, cable: int,
-                        intervals: tuple[tuple[float, float], ...], extras: dict[str, Any]) -> Solution:
-    """The platform hangs from `cable` alone: that rope carries mg (A, B and C on a plumb
-    line), the others are slack, and the pose is known only up to a turn within `intervals`."""
+                        intervals: tuple[tuple[float, float], ...], extras: dict[str, Any],
+                        load: np.ndarray | None = None) -> Solution:
+    """The platform hangs from `cable` alone: that rope carries the load's force (A, B and C on a
+    plumb line), the others are slack, and the pose is known only up to a turn within `intervals`."""
+    load = plant.wrench if load is None else load
     ranges = " U ".join(f"[{lo:.3f}, {hi:.3f}]" for lo, hi in intervals)
     return failed(SolveStatus.SINGLE_CABLE_INDETERMINATE,
                   f"platform hangs from {CABLE_NAMES[cable]} alone: pose indeterminate, it can turn through "
                   f"{ranges} rad about the cable", method, lengths, taut=np.arange(4) == cable,
-                  tensions=np.where(np.arange(4) == cable, plant.weight, 0.0), single_cable=cable,
-                  rotation_range=intervals, extras=extras)
+                  tensions=np.where(np.arange(4) == cable, float(np.linalg.norm(load[:3])), 0.0), single_cable=cable,
+                  rotation_range=intervals, load=load, extras=extras)
 
 
 def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray], Solution],
-                  plant: Plant | None = None) -> Solution:
-    """Validate the lengths, then solve; a bad input or a numerical failure becomes a status.
+                  load_problem: str = "", plant: Plant | None = None) -> Solution:
+    """Validate the lengths (and take `load_problem`, why the load is unusable, as invalid input),
+    then solve; a bad input or a numerical failure becomes a status.
 
     The contract of every solver: whatever the input, a Solution comes back, never an
     exception (a live monitor must report and go on). The rigid solvers pass their
@@ -158,8 +162,9 @@ def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray],
     the physics check (`physics_guard`).
     """
     array, reason = validate_lengths(lengths, np.inf if plant is None else plant.max_payout)
-    if array is None:
-        return failed(SolveStatus.INVALID_INPUT, reason, method, np.full(4, np.nan))
+    if array is None or load_problem:
+        return failed(SolveStatus.INVALID_INPUT, reason or load_problem, method,
+                      np.full(4, np.nan) if array is None else array)
     try:
         with np.errstate(all="ignore"):
             solution = solve_valid(array)
@@ -187,26 +192,30 @@ def physics_guard(plant: Plant, solution: Solution) -> Solution:
 
 def solved(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
            tensions: np.ndarray, taut: np.ndarray, iterations: int, message: str = "static equilibrium found",
-           **extras: Any) -> Solution:
-    """A SOLVED Solution with its points, spans and equilibrium residuals filled in."""
+           load: np.ndarray | None = None, **extras: Any) -> Solution:
+    """A SOLVED Solution with its points, spans and equilibrium residuals (under `load`; None: gravity)."""
+    loads = None if load is None else np.asarray(load, dtype=float)[None]
     return solved_rows(plant, method, lengths[None], rotation[None], position[None], np.asarray(tensions)[None],
-                       np.asarray(taut)[None], [iterations], message, extras)[0]
+                       np.asarray(taut)[None], [iterations], message, extras, loads)[0]
 
 
 def solved_rows(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
                 tensions: np.ndarray, taut: np.ndarray, iterations: Sequence[int],
-                message: str = "static equilibrium found", extras: dict[str, Any] | None = None) -> list[Solution]:
-    """`solved` for N stacked samples (lengths (N, 4), rotation (N, 3, 3), ...): the points, spans
-    and residuals of all rows are computed together."""
+                message: str = "static equilibrium found", extras: dict[str, Any] | None = None,
+                loads: np.ndarray | None = None) -> list[Solution]:
+    """`solved` for N stacked samples (lengths (N, 4), rotation (N, 3, 3), loads (N, 6) or None for
+    gravity, ...): the points, spans and residuals of all rows are computed together."""
     points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
     point_c = position + rotation @ plant.cog
-    force, moment = wrench_residuals(plant, points_b, point_c, tensions)
+    loads = np.broadcast_to(plant.wrench, (len(lengths), 6)) if loads is None else loads
+    force, moment = wrench_residuals(plant, points_b, point_c, tensions, loads)
     spans = np.linalg.norm(points_b - plant.anchors, axis=-1)
     taut, tensions = np.asarray(taut, dtype=bool), np.asarray(tensions, dtype=float)
     return [Solution(status=SolveStatus.SOLVED, message=message, method=method, lengths=lengths[i], taut=taut[i],
                      tensions=tensions[i], rotation=rotation[i], position=position[i], points_b=points_b[i],
                      point_c=point_c[i], spans=spans[i], force_residual=float(force[i]),
-                     moment_residual=float(moment[i]), iterations=int(iterations[i]), extras=dict(extras or {}))
+                     moment_residual=float(moment[i]), iterations=int(iterations[i]), load=loads[i],
+                     extras=dict(extras or {}))
             for i in range(len(lengths))]
 
 
@@ -246,15 +255,16 @@ def check_physics(plant: Plant, solution: Solution) -> PhysicsCheck:
     if solution.status is not SolveStatus.SOLVED:
         raise ValueError(f"no pose to check: {solution.tension_state}")
     rows = check_physics_rows(plant, solution.lengths[None], solution.points_b[None], solution.point_c[None],
-                              np.asarray(solution.tensions)[None], np.asarray(solution.taut)[None])
+                              np.asarray(solution.tensions)[None], np.asarray(solution.taut)[None],
+                              None if solution.load is None else np.asarray(solution.load)[None])
     return PhysicsCheck(**{name: getattr(rows, name)[0].item() for name in PhysicsCheck.__dataclass_fields__})
 
 
 def check_physics_rows(plant: Plant, lengths: np.ndarray, points_b: np.ndarray, point_c: np.ndarray,
-                       tensions: np.ndarray, taut: np.ndarray) -> PhysicsCheck:
-    """`check_physics` of N stacked solved states (lengths (N, 4), points_b (N, 4, 3), ...): a
-    PhysicsCheck whose fields are (N,) arrays; `passing_rows` says which rows pass."""
-    force, moment = wrench_residuals(plant, points_b, point_c, tensions)
+                       tensions: np.ndarray, taut: np.ndarray, loads: np.ndarray | None = None) -> PhysicsCheck:
+    """`check_physics` of N stacked solved states (lengths (N, 4), points_b (N, 4, 3), loads (N, 6) or None
+    for gravity, ...): a PhysicsCheck whose fields are (N,) arrays; `passing_rows` says which rows pass."""
+    force, moment = wrench_residuals(plant, points_b, point_c, tensions, loads)
     excess = np.linalg.norm(points_b - plant.anchors, axis=-1) - lengths
     body = np.vstack([plant.attachments, plant.cog])
     world = np.concatenate([points_b, point_c[:, None, :]], axis=1)

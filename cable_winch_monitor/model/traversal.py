@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from . import load as loads
 from .critical_lengths import describe, rotation_range
 from .equal_lengths import even_tensions, level_pose, solve_equal_lengths
 from .geometry import cross, fit_rotation, skew, wrench_residual
@@ -104,7 +105,7 @@ class TautModel:
 
 
 def _admissible(plant: Plant, lengths: np.ndarray, points_b: np.ndarray, point_c: np.ndarray,
-                tensions: np.ndarray, taut: np.ndarray) -> bool:
+                tensions: np.ndarray, taut: np.ndarray, load: np.ndarray) -> bool:
     """The inequalities of 4.2 plus a residual check of eqs. (2), (3)-(6), (7) and handedness."""
     if not (np.all(np.isfinite(points_b)) and np.all(np.isfinite(point_c)) and np.all(np.isfinite(tensions))):
         return False
@@ -112,26 +113,28 @@ def _admissible(plant: Plant, lengths: np.ndarray, points_b: np.ndarray, point_c
     body, world = np.vstack([plant.attachments, plant.cog]), np.vstack([points_b, point_c])
     rigid = np.abs(np.linalg.norm(world[:, None] - world[None], axis=2) - np.linalg.norm(body[:, None] - body[None], axis=2))
     excess = np.linalg.norm(points_b - plant.anchors, axis=1) - lengths
-    force, moment = wrench_residual(plant, points_b, point_c, tensions)
+    force, moment = wrench_residual(plant, points_b, point_c, tensions, load)
     handed = np.linalg.det(world[[1, 2, 4]] - world[0]) * np.linalg.det(body[[1, 2, 4]] - body[0])  # B1 B2 B3 C
     return bool(rigid.max() <= tol and np.all(np.abs(excess[taut]) <= tol) and np.all(excess[~taut] <= tol)
                 and np.all(tensions[taut] > 0.0) and max(force, moment) <= BALANCE_TOL and handed > 0.0)
 
 
 def _accept(plant: Plant, lengths: np.ndarray, method: str, points_b: np.ndarray, point_c: np.ndarray,
-            tensions: np.ndarray, evaluations: int, step: str) -> Solution:
+            tensions: np.ndarray, evaluations: int, step: str, load: np.ndarray) -> Solution:
     """The pose fitted to the solved points (body = attachments + cog) as a SOLVED Solution."""
     rotation, position = fit_rotation(np.vstack([plant.attachments, plant.cog]), np.vstack([points_b, point_c]))
     taut = tensions > 0.0
     names = ",".join(str(i + 1) for i in np.flatnonzero(taut))
     return solved(plant, method, lengths, rotation, position, tensions, taut, evaluations,
-                  message=f"static equilibrium, taut cables {{{names}}} (seed 002 TSA step {step})", step=step)
+                  message=f"static equilibrium, taut cables {{{names}}} (seed 002 TSA step {step})", load=load,
+                  step=step)
 
 
-def _traverse(plant: Plant, lengths: np.ndarray, method: str) -> Solution:
-    """Steps (i)-(viii) of 4.2 on valid lengths."""
+def _traverse(plant: Plant, lengths: np.ndarray, method: str, load: np.ndarray) -> Solution:
+    """Steps (i)-(viii) of 4.2 on valid lengths, under a vertical load (tensions in units of its force)."""
+    weight = loads.magnitude(load)
     if np.ptp(lengths) <= EQUAL_LENGTH_TOL:  # (ii)
-        level = solve_equal_lengths(plant, lengths, method)
+        level = solve_equal_lengths(plant, lengths, method, load)
         if level is not None:
             return level
     shortest, lowest = int(np.argmin(lengths)), int(np.argmin(lengths + plant.cog_distances - plant.anchors[:, 2]))
@@ -139,11 +142,11 @@ def _traverse(plant: Plant, lengths: np.ndarray, method: str) -> Solution:
         phi, critical = rotation_range(plant, lengths, cable)
         if phi:
             return single_cable_result(plant, method, lengths, cable, phi,
-                                       {"critical_lengths": describe(critical, lengths)})
+                                       {"critical_lengths": describe(critical, lengths)}, load)
     rotation, position = level_pose(plant, float(np.mean(lengths)))  # (i)
     guess_b, guess_c = position + plant.attachments @ rotation.T, position + rotation @ plant.cog
-    even = even_tensions(plant, guess_b, guess_c)
-    even = np.full(4, 0.25) if even is None else even / plant.weight
+    even = even_tensions(plant, guess_b, guess_c, load)
+    even = np.full(4, 0.25) if even is None else even / weight
     start = np.concatenate([guess_b[:3].ravel(), guess_c])
     evaluations = 0
 
@@ -152,17 +155,18 @@ def _traverse(plant: Plant, lengths: np.ndarray, method: str) -> Solution:
         points_b, point_c, t, count = TautModel(plant, lengths, taut).solve(np.concatenate([start, even[list(taut)]]))
         evaluations += count
         tensions = np.zeros(4)
-        tensions[list(taut)] = t * plant.weight
+        tensions[list(taut)] = t * weight
         mask = np.isin(np.arange(4), taut)
-        if _admissible(plant, lengths, points_b, point_c, tensions, mask):
-            return _accept(plant, lengths, method, points_b, point_c, tensions, evaluations, step)
+        if _admissible(plant, lengths, points_b, point_c, tensions, mask, load):
+            return _accept(plant, lengths, method, points_b, point_c, tensions, evaluations, step, load)
         return None
 
-    planar = solve_planar(plant, lengths, EQUAL_LENGTH_TOL)  # (vi), ahead of (iv) and (v): see the module docstring
+    planar = solve_planar(plant, lengths, EQUAL_LENGTH_TOL, load)  # (vi), ahead of (iv) and (v): see the docstring
     if planar is not None:
         evaluations += planar.evaluations
-        if _admissible(plant, lengths, planar.points_b, planar.point_c, planar.tensions, np.ones(4, dtype=bool)):
-            return _accept(plant, lengths, method, planar.points_b, planar.point_c, planar.tensions, evaluations, "vi")
+        if _admissible(plant, lengths, planar.points_b, planar.point_c, planar.tensions, np.ones(4, dtype=bool), load):
+            return _accept(plant, lengths, method, planar.points_b, planar.point_c, planar.tensions, evaluations, "vi",
+                           load)
     for states, step in ((TWO_CABLE_STATES, "iv"), (THREE_CABLE_STATES, "v")):
         for taut in states:
             found = attempt(taut, step)
@@ -176,12 +180,20 @@ def _traverse(plant: Plant, lengths: np.ndarray, method: str) -> Solution:
                   "for any two-, three- or four-cable state", method, lengths, iterations=evaluations)
 
 
-def solve_traversal(plant: Plant, lengths: Any, *, method_name: str = "traversal") -> Solution:
-    """Seed 002's TSA for four cable lengths [m]; never raises.
+def solve_traversal(plant: Plant, lengths: Any, *, method_name: str = "traversal",
+                    load: np.ndarray | None = None) -> Solution:
+    """Seed 002's TSA for four cable lengths [m] under `load` (model.load; None: gravity); never raises.
+
+    The paper's algorithm is written for gravity: the load must be a vertical pull (gravity,
+    or inertia along the shaft), else the result is INVALID_INPUT naming the energy solver.
 
     INVALID_INPUT for bad lengths, SINGLE_CABLE_INDETERMINATE with the rotation range phi,
     SOLVED with the pose, tensions [N] and taut = tension > 0, NO_EQUILIBRIUM when no state
     is accepted, SOLVER_FAILED on a numerical exception. `iterations` counts the residual
     and Jacobian evaluations of every hybr run.
     """
-    return guarded_solve(method_name, lengths, lambda array: _traverse(plant, array, method_name), plant)
+    wrench = loads.resolve(plant, load)
+    problem = loads.check(wrench) or ("" if loads.is_vertical(wrench) else
+                                      "seed 002's traversal takes a vertical load only; use the energy solver")
+    return guarded_solve(method_name, lengths, lambda array: _traverse(plant, array, method_name, wrench), problem,
+                         plant)

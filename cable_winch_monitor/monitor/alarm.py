@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import Any, Mapping
 
 import numpy as np
 
@@ -38,15 +37,7 @@ class AlarmPolicy:
 
     @classmethod
     def from_plant(cls, plant: Plant) -> "AlarmPolicy":
-        section: Mapping[str, Any] = plant.raw.get("plant", {}).get("alarm", {}) or {}
-        values = {}
-        for key in ("warning_margin", "critical_margin", "hysteresis", "slack_tolerance"):
-            if key in section:
-                try:
-                    values[key] = float(section[key])
-                except (TypeError, ValueError):
-                    raise PlantConfigError(f"plant file: key 'plant.alarm.{key}' must be a number") from None
-        policy = cls(**values)
+        policy = cls(**plant.alarm)
         if not (policy.warning_margin > policy.critical_margin > 0.0 and policy.hysteresis >= 0.0
                 and policy.slack_tolerance >= 0.0):
             raise PlantConfigError("plant file: 'plant.alarm' needs warning_margin > critical_margin > 0 and "

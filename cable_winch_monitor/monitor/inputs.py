@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
@@ -191,6 +191,23 @@ class CableLengthMerger:
         return np.array([NAN if r is None else r.tension for r in self.readings])
 
 
+def measurement_reason(message: Any, limits: InputLimits) -> str:
+    """Why a sensor message holds an absurd orientation or position ('' if it does not, or has neither)."""
+    orientation, point = getattr(message, "orientation", None), getattr(message, "point", None)
+    if orientation is not None:
+        return orientation_reason([_number(orientation, axis) for axis in "xyzw"])
+    if point is not None:
+        return position_reason([_number(point, axis) for axis in "xyz"], limits)
+    return ""
+
+
+def _number(value: Any, name: str) -> float:
+    try:
+        return float(getattr(value, name))
+    except (AttributeError, TypeError, ValueError):
+        return NAN
+
+
 def orientation_reason(quaternion_xyzw: Sequence[float]) -> str:
     """Why a measured orientation is not a unit quaternion ('' if it is one, to within 1 %)."""
     norm = math.sqrt(math.fsum(v * v for v in quaternion_xyzw)) if all(map(math.isfinite, quaternion_xyzw)) else NAN
@@ -211,3 +228,34 @@ def position_reason(xyz: Sequence[float], limits: InputLimits) -> str:
 def _floats(values: Sequence[float]) -> list[float]:
     """A message array (list, array.array or numpy array) as Python floats."""
     return values.tolist() if hasattr(values, "tolist") else [float(v) for v in values]
+
+
+class InputSeries:
+    """Recent values of one extra input (a shaft temperature): the value at a stamp is interpolated
+    between the readings around it, or the nearest reading where the stamp lies outside them (live,
+    the latest one). Readings older than HISTORY seconds before the newest are dropped."""
+
+    HISTORY = 600.0  # [s]
+
+    def __init__(self) -> None:
+        self.stamps: list[float] = []
+        self.values: list[float] = []
+
+    def add(self, stamp: float, value: float) -> None:
+        if self.stamps and stamp <= self.stamps[-1]:
+            if stamp < self.stamps[-1]:  # out of order: insert, keeping the series sorted
+                k = int(np.searchsorted(self.stamps, stamp))
+                self.stamps.insert(k, stamp)
+                self.values.insert(k, value)
+            return
+        self.stamps.append(stamp)
+        self.values.append(value)
+        if self.stamps[0] < stamp - self.HISTORY and len(self.stamps) > 2:
+            cut = int(np.searchsorted(self.stamps, stamp - self.HISTORY)) - 1
+            del self.stamps[:cut], self.values[:cut]
+
+    def value_at(self, stamp: float) -> float:
+        """The value at `stamp` (NaN while there is no reading)."""
+        if not self.stamps:
+            return NAN
+        return float(np.interp(stamp, self.stamps, self.values))

@@ -17,7 +17,7 @@ from .inputs import JointSample
 
 
 class LatestSamplePipeline(MonitorPipeline):
-    """MonitorPipeline for a callback thread (`offer`, `on_imu`, `on_position`) and a worker (`take`, `solve`).
+    """MonitorPipeline for a callback thread (`offer`, `on_measurement`, `on_input`) and a worker (`take`, `solve`).
 
     `lock` guards every piece of state; hold it to read the counters from a third thread.
     """

@@ -4,7 +4,8 @@ Starting from four equal lengths L, one cable (or an adjacent pair together) is 
 out further, or hauled in, by delta. The envelope is the largest delta that keeps
 (a) the wall clearance above the WARNING margin and (b) every cable taut, meaning no
 cable hangs looser than the alarm's slack tolerance. This is the purpose seed 002 states:
-limit the length differences so that the tilted platform cannot reach the wall.
+limit the length differences so that the tilted platform cannot reach the wall. Every
+equilibrium is the plant model's (effects.PlantModel: its effects, load and solver).
 """
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..effects import PlantModel
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
-from ..model.solve import solve
 from .alarm import AlarmPolicy
 from .clearance import solution_clearance
 
@@ -63,12 +64,13 @@ def _failures(plant: Plant, policy: AlarmPolicy, solution: Solution) -> tuple[bo
     return too_close, CABLE_NAMES[int(np.argmax(slack))] if slack.any() else ""
 
 
-def _first_failure(plant: Plant, policy: AlarmPolicy, base: float, change: np.ndarray, which: int) -> tuple[float, str]:
+def _first_failure(model: PlantModel, policy: AlarmPolicy, base: float, change: np.ndarray,
+                   which: int) -> tuple[float, str]:
     """Smallest delta at which criterion `which` (0 clearance, 1 taut) fails: a warm-started
     scan in SCAN_STEP steps, then bisection."""
     def fails(delta: float, warm: Solution | None) -> tuple[bool, str, Solution]:
-        solution = solve(plant, base + delta * change, warm_start=warm)
-        failures = _failures(plant, policy, solution)
+        solution = model.solve(base + delta * change, warm)
+        failures = _failures(model.physical, policy, solution)
         return bool(failures[which]), failures[1], solution
 
     warm, previous = None, 0.0
@@ -85,16 +87,18 @@ def _first_failure(plant: Plant, policy: AlarmPolicy, base: float, change: np.nd
     return float("inf"), ""
 
 
-def synchronisation_limits(plant: Plant, length: float) -> list[Limit]:
-    """The envelope for every cable and every adjacent pair, both directions, at payout `length`."""
-    policy = AlarmPolicy.from_plant(plant)
+def synchronisation_limits(model: PlantModel, length: float,
+                           groups: list[tuple[int, ...]] | None = None) -> list[Limit]:
+    """The envelope for every cable and every adjacent pair (or the cable `groups` given, 0-based), both
+    directions, at payout `length`."""
+    policy = AlarmPolicy.from_plant(model.plant)
     limits = []
-    for cables in [(c,) for c in range(4)] + list(ADJACENT_PAIRS):
+    for cables in groups or [(c,) for c in range(4)] + list(ADJACENT_PAIRS):
         for direction in (1, -1):
             change = np.zeros(4)
             change[list(cables)] = direction
-            clearance_limit, _ = _first_failure(plant, policy, length, change, 0)
-            taut_limit, slack_cable = _first_failure(plant, policy, length, change, 1)
+            clearance_limit, _ = _first_failure(model, policy, length, change, 0)
+            taut_limit, slack_cable = _first_failure(model, policy, length, change, 1)
             limits.append(Limit(tuple(cables), direction, clearance_limit, taut_limit, slack_cable))
     return limits
 

@@ -1,26 +1,31 @@
 """The monitor as one object: winch samples in, solved pose, tensions, alarm and residuals out.
 
 The live node and bag replay both feed this object, so both give the same answers. It
-knows nothing of ROS: messages arrive as plain values with their header stamps.
+knows nothing of ROS: winch messages arrive as plain values with their header stamps,
+other sensors as message objects read by their declared channels (channels.py), extra
+inputs (a shaft temperature) by the effects' declared `Input`s. Every sample is solved
+through the plant's one model (effects.PlantModel: its effects, its load, its solver)
+at the sample's conditions (time, payout speeds and accelerations, direction, inputs).
 """
 from __future__ import annotations
 
 import math
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import NamedTuple, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..effects import Conditions, PlantModel
-from ..effects.sheave import motion_direction
+from .. import channels
+from ..channels import Input
+from ..effects import PlantModel
+from ..model.conditions import Conditions, ConditionsTracker
 from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
-from ..model.solve import METHODS, solve
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
-from .inputs import CableLengthMerger, InputLimits, JointSample, StampWindow, orientation_reason, position_reason
-from .residuals import TENSION_CHANNELS, Residuals, imu_channels, noise_levels, position_channels, predicted_channels, residuals
+from .inputs import CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason
+from .residuals import Residuals, noise_levels, residuals
 
 
 @dataclass(frozen=True)
@@ -69,8 +74,7 @@ class MonitorPipeline:
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
                  stamp_window: StampWindow | None = None):
-        if solver not in METHODS:
-            raise ValueError(f"unknown solver {solver!r}; use one of {', '.join(METHODS)}")
+        self.model = PlantModel.from_plant(plant, solver)  # the one solve path: effects, load, solver
         self.plant, self.solver = plant, solver
         self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
         self.merger = CableLengthMerger(staleness, stamp_window, self.limits)
@@ -79,10 +83,8 @@ class MonitorPipeline:
         self.last: MonitorOutput | None = None
         self.last_solved: MonitorOutput | None = None
         self.staleness = staleness
-        # The plant file's physical effects (effects/): None keeps the plain rigid path and its speed.
-        model = PlantModel.from_plant(plant)
-        self.model = model if model.effects else None
-        self.direction = np.zeros(4)
+        self.tracker = ConditionsTracker()
+        self.inputs = {spec.key: InputSeries() for spec in self.model.inputs}
         self.last_predicted: dict[str, float] | None = None
         self.noise = noise_levels(plant)
 
@@ -112,41 +114,36 @@ class MonitorPipeline:
         return CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings],
                               [r.velocity for r in readings])
 
+    def inputs_at(self, stamp: float) -> dict[str, float]:
+        """The extra inputs' values at `stamp` (interpolated where later values are known, else the latest)."""
+        return {key: series.value_at(stamp) for key, series in self.inputs.items()}
+
     def evaluate(self, lengths: object) -> tuple[Solution, Clearance | None, Alarm]:
-        """What proposed cable lengths would give (for plant control), without touching the state."""
-        solution = self._equilibrium(lengths)
-        clearance = solution_clearance(self.plant, solution)
+        """What proposed cable lengths would give at rest (for plant control), without touching the state."""
+        conditions = Conditions(inputs=self.inputs_at(math.inf))
+        solution = self.model.solve(lengths, self._warm_start(), conditions)
+        clearance = solution_clearance(self.model.physical, solution)
         return solution, clearance, AlarmTracker(self.alarms.policy).update(solution, clearance)
 
     def _warm_start(self) -> Solution | None:
         return self.last_solved.solution if self.last_solved is not None and self.solver == "energy" else None
 
-    def _equilibrium(self, lengths: object) -> Solution:
-        if self.model is not None:
-            return self.model.solve(lengths, self._warm_start())
-        return solve(self.plant, lengths, self.solver, warm_start=self._warm_start())
+    def conditions(self, sample: CompleteSample) -> Conditions:
+        """The conditions of a complete sample: its stamp, speeds, accelerations, direction and inputs."""
+        return self.tracker.update(sample.stamp, sample.lengths, np.array(sample.speeds), self.inputs_at(sample.stamp))
 
-    def _predicted(self, solution: Solution, speeds: list[float]) -> dict[str, float] | None:
-        """What the sensors should read for a solved sample (None without a pose), under the
-        plant's measurement effects if it has any; kept for the measurements that follow."""
-        if self.model is None:
-            return predicted_channels(solution) if solution.ok else None
-        payout = np.array(speeds)
-        self.direction = motion_direction(payout, self.direction)
-        if not solution.ok:
-            return None
-        return self.model.predict(solution, Conditions(payout, self.direction))
-
-    def _solve(self, sample: CompleteSample, solved: tuple[Solution, Clearance | None] | None = None) -> MonitorOutput:
-        """Solve a complete sample (or take its equilibrium and clearance as `solved` ahead), raise its
-        alarm and compare its load pins with the model."""
+    def _solve(self, sample: CompleteSample, solved: tuple[Solution, Clearance | None] | None = None,
+               conditions: Conditions | None = None) -> MonitorOutput:
+        """Solve a complete sample (or take its equilibrium and clearance as `solved` ahead, with its
+        `conditions`), raise its alarm and compare its load pins with the model."""
+        conditions = conditions or self.conditions(sample)
         if solved is None:
-            solution = self._equilibrium(sample.lengths)
-            solved = solution, solution_clearance(self.plant, solution)
+            solution = self.model.solve(sample.lengths, self._warm_start(), conditions)
+            solved = solution, solution_clearance(self.model.physical, solution)
         solution, clearance = solved
         alarm = self.alarms.update(solution, clearance)
-        measured = {TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
-        predicted = self._predicted(solution, sample.speeds)
+        measured = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+        predicted = self.model.predict(solution, conditions) if solution.ok else None
         resid = residuals(self.noise, sample.stamp, measured, predicted) if predicted is not None else None
         output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid)
         self.stats.solved += int(solution.ok)
@@ -158,33 +155,31 @@ class MonitorPipeline:
             self.last_solved, self.last_predicted = output, predicted
         return output
 
-    def _measurement(self, topic: str, stamp: float, channels: dict[str, float]) -> Residuals | None:
+    def on_measurement(self, topic: str, stamp: float, message: Any) -> Residuals | None:
+        """A sensor message (inclinometer, depth gauge, a declared channel's topic): the residuals of
+        its channels against the latest solved pose."""
         self.stats.messages[topic] += 1
-        if not all(math.isfinite(v) for k, v in channels.items() if k not in ("x", "y")):
-            self._reject(topic, "bad measurement: not finite")
+        reason = measurement_reason(message, self.limits)
+        if reason:
+            self._reject(topic, reason)
+            return None
+        values = {c.name: c.read(message) for c in channels.on_topic(topic)}
+        if not any(math.isfinite(v) for v in values.values()):
+            self._reject(topic, "bad measurement: no finite value in " + ", ".join(values))
             return None
         last = self.last_solved
         if last is None or abs(stamp - last.stamp) > self.staleness:
             self._reject(topic, "no solved pose within the staleness limit")
             return None
         self.stats.used[topic] += 1
-        return residuals(self.noise, stamp, channels, self.last_predicted)
+        return residuals(self.noise, stamp, values, self.last_predicted)
 
-    def on_imu(self, stamp: float, quaternion_xyzw: Sequence[float], topic: str = "/platform/imu") -> Residuals | None:
-        """An inclinometer reading: roll and pitch residuals against the latest solved pose."""
-        quaternion = [float(v) for v in quaternion_xyzw]
-        reason = orientation_reason(quaternion)
-        if reason:
-            self.stats.messages[topic] += 1
-            self._reject(topic, reason)
-            return None
-        return self._measurement(topic, stamp, imu_channels(quaternion))
-
-    def on_position(self, stamp: float, xyz: Sequence[float], topic: str = "/platform/position") -> Residuals | None:
-        """A depth-gauge reading (x, y may be NaN): residuals against the latest solved pose."""
-        reason = position_reason([float(v) for v in xyz], self.limits)
-        if reason:
-            self.stats.messages[topic] += 1
-            self._reject(topic, reason)
-            return None
-        return self._measurement(topic, stamp, position_channels(xyz))
+    def on_input(self, spec: Input, stamp: float, message: Any) -> None:
+        """An extra input's message (e.g. the shaft temperature): kept for the samples' conditions."""
+        self.stats.messages[spec.topic] += 1
+        value = spec.read(message)
+        if not math.isfinite(value) or not math.isfinite(stamp):
+            self._reject(spec.topic, f"bad input: {spec.field} = {value}")
+            return
+        self.inputs[spec.key].add(stamp, value)
+        self.stats.used[spec.topic] += 1

@@ -1,17 +1,11 @@
-"""Measured minus model for every measured channel: load pins, inclinometer, depth gauge."""
+"""Measured minus model for the channels measured at a stamp, with their noise from the plant file."""
 from __future__ import annotations
 
 import math
-from typing import Mapping, NamedTuple, Sequence
+from typing import Mapping, NamedTuple
 
-import numpy as np
-
-from ..model.geometry import roll_pitch_of_quaternion, roll_pitch_yaw
-from ..model.plant import CABLE_NAMES, Plant
-from ..model.result import Solution
-
-TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # load pins, one per cable
-NOISE_KEYS = {channel: "tension" for channel in TENSION_CHANNELS}  # channel -> its key in noise_levels()
+from .. import channels
+from ..model.plant import Plant
 
 
 class Residuals(NamedTuple):
@@ -31,43 +25,17 @@ class Residuals(NamedTuple):
 
 
 def noise_levels(plant: Plant) -> dict[str, float]:
-    """1-sigma noise per channel family from the plant file's `noise` section (NaN if absent)."""
-    section: Mapping[str, float] = plant.raw.get("plant", {}).get("noise", {}) or {}
-    return {key: float(section.get(key, np.nan)) for key in ("tension", "roll", "pitch", "depth", "x", "y")}
-
-
-def predicted_channels(solution: Solution) -> dict[str, float]:
-    """What each sensor should read for a solved pose under the rigid-rope model.
-
-    Load pins at the head sheave read the rope tension, equal to the tension at the
-    platform for a weightless rope; the inclinometer reads roll and pitch of `platform`;
-    the depth gauge reads the platform origin.
-    """
-    roll, pitch, _ = roll_pitch_yaw(solution.rotation)
-    channels = dict(zip(TENSION_CHANNELS, solution.tensions.tolist()))
-    channels.update(roll=roll, pitch=pitch, x=float(solution.position[0]), y=float(solution.position[1]),
-                    depth=float(solution.position[2]))
-    return channels
+    """1-sigma noise of every declared channel from the plant file's `noise:` section (NaN if absent)."""
+    return {c.name: float(plant.noise.get(c.noise_key, math.nan)) for c in channels.declared()}
 
 
 def residuals(noise: Mapping[str, float], stamp: float, measured: Mapping[str, float],
               predicted: Mapping[str, float]) -> Residuals | None:
     """Residuals of the finite measured channels; None if nothing to compare.
 
-    `predicted` is what the sensors read for the solved pose (`predicted_channels`, or
-    effects.PlantModel.predict under the plant's effects); `noise` is `noise_levels(plant)`.
+    `predicted` is what the sensors read for the solved pose (effects.PlantModel.predict);
+    `noise` is `noise_levels(plant)`.
     """
-    rows = [(k, v, predicted[k], noise[NOISE_KEYS.get(k, k)]) for k, v in measured.items()
+    rows = [(k, v, predicted[k], noise.get(k, math.nan)) for k, v in measured.items()
             if k in predicted and math.isfinite(v)]
     return Residuals(stamp, *zip(*rows)) if rows else None
-
-
-def imu_channels(quaternion_xyzw: Sequence[float]) -> dict[str, float]:
-    """Roll and pitch of an inclinometer's orientation (yaw is not measured)."""
-    roll, pitch = roll_pitch_of_quaternion(quaternion_xyzw)
-    return {"roll": roll, "pitch": pitch}
-
-
-def position_channels(xyz: Sequence[float]) -> dict[str, float]:
-    """Depth gauge (z) and, where measured, x and y of the platform origin."""
-    return {"x": float(xyz[0]), "y": float(xyz[1]), "depth": float(xyz[2])}

@@ -1,6 +1,6 @@
 """rclpy messages from the monitor's plain field values, and the service's request and answer.
 
-What goes into which field is decided once, in monitor/fields.py (shared with bag
+What goes into which field is decided once, in bagio/fields.py (shared with bag
 replay); this module only turns those nested values into rclpy message objects.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from cable_winch_monitor_msgs.srv import CheckCableLengths
 
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution
-from ..monitor import fields
+from ..bagio import fields
 from ..monitor.alarm import Alarm
 
 
@@ -32,7 +32,7 @@ def _message_fields(kind: type) -> dict[str, tuple[type, bool]]:
 
 
 def build(kind: type, values: Mapping[str, Any]) -> Any:
-    """A message of type `kind` from nested field values (monitor.fields layout)."""
+    """A message of type `kind` from nested field values (bagio.fields layout)."""
     nested = _message_fields(kind)
     arguments = {}
     for name, value in values.items():
@@ -70,3 +70,9 @@ def check_response(stamp: fields.Stamp, solution: Solution, alarm: Alarm) -> Che
 
 def rejected_response(message: str) -> CheckCableLengths.Response:
     return CheckCableLengths.Response(accepted=False, message=message)
+
+
+def message_class(msgtype: str) -> type:
+    """The rclpy message class of a type name such as "sensor_msgs/msg/Temperature"."""
+    package, kind, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{package}.{kind}"), name)

@@ -21,7 +21,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..bagio.reader import BagError
 from ..bagio.writer import BagWriter
-from ..monitor.fields import INPUT_TOPICS
+from ..bagio.fields import input_topics
 
 NODE_NAME = "cable_winch_monitor_recorder"
 GRAPH_PERIOD = 0.5  # [s] between looks for topics not yet subscribed
@@ -77,7 +77,7 @@ class Recorder(Node):
 
 def record(out: str | Path, topics: Sequence[str] = ()) -> int:
     """Record until Ctrl-C / SIGTERM; 0 when the bag was closed, 2 if it could not be created."""
-    topics = list(topics) or list(INPUT_TOPICS)
+    topics = list(topics) or list(input_topics())
     try:
         writer = BagWriter(out)
     except BagError as error:

@@ -15,25 +15,28 @@ from typing import Any, Callable, Sequence
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PointStamped, PoseStamped
+from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import JointState
 
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
+from .. import channels
+from ..bagio import fields
+from ..channels import WINCH_TOPICS, Input
+from ..effects import EffectError
 from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
-from ..monitor import fields
 from ..monitor.inputs import StampWindow
 from ..monitor.latest import LatestSamplePipeline
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
-from .conversions import build, check_response, rejected_response, requested_lengths
+from .conversions import build, check_response, message_class, rejected_response, requested_lengths
 from .diagnostics import DiagnosticsReporter
 from .winch_input import WinchInput
 
@@ -107,9 +110,13 @@ class WinchMonitorNode(Node):
         for winch in self.winch_inputs:
             winch.subscription = self.create_subscription(JointState, winch.topic, self._winch_callback(winch),
                                                           SENSOR_QOS)
-        self.create_subscription(Imu, "/platform/imu", self._guarded("/platform/imu", self._on_imu), SENSOR_QOS)
-        self.create_subscription(PointStamped, "/platform/position",
-                                 self._guarded("/platform/position", self._on_position), SENSOR_QOS)
+        for topic, msgtype in channels.topic_types().items():  # inclinometer, depth gauge, declared sensors
+            if topic not in WINCH_TOPICS:
+                self.create_subscription(message_class(msgtype), topic,
+                                         self._guarded(topic, self._on_measurement, topic), SENSOR_QOS)
+        for spec in self.pipeline.model.inputs:  # what the plant's effects read (a shaft temperature)
+            self.create_subscription(message_class(spec.msgtype), spec.topic,
+                                     self._guarded(spec.topic, self._on_input, spec), SENSOR_QOS)
         self.create_service(CheckCableLengths, "~/check_cable_lengths", self._check_cable_lengths)
         self.create_timer(value("diagnostics_period"), self._guarded("diagnostics", self._publish_diagnostics))
         self._stopping = threading.Event()
@@ -188,15 +195,16 @@ class WinchMonitorNode(Node):
                 self.reporter.note_residuals(residuals)
             self.residuals_pub.publish(build(ModelResiduals, fields.model_residuals(stamp, residuals)))
 
-    def _on_imu(self, msg: Imu) -> None:
+    def _on_measurement(self, msg: Any, topic: str) -> None:
+        now = self.get_clock().now().nanoseconds
         with self.pipeline.lock:
-            residuals = self.pipeline.on_imu(fields.seconds(msg.header.stamp), fields.imu_quaternion(msg))
-        self._publish_residuals(fields.stamp_of(msg), residuals)
+            residuals = self.pipeline.on_measurement(topic, fields.message_seconds(msg, now), msg)
+        stamp = fields.stamp_of(msg) if hasattr(msg, "header") else divmod(now, 1_000_000_000)
+        self._publish_residuals(stamp, residuals)
 
-    def _on_position(self, msg: PointStamped) -> None:
+    def _on_input(self, msg: Any, spec: Input) -> None:
         with self.pipeline.lock:
-            residuals = self.pipeline.on_position(fields.seconds(msg.header.stamp), fields.point_xyz(msg))
-        self._publish_residuals(fields.stamp_of(msg), residuals)
+            self.pipeline.on_input(spec, fields.message_seconds(msg, self.get_clock().now().nanoseconds), msg)
 
     def _publish_diagnostics(self) -> None:
         now = self.get_clock().now()
@@ -225,7 +233,7 @@ def main(args: Sequence[str] | None = None) -> int:
     rclpy.init(args=args)
     try:
         node = WinchMonitorNode()
-    except (PlantConfigError, ParameterException, ValueError) as error:
+    except (PlantConfigError, ParameterException, EffectError, ValueError) as error:
         print(f"{NODE_NAME}: error: {error}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2

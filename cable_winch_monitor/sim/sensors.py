@@ -18,8 +18,9 @@ import numpy as np
 from ..model.geometry import roll_pitch_yaw
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution
-from ..monitor.fields import IMU, JOINT_STATE, POINT, Stamp, header
-from ..monitor.residuals import TENSION_CHANNELS
+from ..bagio.fields import Stamp, header
+from ..channels import IMU, JOINT_STATE, POINT
+from ..channels import TENSION_CHANNELS
 
 NAN = float("nan")
 UNKNOWN = -1.0  # covariance[0] of a quantity that is not measured (sensor_msgs convention)

@@ -25,7 +25,7 @@ from ..model.geometry import roll_pitch_yaw
 from ..model.plant import load_plant
 from ..model.result import Solution
 from ..monitor.clearance import solution_clearance
-from ..monitor.fields import Stamp, stamp_ns
+from ..bagio.fields import Stamp, stamp_ns
 from .profile import Profile
 from .sensors import Sensors, Stream, sensor_streams
 from .sync import SyncErrors

@@ -19,7 +19,7 @@ from ..effects import (
     effect_class,
     effects_from_mapping,
 )
-from ..effects.sheave import motion_direction
+from ..model.conditions import motion_direction
 from ..model.plant import Plant
 from ..model.result import Solution
 from .scenario import ScenarioError
@@ -49,6 +49,7 @@ class TruthModel:
         solution = self.model.solve(lengths, self.previous)
         self.previous = solution if solution.ok else None
         self.direction = motion_direction(speeds, self.direction)
-        channels = self.model.predict(solution, Conditions(np.asarray(speeds, dtype=float), self.direction)) \
+        channels = self.model.predict(solution, Conditions(speeds=np.asarray(speeds, dtype=float),
+                                                           direction=self.direction)) \
             if solution.ok else {}
         return solution, channels

@@ -12,16 +12,15 @@ from typing import Any
 
 import numpy as np
 
+from .. import channels
+from ..channels import JOINT_STATE, WINCH_TOPICS, Input
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution, SolveStatus
-from .alarm import Alarm
-from .residuals import Residuals
-from .inputs import JointSample
+from ..monitor.alarm import Alarm
+from ..monitor.inputs import JointSample
+from ..monitor.residuals import Residuals
 
 FRAME = "shaft"
-JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
-INPUT_TOPICS = {"/winch/joint_states": JOINT_STATE, **{f"/winch_{i}/joint_states": JOINT_STATE for i in range(1, 5)},
-                "/platform/imu": IMU, "/platform/position": POINT}  # interface.md: the monitor's inputs
 NAN = float("nan")
 Stamp = tuple[int, int]
 Fields = dict[str, Any]
@@ -31,9 +30,23 @@ STATUS_NUMBERS = {SolveStatus.SOLVED: 0, SolveStatus.SINGLE_CABLE_INDETERMINATE:
                   SolveStatus.INVALID_INPUT: 3, SolveStatus.SOLVER_FAILED: 4}
 
 
+def input_topics(inputs: tuple[Input, ...] = ()) -> dict[str, str]:
+    """Every topic the monitor reads, with its message type: the winches, every declared channel's
+    topic (interface.md: inclinometer, depth gauge, ...) and the extra inputs of the plant's effects."""
+    return {**{topic: JOINT_STATE for topic in WINCH_TOPICS}, **channels.topic_types(),
+            **{spec.topic: spec.msgtype for spec in inputs}}
+
+
 def seconds(stamp: Any) -> float:
     """A builtin_interfaces/Time in seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def message_seconds(msg: Any, receive_ns: int) -> float:
+    """A message's time [s]: its header stamp, or when it has no header (std_msgs/Float64, ...) the time
+    it was received (a bag's log time) [ns]."""
+    header = getattr(msg, "header", None)
+    return seconds(header.stamp) if header is not None else receive_ns * 1e-9
 
 
 def stamp_of(msg: Any) -> Stamp:
@@ -48,17 +61,6 @@ def stamp_ns(stamp: Stamp) -> int:
 def joint_sample(msg: Any, topic: str) -> JointSample:
     """A sensor_msgs/JointState as plain values (arrays are passed through, not copied)."""
     return JointSample(seconds(msg.header.stamp), msg.name, msg.position, msg.velocity, msg.effort, topic)
-
-
-def imu_quaternion(msg: Any) -> tuple[float, float, float, float]:
-    """The measured orientation of a sensor_msgs/Imu as (x, y, z, w)."""
-    q = msg.orientation
-    return q.x, q.y, q.z, q.w
-
-
-def point_xyz(msg: Any) -> tuple[float, float, float]:
-    """The point of a geometry_msgs/PointStamped."""
-    return msg.point.x, msg.point.y, msg.point.z
 
 
 def header(stamp: Stamp, frame_id: str = FRAME) -> Fields:

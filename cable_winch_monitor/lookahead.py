@@ -13,6 +13,9 @@ ahead. For each window of messages:
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
    solved pose -- the per-sample pipeline's own code, so the outputs are the node's.
 
+Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
+a sample's value is interpolated between the readings around its stamp.
+
 Each message comes out with its result: the solved sample (MonitorOutput), residuals,
 None, or the exception the pipeline raised on it (counted like the node's callback errors).
 """
@@ -22,14 +25,14 @@ from typing import Any, Iterable, Iterator, Union
 
 import numpy as np
 
-from ..model.batched import solve_batch
-from ..model.plant import Plant
-from ..model.result import Solution
-from . import fields
-from .inputs import StampWindow
-from .clearance import Clearance, solution_clearances
-from .pipeline import CompleteSample, MonitorOutput, MonitorPipeline
-from .residuals import Residuals
+from .bagio import fields
+from .model.batched import solve_batch
+from .model.plant import Plant
+from .model.result import Solution
+from .monitor.clearance import Clearance, solution_clearances
+from .monitor.inputs import StampWindow
+from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
+from .monitor.residuals import Residuals
 
 WINDOW = 2000  # messages read ahead
 
@@ -44,7 +47,8 @@ class LookaheadPipeline(MonitorPipeline):
         super().__init__(plant, solver, staleness, stamp_window)
         self.window = window
         # The batch solver is the rigid energy model: not for another solver, nor with physical effects.
-        self.batched = batched and solver == "energy" and self.model is None
+        self.batched = batched and solver == "energy" and self.model.plain
+        self.input_specs = {spec.topic: spec for spec in self.model.inputs}
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
         """Every item in order, with what the pipeline made of it."""
@@ -57,6 +61,10 @@ class LookaheadPipeline(MonitorPipeline):
         yield from self._run_window(window)
 
     def _run_window(self, window: list[Any]) -> Iterator[tuple[Any, Result]]:
+        for item in window:
+            spec = self.input_specs.get(item.topic)
+            if spec is not None:
+                self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
         merged = [self._merge_item(item) if item.msgtype == fields.JOINT_STATE else None for item in window]
         samples = [outcome for outcome in merged if isinstance(outcome, CompleteSample)]
         presolved = iter(self._presolve(samples))
@@ -71,8 +79,7 @@ class LookaheadPipeline(MonitorPipeline):
     def _merge_item(self, item: Any) -> CompleteSample | Exception | None:
         try:
             sample = fields.joint_sample(item.message, item.topic)
-            log_time = getattr(item, "log_time", None)  # a bag message's arrival time [ns]
-            return self._merge(sample if log_time is None else sample._replace(received=log_time * 1e-9))
+            return self._merge(sample._replace(received=item.log_time * 1e-9))  # arrival: the log time
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
 
@@ -82,7 +89,7 @@ class LookaheadPipeline(MonitorPipeline):
             return [None] * len(samples)
         batch = solve_batch(self.plant, np.array([s.lengths for s in samples]), warm_start=self._warm_start())
         solutions = batch.solutions()
-        return list(zip(solutions, solution_clearances(self.plant, solutions)))
+        return list(zip(solutions, solution_clearances(self.model.physical, solutions)))
 
     def _result(self, item: Any, outcome: CompleteSample | Exception | None,
                 solved: tuple[Solution, Clearance | None] | None) -> Result:
@@ -91,6 +98,6 @@ class LookaheadPipeline(MonitorPipeline):
             if isinstance(outcome, Exception):
                 raise outcome
             return None if outcome is None else self._solve(outcome, solved)
-        if item.msgtype == fields.IMU:
-            return self.on_imu(fields.seconds(msg.header.stamp), fields.imu_quaternion(msg))
-        return self.on_position(fields.seconds(msg.header.stamp), fields.point_xyz(msg))
+        if item.topic in self.input_specs:
+            return None  # taken in ahead of the window's samples
+        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg)

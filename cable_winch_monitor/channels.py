@@ -1,0 +1,171 @@
+"""Every measured channel, declared once: name, unit, noise key, where it is read, how the model predicts it.
+
+compare, diagnose, fit, the monitor's residuals (`/model/residuals`), the live node and
+replay take the channel list from here. The built-in channels are the load pins (one per
+cable, read with the winch's joint state), the inclinometer's roll and pitch and the
+depth gauge (x, y where measured). A sensor the package does not know is one more
+declaration, made in a user's effect module:
+
+    declare(Channel("cage_load", "N", "cage_load", ("/cage/load",), "std_msgs/msg/Float64", "data",
+                    predict=lambda solution, plant, conditions: ...))
+
+Its noise comes from the plant file's `noise:` section under the channel's noise key.
+Extra inputs (`Input`) are topics an effect reads besides the channels: a shaft
+temperature, a motor current; their values reach the effect in `Conditions.inputs`.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from .model.conditions import Conditions
+from .model.geometry import roll_pitch_of_quaternion, roll_pitch_yaw
+from .model.plant import CABLE_NAMES, Plant
+from .model.result import Solution
+
+JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
+WINCH_TOPICS = ("/winch/joint_states", *(f"/winch_{i}/joint_states" for i in range(1, 5)))  # interface.md
+Prediction = Callable[[Solution, Plant, Conditions], float]
+NAN = float("nan")
+
+
+class ChannelError(ValueError):
+    """A channel or input declaration is wrong, or a field cannot be read; the message names it."""
+
+
+_PATH = re.compile(r"^[A-Za-z_]\w*(\[\d+\])?(\.[A-Za-z_]\w*(\[\d+\])?)*$")
+
+
+def field_reader(path: str) -> Callable[[Any], float]:
+    """A function reading the number at a dotted field path ("point.z", "position[2]", "temperature")
+    of a message (rclpy or rosbags: the attribute names are the same); NaN where it is not a number."""
+    if not _PATH.match(path):
+        raise ChannelError(f"field {path!r} is not a dotted field path such as 'temperature' or 'point.z'")
+    steps = [(name, int(index[1:-1]) if index else None) for name, index in re.findall(r"(\w+)(\[\d+\])?", path)]
+
+    def read(message: Any) -> float:
+        value = message
+        try:
+            for name, index in steps:
+                value = getattr(value, name)
+                if index is not None:
+                    value = value[index]
+            return float(value)
+        except (AttributeError, IndexError, TypeError, ValueError):
+            return NAN
+    return read
+
+
+@dataclass(frozen=True)
+class Input:
+    """An extra input an effect reads: a numeric field of a topic, e.g. Input("temperature",
+    "/shaft/temperature", "temperature", "sensor_msgs/msg/Temperature")."""
+
+    name: str
+    topic: str
+    field: str
+    msgtype: str
+
+    @property
+    def key(self) -> str:
+        """How the value is keyed in Conditions.inputs and named in reports: "topic.field"."""
+        return f"{self.topic}.{self.field}"
+
+    def read(self, message: Any) -> float:
+        return field_reader(self.field)(message)
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One measured number: its name, unit, noise key in the plant file, the topics and message type
+    it is read from, the field (in words), how to read it from a message (None: the winch merger
+    reads it, aligned with the cable lengths) and how the model predicts it."""
+
+    name: str
+    unit: str
+    noise_key: str
+    topics: tuple[str, ...]
+    msgtype: str
+    field: str
+    predict: Prediction
+    read: Callable[[Any], float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.read is None and self.msgtype != JOINT_STATE:
+            object.__setattr__(self, "read", field_reader(self.field))
+
+
+def _tension(cable: int) -> Prediction:
+    return lambda solution, plant, conditions: float(solution.tensions[cable])
+
+
+def _roll_pitch(which: int) -> Callable[[Any], float]:
+    def read(message: Any) -> float:
+        q = message.orientation
+        quaternion = (q.x, q.y, q.z, q.w)
+        if not all(math.isfinite(v) for v in quaternion) or math.hypot(*quaternion) < 1e-9:
+            return NAN  # not an orientation
+        return roll_pitch_of_quaternion(quaternion)[which]
+    return read
+
+
+def _position(axis: int) -> Prediction:
+    return lambda solution, plant, conditions: float(solution.position[axis])
+
+
+TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # the load pins, one per cable
+BUILTIN = (
+    *(Channel(name, "N", "tension", WINCH_TOPICS, JOINT_STATE, f"effort[{cable}]", _tension(i))
+      for i, (name, cable) in enumerate(zip(TENSION_CHANNELS, CABLE_NAMES))),
+    Channel("roll", "rad", "roll", ("/platform/imu",), IMU, "orientation (roll)",
+            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[0], _roll_pitch(0)),
+    Channel("pitch", "rad", "pitch", ("/platform/imu",), IMU, "orientation (pitch)",
+            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[1], _roll_pitch(1)),
+    Channel("x", "m", "x", ("/platform/position",), POINT, "point.x", _position(0)),
+    Channel("y", "m", "y", ("/platform/position",), POINT, "point.y", _position(1)),
+    Channel("depth", "m", "depth", ("/platform/position",), POINT, "point.z", _position(2)),
+)
+_declared: dict[str, Channel] = {c.name: c for c in BUILTIN}
+
+
+def declare(channel: Channel) -> Channel:
+    """Add a channel (a user's sensor); a name may be declared again only with the same topics."""
+    known = _declared.get(channel.name)
+    if known is not None and (known.topics, known.msgtype) != (channel.topics, channel.msgtype):
+        raise ChannelError(f"channel '{channel.name}' is declared twice, on {known.topics} and {channel.topics}")
+    if not channel.topics or not all(t.startswith("/") for t in channel.topics):
+        raise ChannelError(f"channel '{channel.name}': topics must be absolute ROS topic names, got {channel.topics}")
+    _declared[channel.name] = channel
+    return channel
+
+
+def declared() -> tuple[Channel, ...]:
+    """Every channel: the built-ins, then those user modules declared, in order."""
+    return tuple(_declared.values())
+
+
+def names() -> tuple[str, ...]:
+    return tuple(_declared)
+
+
+def get(name: str) -> Channel:
+    return _declared[name]
+
+
+def topic_types() -> dict[str, str]:
+    """Every topic a channel is read from, with its message type."""
+    return {topic: c.msgtype for c in _declared.values() for topic in c.topics}
+
+
+def on_topic(topic: str) -> tuple[Channel, ...]:
+    """The channels read from messages of `topic` by their own reader (not the winch merger's)."""
+    return tuple(c for c in _declared.values() if topic in c.topics and c.read is not None)
+
+
+def predicted(solution: Solution, plant: Plant, conditions: Conditions) -> dict[str, float]:
+    """What every channel reads for a solved state under the plain model (no measurement effects):
+    load pins the tension (weightless ropes), the inclinometer the platform's roll and pitch, the
+    depth gauge the platform origin."""
+    return {name: channel.predict(solution, plant, conditions) for name, channel in _declared.items()}

@@ -1,0 +1,129 @@
+"""Operating conditions of a sample: what a physical effect may depend on besides the pose.
+
+For each sample: its time, the payout speed and payout acceleration of every winch, the
+direction of motion, and the extra inputs effects declare (a shaft temperature, ...).
+Speeds are the winches' reported velocities, or the lengths differentiated where a winch
+reports none; accelerations are the speeds differentiated. Both derivatives are the
+slope of a straight line fitted over a window of ACCELERATION_WINDOW seconds: encoder
+noise of 1 mm and speed noise of 2 mm/s at 10 Hz leave a few mm/s^2 over one second,
+against the 0.1 m/s^2 of a winch starting or braking. Live (`ConditionsTracker`) the
+window ends at the sample; over a recording (`conditions_along`) it is centred on it.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+DEADBAND = 0.02               # [m/s] slower payout counts as standing still (encoder speed noise is ~2 mm/s)
+ACCELERATION_WINDOW = 1.0     # [s] speeds and accelerations are line slopes over this window
+NAN = float("nan")
+
+
+@dataclass(frozen=True)
+class Conditions:
+    """Conditions of one sample.
+
+    time           [s] the sample's stamp (NaN: not known, e.g. a command check)
+    speeds         payout speed of each winch [m/s], + paying out (NaN where not known)
+    accelerations  payout acceleration of each winch [m/s^2] (0 where not known)
+    direction      +1 paying out (lowering), -1 hauling in (hoisting), 0 not yet moved; held through stops
+    inputs         extra inputs by key "topic.field" (channels.Input.key), at the sample's stamp
+    """
+
+    time: float = NAN
+    speeds: np.ndarray = field(default_factory=lambda: np.full(4, NAN))
+    accelerations: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    direction: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    inputs: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def acceleration(self) -> float:
+        """The platform's downward acceleration [m/s^2]: the mean payout acceleration of the winches."""
+        return float(np.mean(self.accelerations))
+
+
+def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """+1 paying out, -1 hauling in; within the dead band the last direction holds (static friction
+    keeps the slip state the rope had when it stopped)."""
+    speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
+    return np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, previous))
+
+
+def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """Least-squares slope of values (n, k) over rows start[j]:stop[j] for every j (cumulative sums)."""
+    t = times - times[0]
+    cumulative = [np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
+                  for a in (np.ones_like(t), t, t * t)]
+    count, sum_t, sum_tt = (c[stop] - c[start] for c in cumulative)
+    filled = np.nan_to_num(values)
+    sum_v = (np.cumsum(np.vstack([np.zeros((1, values.shape[1])), filled]), axis=0))
+    sum_tv = (np.cumsum(np.vstack([np.zeros((1, values.shape[1])), filled * t[:, None]]), axis=0))
+    sv, stv = sum_v[stop] - sum_v[start], sum_tv[stop] - sum_tv[start]
+    denominator = count * sum_tt - sum_t ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = (count[:, None] * stv - sum_t[:, None] * sv) / denominator[:, None]
+    return np.where(np.isfinite(slope), slope, 0.0)
+
+
+def _windows(times: np.ndarray, window: float, centred: bool) -> tuple[np.ndarray, np.ndarray]:
+    before = window / 2.0 if centred else window
+    after = window / 2.0 if centred else 0.0
+    slack = 1e-9 * max(window, 1.0)  # stamps exactly half a window away belong to it on both sides
+    return np.searchsorted(times, times - before - slack, "left"), np.searchsorted(times, times + after + slack, "right")
+
+
+def derivatives(times: np.ndarray, lengths: np.ndarray, speeds: np.ndarray, window: float = ACCELERATION_WINDOW,
+                centred: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Speeds and accelerations (n, 4) of winch samples in time order: reported speeds where finite,
+    else the lengths' slope; accelerations the speeds' slope, over `window` seconds."""
+    times = np.asarray(times, dtype=float)
+    if not len(times):
+        return np.zeros((0, 4)), np.zeros((0, 4))
+    start, stop = _windows(times, window, centred)
+    speeds = np.where(np.isfinite(speeds), speeds, _slopes(times, lengths, start, stop))
+    return speeds, _slopes(times, speeds, start, stop)
+
+
+def directions(speeds: np.ndarray) -> np.ndarray:
+    """`motion_direction` along a series of speeds (n, 4), held through stops."""
+    out, current = np.zeros_like(speeds), np.zeros(4)
+    for k, row in enumerate(speeds):
+        current = out[k] = motion_direction(row, current)
+    return out
+
+
+class ConditionsTracker:
+    """The conditions of each new winch sample from the samples before it (live: causal windows)."""
+
+    def __init__(self, window: float = ACCELERATION_WINDOW):
+        self.window = window
+        self.history: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
+        self.direction = np.zeros(4)
+
+    def update(self, time: float, lengths: np.ndarray, speeds: np.ndarray,
+               inputs: Mapping[str, float] | None = None) -> Conditions:
+        """Record a sample (stamp [s], lengths, reported speeds with NaN where none) and return its conditions."""
+        history = self.history
+        if history and time <= history[-1][0]:
+            history.clear()  # time went back (a replay restarted): derivatives start afresh
+        lengths, speeds = np.asarray(lengths, dtype=float), np.asarray(speeds, dtype=float)
+        history.append((time, lengths, speeds))
+        while history[0][0] < time - self.window:
+            history.popleft()
+        times = np.array([h[0] for h in history])
+        whole = (np.array([0]), np.array([len(times)]))
+        if not np.all(np.isfinite(speeds)):  # a winch without velocity: its lengths' slope
+            speeds = np.where(np.isfinite(speeds), speeds, _slopes(times, np.array([h[1] for h in history]), *whole)[0])
+            history[-1] = (time, lengths, speeds)
+        acceleration = _slopes(times, np.array([h[2] for h in history]), *whole)[0]
+        self.direction = motion_direction(speeds, self.direction)
+        return Conditions(time, speeds, acceleration, self.direction, dict(inputs or {}))
+
+
+def is_number(value: object) -> bool:
+    """A finite real number (an extra input's value must be one to be used)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
