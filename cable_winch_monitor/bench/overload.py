@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 
-from .node_latency import Probe, connect, cpu_seconds, lowering, percentiles, start_node
+from .node_latency import Probe, connect, cpu_seconds, lowering, percentiles, publish_paced, start_node
 
 SOLVER_STATUS = "winch_monitor: solver"
 COUNTERS = ("samples", "complete samples", "skipped (a newer sample came first)", "waiting", "winch messages",
@@ -65,12 +65,8 @@ def run(rate: float, seconds: float, domain_id: int) -> int:
             time.sleep(SETTLE)
             before = probe.counters()
             probe.received.clear()
-            sent: dict[tuple[int, int], int] = {}
             cpu0, start = cpu_seconds(node.pid), time.monotonic()
-            for k, sample in enumerate(lengths):
-                time.sleep(max(0.0, start + k / rate - time.monotonic()))
-                key, at = probe.publish(sample)
-                sent[key] = at
+            sent = publish_paced(probe, lengths, rate)
             duration = time.monotonic() - start
             cpu = cpu_seconds(node.pid) - cpu0
             time.sleep(SETTLE)
