@@ -14,7 +14,7 @@ from typing import Any, Iterator, Mapping
 
 from rosbags.typesys.store import Typestore
 
-from ..safe_yaml import YamlLimitError, load_yaml_file
+from ..model.safe_yaml import YamlLimitError, load_yaml_file
 from .decode import decode
 from .mcapfile import McapError, McapFile
 from .typestore import typestore

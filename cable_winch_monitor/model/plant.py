@@ -15,7 +15,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..paths import default_plant_file
-from ..safe_yaml import YamlLimitError, load_yaml_file
+from .safe_yaml import YamlLimitError, load_yaml_file
 from .plant_checks import degenerate_points
 
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")

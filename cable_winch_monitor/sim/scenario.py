@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from ..paths import config_dir
-from ..safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
+from ..model.safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
 
 # None marks an optional value; its kind is in OPTIONAL.
 DEFAULTS: dict[str, Any] = {
