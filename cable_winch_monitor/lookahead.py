@@ -4,7 +4,8 @@ The live node must merge and solve each winch message as it arrives; a replay ca
 ahead. For each window of messages:
 
 1. every winch message is merged, in log order, by the pipeline's own merger (as the
-   node would merge it); each complete sample keeps what the merger knew at its message;
+   node would merge it, its log time standing for the node clock in the stamp window);
+   each complete sample keeps what the merger knew at its message;
 2. the window's complete samples are solved together (`solve_batch`, warm-started from
    the last solved sample), with their wall clearances; with another solver or with the
    plant's physical effects each is solved in step 3 instead, as the node solves it;
@@ -29,6 +30,7 @@ from .model.batched import solve_batch
 from .model.plant import Plant
 from .model.result import Solution
 from .monitor.clearance import Clearance, solution_clearances
+from .monitor.inputs import StampWindow
 from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 from .monitor.residuals import Residuals
 
@@ -41,8 +43,8 @@ class LookaheadPipeline(MonitorPipeline):
     """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
-                 window: int = WINDOW):
-        super().__init__(plant, solver, staleness)
+                 window: int = WINDOW, stamp_window: StampWindow | None = None):
+        super().__init__(plant, solver, staleness, stamp_window)
         self.window = window
         # The batch solver is the rigid energy model: not for another solver, nor with physical effects.
         self.batched = batched and solver == "energy" and self.model.plain
@@ -76,7 +78,8 @@ class LookaheadPipeline(MonitorPipeline):
 
     def _merge_item(self, item: Any) -> CompleteSample | Exception | None:
         try:
-            return self._merge(fields.joint_sample(item.message, item.topic))
+            sample = fields.joint_sample(item.message, item.topic)
+            return self._merge(sample._replace(received=item.log_time * 1e-9))  # arrival: the log time
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
 

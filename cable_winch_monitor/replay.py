@@ -26,6 +26,7 @@ from .bagio.writer import BagWriter
 from .lookahead import LookaheadPipeline
 from .model.plant import Plant, load_plant
 from .monitor.alarm import AlarmLevel
+from .monitor.inputs import StampWindow
 from .monitor.pipeline import MonitorOutput, MonitorStats
 from .monitor.residuals import Residuals
 from .progress import Progress
@@ -149,7 +150,7 @@ def _fewer_collections(threshold: int = 20_000) -> Iterator[None]:
 
 def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
            staleness: float = 0.5, progress: bool = True, batched: bool = True,
-           scene_rate: float = REPLAY_RATE) -> ReplaySummary:
+           scene_rate: float = REPLAY_RATE, stamp_window: StampWindow | None = None) -> ReplaySummary:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
@@ -160,7 +161,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     """
     started = time.perf_counter()
     plant = plant or load_plant()
-    pipeline = LookaheadPipeline(plant, solver, staleness, batched)
+    pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window)
     scenes = _Scenes(plant, scene_rate)
     inputs = fields.input_topics(pipeline.model.inputs)
     reader = BagReader(bag, inputs)

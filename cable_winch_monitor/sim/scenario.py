@@ -9,9 +9,8 @@ import copy
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-import yaml
-
 from ..paths import config_dir
+from ..model.safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
 
 # None marks an optional value; its kind is in OPTIONAL.
 DEFAULTS: dict[str, Any] = {
@@ -184,8 +183,8 @@ def apply_override(config: dict[str, Any], assignment: str) -> None:
     if not sep or not key:
         raise ScenarioError(f"--set {assignment!r}: expected key=value, e.g. sync.sigma=0.01")
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
+        value = parse_yaml(text)
+    except YamlLimitError:
         value = text
     parts = key.split(".")
     target: Any = config
@@ -219,11 +218,11 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), seed: int | N
     """The checked scenario: file, then `--set` overrides, then `seed` if given."""
     path = Path(path)
     try:
-        raw = yaml.safe_load(path.read_text()) or {}
+        raw = load_yaml_file(path) or {}
     except OSError as error:
         raise ScenarioError(f"scenario {path}: cannot be read ({error.strerror})") from None
-    except yaml.YAMLError as error:
-        raise ScenarioError(f"scenario {path}: not valid YAML ({error})") from None
+    except YamlLimitError as error:
+        raise ScenarioError(f"scenario {path}: {error}") from None
     try:
         if not isinstance(raw, dict):
             raise ScenarioError("the file must hold a mapping of keys")
