@@ -4,9 +4,9 @@ The live node must merge and solve each winch message as it arrives; a replay ca
 ahead. For each window of messages:
 
 1. every winch message is merged, in log order, by the pipeline's own merger (as the
-   node would merge it), and every sensor reading kept as the node keeps it; each complete
-   sample keeps what the merger knew at its message, what the sensors read then, and its
-   conditions;
+   node would merge it, its log time standing for the node clock in the stamp window), and
+   every sensor reading kept as the node keeps it; each complete sample keeps what the
+   merger knew at its message, what the sensors read then, and its conditions;
 2. the window's complete samples are solved together, with their wall clearances: where
    the plant fuses its sensors (`noise.length`), estimated together from the sensors
    trusted at the window's start (`estimate_recording`); else solved by `solve_batch`,
@@ -39,6 +39,7 @@ from .model.batched import solve_batch
 from .model.plant import Plant
 from .model.result import Solution
 from .monitor.clearance import Clearance, solution_clearances
+from .monitor.inputs import StampWindow
 from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 from .monitor.residuals import Residuals
 from .monitor.sensors import DEFAULT_HOLD
@@ -50,10 +51,9 @@ Solved = tuple[Solution, Clearance | None, Estimate | None]
 
 
 class Merged(NamedTuple):
-    """A complete sample with what the sensors read at its message and its conditions."""
+    """A complete sample with its conditions."""
 
     sample: CompleteSample
-    measured: dict[str, float]
     conditions: Conditions
 
 
@@ -61,8 +61,8 @@ class LookaheadPipeline(MonitorPipeline):
     """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
-                 window: int = WINDOW, gate_hold: float = DEFAULT_HOLD):
-        super().__init__(plant, solver, staleness, gate_hold)
+                 window: int = WINDOW, stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD):
+        super().__init__(plant, solver, staleness, stamp_window, gate_hold)
         self.window = window
         # The batch solver is the rigid energy model: not for another solver, nor with physical effects;
         # the batched estimator takes the plant model's effects.
@@ -111,10 +111,11 @@ class LookaheadPipeline(MonitorPipeline):
                 self.keep_reading(stamp, {c.name: c.read(item.message) for c in readers})
             return None
         try:
-            sample = self._merge(fields.joint_sample(item.message, item.topic))
+            sample = self._merge(fields.joint_sample(item.message, item.topic)
+                                 ._replace(received=item.log_time * 1e-9))  # arrival: the log time
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
-        return None if sample is None else Merged(sample, self.measured(sample), self.conditions(sample))
+        return None if sample is None else Merged(sample, self.conditions(sample))
 
     def _presolve(self, samples: list[Merged]) -> list[Solved | None]:
         """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched)."""
@@ -122,7 +123,7 @@ class LookaheadPipeline(MonitorPipeline):
             return [None] * len(samples)
         lengths = np.array([s.sample.lengths for s in samples])
         if self.fusing:
-            trusted = [self.gates.trusted(s.measured) for s in samples]
+            trusted = [self.gates.trusted(s.sample.sensors) for s in samples]
             names = sorted({name for row in trusted for name in row})
             measured = {name: np.array([row.get(name, np.nan) for row in trusted]) for name in names}
             estimates = estimate_recording(self.model, lengths, measured, [s.conditions for s in samples])
@@ -139,7 +140,7 @@ class LookaheadPipeline(MonitorPipeline):
                 raise outcome
             if outcome is None:
                 return None
-            return self._solve(outcome.sample, outcome.measured, solved, outcome.conditions)
+            return self._solve(outcome.sample, solved, outcome.conditions)
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
         return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg, keep=False)

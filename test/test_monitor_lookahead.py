@@ -28,22 +28,22 @@ def stream(count: int) -> list[SimpleNamespace]:
         for i, name in enumerate(CABLE_NAMES):
             msg = SimpleNamespace(header=header(t + 0.01 * i), name=[name], position=[lengths[i]], velocity=[0.5],
                                   effort=[float("nan")])
-            items.append(SimpleNamespace(topic=f"/winch_{i + 1}/joint_states", msgtype=channels.JOINT_STATE, message=msg,
-                                         log_time=int((t + 0.01 * i) * 1e9)))
+            items.append(SimpleNamespace(topic=f"/winch_{i + 1}/joint_states", msgtype=channels.JOINT_STATE, message=msg))
         if k % 3 == 0:
             q = SimpleNamespace(x=0.001, y=-0.002, z=0.0, w=1.0)
-            items.append(SimpleNamespace(topic="/platform/imu", msgtype=channels.IMU, log_time=int((t + 0.05) * 1e9),
+            items.append(SimpleNamespace(topic="/platform/imu", msgtype=channels.IMU,
                                          message=SimpleNamespace(header=header(t + 0.05), orientation=q)))
         if k % 7 == 0:
             point = SimpleNamespace(x=float("nan"), y=float("nan"), z=-30.0 - 0.05 * k)
-            items.append(SimpleNamespace(topic="/platform/position", msgtype=channels.POINT, log_time=int((t + 0.06) * 1e9),
+            items.append(SimpleNamespace(topic="/platform/position", msgtype=channels.POINT,
                                          message=SimpleNamespace(header=header(t + 0.06), point=point)))
     broken = SimpleNamespace(header=header(5.0), position=[1.0])  # no `name`: reading it raises
-    items.insert(40, SimpleNamespace(topic="/winch/joint_states", msgtype=channels.JOINT_STATE, message=broken,
-                                     log_time=5_000_000_000))
+    items.insert(40, SimpleNamespace(topic="/winch/joint_states", msgtype=channels.JOINT_STATE, message=broken))
     backwards = SimpleNamespace(header=header(1.0), name=["cable_1"], position=[30.0], velocity=[], effort=[])
-    items.insert(90, SimpleNamespace(topic="/winch_1/joint_states", msgtype=channels.JOINT_STATE, message=backwards,
-                                     log_time=9_000_000_000))
+    items.insert(90, SimpleNamespace(topic="/winch_1/joint_states", msgtype=channels.JOINT_STATE, message=backwards))
+    for item in items:  # recorded 5 ms after its stamp, as a bag's messages are
+        stamp = item.message.header.stamp
+        item.log_time = stamp.sec * 1_000_000_000 + stamp.nanosec + 5_000_000
     return items
 
 
@@ -51,7 +51,7 @@ def one_at_a_time(pipeline: MonitorPipeline, item: SimpleNamespace):
     """What the live node does with each message."""
     msg = item.message
     if item.msgtype == channels.JOINT_STATE:
-        return pipeline.on_joint_state(fields.joint_sample(msg, item.topic))
+        return pipeline.on_joint_state(fields.joint_sample(msg, item.topic)._replace(received=item.log_time * 1e-9))
     return pipeline.on_measurement(item.topic, fields.seconds(msg.header.stamp), msg)
 
 

@@ -8,7 +8,8 @@ Jacobians go to one `np.linalg.solve`. A chunk starts from the previous chunk's 
 solution (warm start along the trajectory). The taut set is changed by the per-sample
 solver's rules, batched; a sample that does not settle on an admissible set of two or
 three taut cables (no convergence, four taut, single cable, bad input) is handed to
-`solve_energy`, warm-started from its predecessor. The answers are the same.
+`solve_energy`, warm-started from its predecessor; so is a sample whose batched answer
+fails the physics check. The answers are the same.
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTO
     solve_energy
 from .geometry import rotations_from_vectors, skew
 from .plant import Plant
-from .result import Solution, SolveStatus, solved, solved_rows
+from .result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
 
 CHUNK = 1024              # samples solved together from one warm start
 
@@ -81,18 +82,31 @@ def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None =
     seed = warm_start if warm_start is not None and warm_start.ok else None
     for start in range(0, count, CHUNK):
         rows = np.arange(start, min(start + CHUNK, count))
-        valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0), axis=1)
+        valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= plant.max_payout),
+                            axis=1)
                      & np.all(np.isfinite(out.loads[rows]), axis=1) & (out.loads[rows, 2] < 0.0)]
         if seed is None and valid.size:
             seed = _fallback(plant, out, int(valid[0]), None)
         if seed is not None and seed.ok:
             with np.errstate(all="ignore"):
                 _solve_chunk(plant, out, valid, seed)
+                _unsolve_unphysical(plant, out, rows)
         for i in rows[out.status[rows] != SolveStatus.SOLVED.value]:
             _fallback(plant, out, int(i), _previous(out, int(i), seed))
         last = rows[out.ok[rows]]
         seed = out.solution(int(last[-1])) if last.size else seed
     return out
+
+
+def _unsolve_unphysical(plant: Plant, out: BatchSolution, rows: np.ndarray) -> None:
+    """Batched answers among `rows` that fail the physics check go back to SOLVER_FAILED (the fallback's)."""
+    rows = rows[out.ok[rows] & ~np.isin(rows, list(out.fallback))]
+    rotation, position = out.rotation[rows], out.position[rows]
+    points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
+    point_c = position + rotation @ plant.cog
+    check = check_physics_rows(plant, out.lengths[rows], points_b, point_c, out.tensions[rows], out.taut[rows],
+                               out.loads[rows])
+    out.status[rows[~passing_rows(check)]] = SolveStatus.SOLVER_FAILED.value
 
 
 def _previous(out: BatchSolution, i: int, seed: Solution | None) -> Solution | None:

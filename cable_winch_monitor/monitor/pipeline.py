@@ -32,7 +32,7 @@ from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
-from .inputs import CableLengthMerger, InputSeries, JointSample
+from .inputs import CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates
 
@@ -58,6 +58,7 @@ class CompleteSample(NamedTuple):
     accepted: list[int]  # the cables this message updated
     tensions: list[float]  # load pins of the four cables [N] (NaN: not measured)
     speeds: list[float]  # payout speeds [m/s] (NaN: not reported)
+    sensors: dict[str, float] = {}  # what every sensor read then: the load pins, the latest other readings
 
 
 @dataclass
@@ -83,10 +84,12 @@ class MonitorStats:
 class MonitorPipeline:
     """Merges inputs, solves each complete sample (warm-started), and derives alarm and residuals."""
 
-    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, gate_hold: float = DEFAULT_HOLD):
+    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
+                 stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD):
         self.model = PlantModel.from_plant(plant, solver)  # the one solve path: effects, load, solver
         self.plant, self.solver = plant, solver
-        self.merger = CableLengthMerger(staleness)
+        self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
+        self.merger = CableLengthMerger(staleness, stamp_window, self.limits)
         self.alarms = AlarmTracker(AlarmPolicy.from_plant(plant))
         self.stats = MonitorStats()
         self.last: MonitorOutput | None = None
@@ -109,7 +112,7 @@ class MonitorPipeline:
     def on_joint_state(self, sample: JointSample) -> MonitorOutput | None:
         """A winch message; returns the solved sample when the four lengths are complete and fresh."""
         complete = self._merge(sample)
-        return None if complete is None else self._solve(complete, self.measured(complete))
+        return None if complete is None else self._solve(complete)
 
     def _merge(self, sample: JointSample) -> CompleteSample | None:
         """Merge a winch message; the complete sample it makes, if it makes one."""
@@ -127,8 +130,9 @@ class MonitorPipeline:
         readings = self.merger.readings
         speed = float(np.mean([r.velocity for r in readings]))
         self.payout = (sample.stamp, float(np.mean(lengths)), speed if math.isfinite(speed) else 0.0)
-        return CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings],
-                              [r.velocity for r in readings])
+        complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings],
+                                  [r.velocity for r in readings])
+        return complete._replace(sensors=self.measured(complete))
 
     def measured(self, sample: CompleteSample) -> dict[str, float]:
         """What the sensors read at a complete sample: its load pins and the latest other readings
@@ -167,7 +171,7 @@ class MonitorPipeline:
         """The fused state of a sample from its trusted sensors, warm-started from the previous estimate."""
         return estimate_sample(self.model, sample.lengths, self.gates.trusted(measured), conditions, self.last_estimate)
 
-    def _solve(self, sample: CompleteSample, measured: dict[str, float],
+    def _solve(self, sample: CompleteSample,
                solved: tuple[Solution, Clearance | None, Estimate | None] | None = None,
                conditions: Conditions | None = None) -> MonitorOutput:
         """Solve (or estimate, from what the sensors read) a complete sample, or take its equilibrium,
@@ -175,17 +179,17 @@ class MonitorPipeline:
         sensors and compare its load pins with the model."""
         conditions = conditions or self.conditions(sample)
         if solved is None:
-            fused = self.estimate(sample, measured, conditions) if self.fusing else None
+            fused = self.estimate(sample, sample.sensors, conditions) if self.fusing else None
             solution = fused.solution if fused is not None else \
                 self.model.solve(sample.lengths, self._warm_start(), conditions)
             solved = solution, solution_clearance(self.model.physical, solution), fused
         solution, clearance, fused = solved
         alarm = self.alarms.update(solution, clearance)
-        measured = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+        pins = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
         predicted = self.model.predict(solution, conditions) if solution.ok else None
-        resid = residuals(self.noise, sample.stamp, measured, predicted) if predicted is not None else None
+        resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
         if fused is not None and predicted is not None:
-            self._gate(sample.stamp, fused, measured, predicted)
+            self._gate(sample.stamp, fused, sample.sensors, predicted)
         output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, self.gates.refused)
         self.stats.solved += int(solution.ok)
         self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
@@ -210,6 +214,10 @@ class MonitorPipeline:
         for the samples to come (unless `keep` is False: replay keeps them ahead), the residuals of its
         channels against the latest solved pose."""
         self.stats.messages[topic] += 1
+        reason = measurement_reason(message, self.limits)
+        if reason:
+            self._reject(topic, reason)
+            return None
         values = {c.name: c.read(message) for c in channels.on_topic(topic)}
         if not any(math.isfinite(v) for v in values.values()):
             self._reject(topic, "bad measurement: no finite value in " + ", ".join(values))
