@@ -18,7 +18,7 @@ from ..effects import PlantModel
 from ..model.result import Solution
 from .bagfields import BagFields
 from .data import Dataset
-from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise
 from .follows import Finding, what_follows
 from .motion import describe, motions, shares
 
@@ -57,7 +57,7 @@ def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -
     predicted = evaluator.predicted(model)
     result = Comparison(data.bag, model, data, predicted, sigma, source, evaluator.solutions(model))
     result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
-    result.score = score(result.residuals, data.measured, sigma)
+    result.score = evaluator.score(model, sigma)
     result.regions = failure_regions(result)
     result.follows = what_follows(data, result.residuals, sigma, fields=fields)
     result.follows_notes = fields.remarks() if fields else []

@@ -11,10 +11,11 @@ on a larger one. With per-row warm starts and reused solutions for measurement e
 this keeps a 20-minute bag within minutes.
 
 Forward stepwise: screen every candidate not in the model (others held at their
-values), rank by held-out score and Delta BIC, add the best while its Delta BIC is below
+values), rank by held-out score and Delta BIC, add the best while its held-out score falls and its Delta BIC is below
 MAX_DELTA_BIC both on the training rows and on the held-out rows (chi-square change plus
 k ln n there: the error must fall on data the fit never saw, by more than chance), refit the added
-effects jointly. Every candidate is screened at least once (the ranking is the report);
+effects jointly from the previous step's optimum (the effect is not added if the refit ends with
+a higher training error than the step before). Every candidate is screened at least once (the ranking is the report);
 further rounds only while the held-out score is above the sensor-noise floor.
 """
 from __future__ import annotations
@@ -29,7 +30,7 @@ from ..effects import PlantModel, available
 from ..model.plant import Plant, load_plant
 from .bagfields import BagFields, read_fields
 from .data import Dataset, read_bag
-from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score, split, thin
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise, split, thin
 from .fit import FitResult, chi_square, fit_effects
 from .follows import Finding, what_follows
 
@@ -96,7 +97,7 @@ def _screen(current: PlantModel, names: Iterable[str], train: Evaluator, held: E
     trials = []
     for name in names:
         fit = fit_effects(current, [known[name]()], train, noise)
-        after = score(held.residuals(fit.model), held.data.measured, noise)
+        after = held.score(fit.model, noise)
         held_bic = chi_square(fit.model, held, noise)[0] - chi2_before + len(fit.free) * np.log(max(count, 1))
         trials.append(Candidate(name, fit, score_now, after, fit.bic - bic_now, float(held_bic)))
     return sorted(trials, key=lambda c: (c.score_after, c.delta_bic))
@@ -118,7 +119,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     pool = [n for n in (candidates or available()) if base.get(n) is None and available()[n].fitted()]
     current, added, final = base, [], None
     chi2, count = chi_square(current, train, noise)
-    score_now = score(held.residuals(current), held.data.measured, noise)
+    score_now = held.score(current, noise)
     ladder = [Step(None, float(np.sqrt(chi2 / max(count, 1))), score_now, chi2)]
     bic_screen = chi_square(current, screen, noise)[0]
     ranking: list[Candidate] = []
@@ -128,15 +129,18 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
         trials = _screen(current, pool, screen, held, noise, score_now, bic_screen)
         ranking = ranking or trials
         best = trials[0]
-        if not _significant(best):
+        if not _significant(best) or best.score_after >= score_now:
             break
+        joint = fit_effects(base, [*added, best.fit.model.get(best.name)], train, noise)  # from the last optimum
+        if joint.chi2 > chi2:  # the refit could not keep the training error: the effect does not help
+            break
+        final, chi2 = joint, joint.chi2
         added.append(best.fit.model.get(best.name))
-        final = fit_effects(base, added, train, noise)
         current = final.model
         bic_screen = chi_square(current, screen, noise)[0] + final.bic - final.chi2
         added = [current.get(e.name) for e in added]
         pool.remove(best.name)
-        score_now = score(held.residuals(current), held.data.measured, noise)
+        score_now = held.score(current, noise)
         ladder.append(Step(best.name, float(np.sqrt(final.chi2 / max(final.count, 1))), score_now, final.bic))
     for candidate in ranking:
         candidate.selected = candidate.name in [step.added for step in ladder]

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..effects import Effect, Parameter, PlantModel
-from .evaluate import Evaluator, normalised
+from .evaluate import Evaluator
 
 MAX_EVALUATIONS = 60
 UNIDENTIFIED_SPREAD = 0.25  # 1-sigma uncertainty / width of the bounds
@@ -60,8 +60,9 @@ class FitResult:
 
 
 def chi_square(model: PlantModel, evaluator: Evaluator, noise: np.ndarray) -> tuple[float, int]:
-    z = normalised(evaluator.residuals(model), evaluator.data.measured, noise)
-    return float(np.sum(z ** 2)), int(z.size)
+    """The squared residuals and length corrections [sigma], and the number of measured values."""
+    z = evaluator.normalised(model, noise)
+    return float(np.sum(z ** 2)), int(np.isfinite(evaluator.data.measured).sum())
 
 
 def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray) -> FitResult:
@@ -79,7 +80,7 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
         return base.with_effects(updated)
 
     def residual(z: np.ndarray) -> np.ndarray:
-        return normalised(evaluator.residuals(model_at(z)), evaluator.data.measured, noise)
+        return evaluator.normalised(model_at(z), noise)
 
     if not free:
         chi2, count = chi_square(base.with_effects(effects), evaluator, noise)
@@ -87,7 +88,7 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
     result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
                            method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
                            max_nfev=MAX_EVALUATIONS)
-    count = result.fun.size
+    count = int(np.isfinite(evaluator.data.measured).sum())  # the corrections are not more data
     chi2 = float(np.sum(result.fun ** 2))
     information = result.jac.T @ result.jac
     covariance = np.linalg.pinv(information) * max(1.0, chi2 / max(count - len(free), 1))
