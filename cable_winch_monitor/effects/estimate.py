@@ -90,7 +90,11 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
         lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
     except (TypeError, ValueError):  # not four numbers: the solver's input check says what is wrong
         return _forward(model.solve(reported, None, conditions), np.full(4, np.nan))
-    return estimate(model.physical, lengths, observations_for(model, measured, [conditions]), length_noise(model),
+    observations = observations_for(model, measured, [conditions])
+    if not observations:  # lengths alone: the forward kinematics, warm-started as the solver is
+        return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
+                        reported)
+    return estimate(model.physical, lengths, observations, length_noise(model),
                     law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
 
 
