@@ -17,7 +17,7 @@ from typing import Mapping
 
 from .. import channels
 from ..model.estimation import Estimate
-from ..model.gate import DEFAULT_PROBABILITY, HeldGate, mahalanobis_gate
+from ..model.gate import DEFAULT_PROBABILITY, HeldGate, chi_square_threshold
 
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 DEFAULT_HOLD = 1.0  # [s] a sensor fails (or passes) its gate this long before it is left out (taken back)
@@ -94,7 +94,8 @@ class SensorGates:
         for name, value in normalised.items():
             if math.isfinite(value):
                 grouped.setdefault(sensor_of(name), []).append(value)
-        for sensor, values in grouped.items():
-            result = mahalanobis_gate(values, None, self.probability)
-            self.last_chi_square[sensor] = result.chi_square
-            self.gates.setdefault(sensor, HeldGate(self.hold)).update(stamp, result.passed)
+        for sensor, values in grouped.items():  # normalised innovations: d^2 is their sum of squares
+            chi_square = math.fsum(v * v for v in values)
+            self.last_chi_square[sensor] = chi_square
+            passed = chi_square <= chi_square_threshold(len(values), self.probability)
+            self.gates.setdefault(sensor, HeldGate(self.hold)).update(stamp, passed)
