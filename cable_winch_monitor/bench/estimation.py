@@ -64,7 +64,8 @@ def bag_items(lengths: np.ndarray, readings: list[obs.Observation]) -> list[Simp
         items.append(SimpleNamespace(topic="/platform/imu", msgtype=channels.IMU, message=imu,
                                      log_time=int((t + 0.035) * 1e9)))
         if np.isfinite(values["depth"][k]):
-            point = SimpleNamespace(x=float("nan"), y=float("nan"), z=float(values["depth"][k]))
+            late = float(values["depth"][k]) - speeds[k] * 0.035  # the platform went on down for 35 ms
+            point = SimpleNamespace(x=float("nan"), y=float("nan"), z=late)
             items.append(SimpleNamespace(topic="/platform/position", msgtype=channels.POINT, log_time=int((t + 0.035) * 1e9),
                                          message=SimpleNamespace(header=_header(t + 0.035), point=point)))
     return items
