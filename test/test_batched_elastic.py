@@ -14,6 +14,7 @@ from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.model.batched_elastic import solve_batch_elastic
 from cable_winch_monitor.model.elastic import solve_elastic
 from cable_winch_monitor.model.result import SolveStatus
+from test_batched import assert_same, per_sample
 from test_solver_agreement import random_lengths
 
 EA = 7.5e7      # [N]
@@ -25,48 +26,34 @@ def unstretched(lengths: np.ndarray) -> np.ndarray:
     return lengths + WEIGHT * lengths ** 2 / (2.0 * EA)
 
 
-def per_sample(plant, lengths, warm: bool, load=None):
-    solutions, previous = [], None
-    for row in lengths:
-        solution = solve_elastic(plant, row, EA, warm_start=previous if warm else None, load=load)
-        solutions.append(solution)
-        previous = solution if solution.ok else previous
-    return solutions
+def elastic(load=None):
+    """The per-sample elastic solver on EA, under `load`, as test_batched.per_sample calls a solver."""
+    return lambda plant, row, warm_start: solve_elastic(plant, row, EA, warm_start=warm_start, load=load)
 
 
-def assert_same(plant, batch, solutions):
-    for i, want in enumerate(solutions):
-        got = batch.solution(i)
-        assert got.status is want.status, i
-        assert got.taut_set == want.taut_set, i
-        if not want.ok:
-            continue
-        assert np.abs(got.tensions - want.tensions).max() < 1.0, i
-        assert np.abs(got.position - want.position).max() < 1e-3, i
-        assert np.abs(got.points_b - want.points_b).max() < 1e-3, i
-        # physics: tensions >= 0, the load balanced, a rope pulls only where stretched (Hooke)
-        assert np.all(got.tensions >= 0.0), i
-        assert got.force_residual < 1e-6 and got.moment_residual < 1e-6, i
-        stretch = got.spans - got.lengths
-        np.testing.assert_allclose(got.tensions, EA / got.lengths * np.maximum(stretch, 0.0), rtol=1e-9, atol=1e-6)
-        np.testing.assert_allclose(got.extras["stretch"], want.extras["stretch"], atol=1e-6)
+def hooke(plant, solution) -> bool:
+    """Balanced, tensions >= 0, and each rope pulls by Hooke's law where stretched, not at all where slack."""
+    stretch = np.maximum(solution.spans - solution.lengths, 0.0)
+    return bool(solution.force_residual < 1e-6 and solution.moment_residual < 1e-6 and solution.tensions.min() >= 0.0
+                and np.allclose(solution.tensions, EA / solution.lengths * stretch, rtol=1e-9, atol=1e-6)
+                and np.allclose(solution.extras["stretch"], stretch, atol=1e-9))
 
 
 def test_lowering_same_as_warm_started_solver(plant):
     lengths = unstretched(lowering_samples(1000))
     lengths[:, 1] += np.linspace(0.0, 0.6, len(lengths))  # a winch running ahead: its rope goes slack
     batch = solve_batch_elastic(plant, lengths, EA)
-    solutions = per_sample(plant, lengths, warm=True)
+    solutions = per_sample(plant, lengths, True, elastic())
     assert len({s.taut_set for s in solutions}) >= 2  # four ropes pull, then three
-    assert_same(plant, batch, solutions)
+    assert_same(plant, batch, solutions, hooke)
     assert len(batch.fallback) <= 3  # the batched path does the work
 
 
 def test_random_lengths_same_as_warm_started_solver(plant):
     lengths = unstretched(random_lengths(60, seed=67))
-    solutions = per_sample(plant, lengths, warm=True)  # each from the last solved sample, as a monitor
+    solutions = per_sample(plant, lengths, True, elastic())  # each from the last solved sample, as a monitor
     assert sum(s.ok for s in solutions) > 40
-    assert_same(plant, solve_batch_elastic(plant, lengths, EA), solutions)
+    assert_same(plant, solve_batch_elastic(plant, lengths, EA), solutions, hooke)
 
 
 def test_bad_rows_loads_and_warm_start(plant):
@@ -77,7 +64,7 @@ def test_bad_rows_loads_and_warm_start(plant):
     batch = solve_batch_elastic(plant, lengths[1:], EA, warm_start=warm, loads=side_pull)
     assert batch.status[2] == batch.status[39] == SolveStatus.INVALID_INPUT.value
     assert batch.ok.sum() == 57
-    assert_same(plant, batch, [solve_elastic(plant, row, EA, warm_start=warm, load=side_pull) for row in lengths[1:]])
+    assert_same(plant, batch, [elastic(side_pull)(plant, row, warm) for row in lengths[1:]], hooke)
     assert np.abs(batch.solution(0).points_b[:, 0] - warm.points_b[:, 0]).max() < 0.5  # pulled sideways alike
 
 
