@@ -72,8 +72,9 @@ def cpu_seconds(pid: int) -> float:
 def start_node(domain_id: int, solver: str, log: Path, plant_file: Path | None = None) -> subprocess.Popen:
     """`winch_monitor` in its own process (on `plant_file`, else the bundled plant), output to `log`."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    command = [str(Path(sys.executable).parent / "winch_monitor"), "--ros-args", "-p", f"solver:={solver}",
-               "-p", f"plant_file:={plant_file or ''}"]
+    command = [str(Path(sys.executable).parent / "winch_monitor"), "--ros-args", "-p", f"solver:={solver}"]
+    if plant_file is not None:
+        command += ["-p", f"plant_file:={plant_file}"]
     with log.open("w") as output:
         return subprocess.Popen(command, env=env, stdout=output, stderr=subprocess.STDOUT)
 
