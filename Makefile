@@ -11,12 +11,16 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
 PYTEST_ARGS ?=
 
-.PHONY: all setup demo test clean
+.PHONY: all setup setup-test demo test clean
 
 all: test
 
 setup:
 	@scripts/setup_env.sh
+
+# The set-up plus what only the tests need: Chromium, Node and Foxglove's readers (test/viewer).
+setup-test:
+	@scripts/setup_env.sh --test
 
 # Replay the bundled all-channels bag through the monitor into build/demo_out (seed 002's
 # Table 2 comparison: cable-winch-monitor paper).
@@ -24,7 +28,7 @@ demo: setup
 	rm -rf build/demo_out
 	$(VENV)/bin/cable-winch-monitor demo --out build/demo_out
 
-test: setup
+test: setup-test
 	$(VENV)/bin/python -m pytest -q test $(PYTEST_ARGS)
 
 clean:

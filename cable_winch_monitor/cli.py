@@ -3,16 +3,51 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from pathlib import Path
 from typing import Sequence
 
 from .bagio.reader import BagError
 from .effects.base import EffectError
 from .formatting import format_solution
 from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
+from .bagio.scene import LIVE_RATE, REPLAY_RATE
 from .model.solve import METHODS
 from .paths import config_dir
 from .sim.scenario import ScenarioError
+
+
+class UsageError(Exception):
+    """A command line that cannot be carried out; the message says why."""
+
+
+def _check_writable(path: str | None, option: str) -> None:
+    """Refuse an output path that cannot be written, before any work is done for it."""
+    if not path:
+        return
+    target = Path(path)
+    parent = target.parent if str(target.parent) else Path(".")
+    if target.is_dir():
+        raise UsageError(f"{option} {path}: is a directory, give a file name")
+    if not parent.is_dir():
+        raise UsageError(f"{option} {path}: folder {parent} does not exist")
+    if not os.access(target if target.exists() else parent, os.W_OK):
+        raise UsageError(f"{option} {path}: not writable (permission denied)")
+
+
+def _effect_names(text: str | None, option: str) -> list[str] | None:
+    """Comma-separated effect names, each one known (None for none given)."""
+    if text is None:
+        return None
+    from .effects.registry import effect_class
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise UsageError(f"{option}: no effect name given")
+    for name in names:
+        effect_class(name)  # EffectError naming the known ones
+    return names
 
 
 def _length(text: str) -> float:
@@ -21,6 +56,17 @@ def _length(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"cable length must be a number, got {text!r}") from None
+
+
+def _positive(text: str) -> float:
+    """A command-line rate: a positive number."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
 
 
 def _solve(args: argparse.Namespace) -> int:
@@ -55,9 +101,20 @@ def _simulate(args: argparse.Namespace) -> int:
 def _replay_summary(bag: str, args: argparse.Namespace) -> int:
     from .replay import replay
 
-    summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet)
+    summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet,
+                     scene_rate=args.scene_rate,
+                     stamp_window=_stamp_window(args))
     print(summary.format())
     return 0 if summary.complete else 1
+
+
+def _stamp_window(args: argparse.Namespace):
+    from .monitor.inputs import StampWindow
+
+    try:
+        return StampWindow(*args.stamp_window) if args.stamp_window else StampWindow()
+    except ValueError as error:
+        raise UsageError(f"--stamp-window: {error}") from None
 
 
 def _fleet(args: argparse.Namespace, job) -> int:
@@ -80,7 +137,7 @@ def _replay(args: argparse.Namespace) -> int:
 
     if not is_fleet(args.bag):
         return _replay_summary(args.bag, args)
-    return _fleet(args, replay_job(load_plant(args.config), args.solver, args.staleness))
+    return _fleet(args, replay_job(load_plant(args.config), args.solver, args.staleness, args.scene_rate))
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -107,6 +164,9 @@ def _limits(args: argparse.Namespace) -> int:
     from .monitor.limits import format_limits, synchronisation_limits
 
     plant = load_plant(args.config)
+    if not 0.0 < args.length <= plant.max_payout:
+        raise UsageError(f"--length {args.length}: the payout must lie in (0, {plant.max_payout:g}] m "
+                         "(plant.limits.max_payout)")
     limits = synchronisation_limits(PlantModel.from_plant(plant), args.length)
     if args.json:
         print(json.dumps({"length": args.length, "limits": [
@@ -119,14 +179,33 @@ def _limits(args: argparse.Namespace) -> int:
 
 
 def _analysis_inputs(args: argparse.Namespace):
-    """The plant model (with its effects) and the bag's measurements for compare, diagnose and fit."""
-    from .analysis.data import read_bag
-    from .effects import PlantModel, load_module
+    """The plant model (with its effects) and the bag's measurements for compare and fit."""
+    from .effects import load_module
 
     for path in args.effect_module:
         load_module(path)
+    return _model_and_measurements(args)
+
+
+def _model_and_measurements(args: argparse.Namespace):
+    """The plant model (with its effects, user modules loaded) and the bag's measurements; UsageError
+    if the bag holds none."""
+    from .analysis.data import read_bag
+    from .effects import PlantModel
+
     model = PlantModel.from_plant(load_plant(args.config))
-    return model, read_bag(args.bag, model.inputs)
+    data = read_bag(args.bag, model.inputs)
+    _require_measurements(data)
+    return model, data
+
+
+def _require_measurements(data) -> None:
+    """Refuse a bag that holds no measurement the model could be compared with."""
+    import numpy as np
+
+    if not len(data) or not np.isfinite(data.measured).any():
+        raise UsageError(f"{data.bag}: no measurements to compare the model with (load pins, inclinometer or "
+                         "depth gauge readings with the four cable lengths): nothing to compare")
 
 
 def _write_json(path: str | None, content: dict) -> None:
@@ -137,11 +216,14 @@ def _write_json(path: str | None, content: dict) -> None:
 
 def _compare(args: argparse.Namespace) -> int:
     from .analysis import report
+    from .analysis.bagfields import read_fields
     from .analysis.compare import compare
     from .analysis.html import write_report
 
+    _check_writable(args.json, "--json")
+    _check_writable(args.html, "--html")
     model, data = _analysis_inputs(args)
-    result = compare(model, data)
+    result = compare(model, data, read_fields(args.bag))
     print(report.compare_text(result))
     _write_json(args.json, report.compare_json(result))
     if args.html:
@@ -152,16 +234,19 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _diagnose(args: argparse.Namespace) -> int:
     from .analysis import report
-    from .analysis.diagnose import diagnose_bag
+    from .analysis.diagnose import diagnose
+    from .analysis.evaluate import noise
     from .effects import load_module
     from .fleet import diagnose_job, is_fleet
 
-    candidates = [n.strip() for n in args.candidates.split(",") if n.strip()] if args.candidates else None
-    if is_fleet(args.bag):
-        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
+    _check_writable(args.json, "--json")
     for path in args.effect_module:
         load_module(path)
-    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates)
+    candidates = _effect_names(args.candidates, "--candidates")
+    if is_fleet(args.bag):
+        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
+    model, data = _model_and_measurements(args)
+    result = diagnose(model, data, noise(model.plant, data)[0], candidates)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0
@@ -171,8 +256,10 @@ def _fit(args: argparse.Namespace) -> int:
     from .analysis import report
     from .analysis.refit import fit_command, write_plant
 
+    _check_writable(args.json, "--json")
+    _check_writable(args.write_config, "--write-config")
     model, data = _analysis_inputs(args)
-    result = fit_command(model, data, [n.strip() for n in args.effects.split(",") if n.strip()])
+    result = fit_command(model, data, _effect_names(args.effects, "--effects"))
     print(report.fit_text(result))
     _write_json(args.json, report.fit_json(result, data.bag, len(data)))
     if args.write_config:
@@ -270,6 +357,13 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--solver", choices=METHODS, default="energy", help="solver (default: energy, as the node)")
         p.add_argument("--staleness", type=float, default=0.5,
                        help="[s] oldest cable length a sample may use (default: 0.5, as the node)")
+        p.add_argument("--scene-rate", type=_positive, default=REPLAY_RATE, metavar="HZ",
+                       help=f"most 3-D scenes (/platform/scene) per second of recording (default: {REPLAY_RATE:g}; "
+                       f"the node draws {LIVE_RATE:g} live)")
+        p.add_argument("--stamp-window", type=float, nargs=3,
+                       metavar=("AHEAD", "BEHIND", "SKEW"),
+                       help="[s] a winch stamp more than AHEAD after or BEHIND before its log time, or more than "
+                       "SKEW after the other winches' newest reading, is refused (default: 2 10 2, as the node)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
         p.set_defaults(run=_replay if name == "replay" else _demo)
 
@@ -297,8 +391,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
-    except (PlantConfigError, ScenarioError, BagError, EffectError) as error:
+    except (PlantConfigError, ScenarioError, BagError, EffectError, UsageError) as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:  # an output that could not be written after all (disk full, removed folder)
+        print(f"error: {error.filename or ''}: {error.strerror or error}", file=sys.stderr)
         return 2
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from .bagio.reader import BagError
+from .bagio.scene import REPLAY_RATE
 from .model.plant import Plant
 from .monitor.alarm import AlarmLevel
 
@@ -41,11 +42,11 @@ def find_bags(folder: str | Path) -> list[Path]:
     return sorted(p for p in Path(folder).iterdir() if is_bag(p))
 
 
-def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, staleness: float) -> Row:
+def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, staleness: float, scene_rate: float) -> Row:
     from .replay import replay
 
     try:
-        summary = replay(bag, out, plant, solver, staleness, progress=False)
+        summary = replay(bag, out, plant, solver, staleness, progress=False, scene_rate=scene_rate)
     except BagError as error:
         return {"bag": bag.name, "error": str(error)}
     stats = summary.stats
@@ -54,9 +55,10 @@ def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, stalenes
             "written": sum(summary.written.values()), "complete": summary.complete, "wall [s]": summary.wall}
 
 
-def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: float = 0.5) -> Job:
+def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: float = 0.5,
+               scene_rate: float = REPLAY_RATE) -> Job:
     """The per-bag replay as a picklable job."""
-    return functools.partial(_replay_row, plant=plant, solver=solver, staleness=staleness)
+    return functools.partial(_replay_row, plant=plant, solver=solver, staleness=staleness, scene_rate=scene_rate)
 
 
 def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[str] | None,

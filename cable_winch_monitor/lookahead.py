@@ -4,7 +4,8 @@ The live node must merge and solve each winch message as it arrives; a replay ca
 ahead. For each window of messages:
 
 1. every winch message is merged, in log order, by the pipeline's own merger (as the
-   node would merge it); each complete sample keeps what the merger knew at its message;
+   node would merge it, its log time standing for the node clock in the stamp window);
+   each complete sample keeps what the merger knew at its message;
 2. the window's complete samples get their conditions and are solved together
    (`PlantModel.solve_batch`, warm-started from the last solved sample), with their wall
    clearances; the plant's effects act as in the node's solve. Where they make the
@@ -31,6 +32,7 @@ from .model.conditions import Conditions
 from .model.plant import Plant
 from .model.result import Solution
 from .monitor.clearance import Clearance, solution_clearances
+from .monitor.inputs import StampWindow
 from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 from .monitor.residuals import Residuals
 
@@ -44,8 +46,8 @@ class LookaheadPipeline(MonitorPipeline):
     """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
-                 window: int = WINDOW):
-        super().__init__(plant, solver, staleness)
+                 window: int = WINDOW, stamp_window: StampWindow | None = None):
+        super().__init__(plant, solver, staleness, stamp_window)
         self.window = window
         self.batched = batched and self.model.batchable  # else each sample is solved in step 3, as the node does
         self.input_specs = {spec.topic: spec for spec in self.model.inputs}
@@ -64,7 +66,7 @@ class LookaheadPipeline(MonitorPipeline):
         for item in window:
             spec = self.input_specs.get(item.topic)
             if spec is not None:
-                self.on_input(spec, fields.seconds(item.message.header.stamp), item.message)
+                self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
         merged = [self._merge_item(item) if item.msgtype == fields.JOINT_STATE else None for item in window]
         samples = [outcome for outcome in merged if isinstance(outcome, CompleteSample)]
         presolved = iter(self._presolve(samples))
@@ -78,7 +80,8 @@ class LookaheadPipeline(MonitorPipeline):
 
     def _merge_item(self, item: Any) -> CompleteSample | Exception | None:
         try:
-            return self._merge(fields.joint_sample(item.message, item.topic))
+            sample = fields.joint_sample(item.message, item.topic)
+            return self._merge(sample._replace(received=item.log_time * 1e-9))  # arrival: the log time
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
 
@@ -100,4 +103,4 @@ class LookaheadPipeline(MonitorPipeline):
             return self._solve(outcome) if solved is None else self._solve(outcome, solved[:2], solved[2])
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
-        return self.on_measurement(item.topic, fields.seconds(msg.header.stamp), msg)
+        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg)

@@ -5,7 +5,9 @@ bagio.fields); messages are fed in the bag's log order (lookahead.py merges and
 solves a window ahead, then takes them one at a time), so a replay gives what the node
 gave. No ROS runtime is needed. Memory stays at about one chunk of
 the input whatever the length of the bag. Outputs carry their input's header stamp, and
-that stamp is their log time; inputs keep their own log time and bytes.
+that stamp is their log time; inputs keep their own log time and bytes. The head-sheave
+frames (/tf_static) and deck outlines are written once, at the first message; the 3-D scene at most
+`scene_rate` times per second of recording.
 """
 from __future__ import annotations
 
@@ -17,13 +19,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
-from .bagio import records
+from .bagio import fields, records
 from .bagio.reader import BagMessage, BagReader, ReadReport
+from .bagio.scene import REPLAY_RATE, SceneBuilder, SceneThrottle
 from .bagio.writer import BagWriter
-from .model.plant import Plant, load_plant
-from .bagio import fields
-from .monitor.alarm import AlarmLevel
 from .lookahead import LookaheadPipeline
+from .model.plant import Plant, load_plant
+from .monitor.alarm import AlarmLevel
+from .monitor.inputs import StampWindow
 from .monitor.pipeline import MonitorOutput, MonitorStats
 from .monitor.residuals import Residuals
 from .progress import Progress
@@ -105,10 +108,23 @@ class ReplaySummary:
         return "\n".join(lines)
 
 
-def _records(item: BagMessage, stamp: fields.Stamp, result: MonitorOutput | Residuals | None) -> list[records.Record]:
+class _Scenes:
+    """The 3-D scene of the samples that the throttle lets through."""
+
+    def __init__(self, plant: Plant, rate: float):
+        self.builder, self.throttle = SceneBuilder(plant), SceneThrottle(rate)
+
+    def records(self, stamp: fields.Stamp, output: MonitorOutput) -> list[records.Record]:
+        if not self.throttle.due(output.stamp):
+            return []
+        return records.scene_records(stamp, self.builder, output.solution, output.alarm)
+
+
+def _records(item: BagMessage, stamp: fields.Stamp, result: MonitorOutput | Residuals | None,
+             scenes: _Scenes) -> list[records.Record]:
     """What the node publishes for one input message (header `stamp`) and the pipeline's result for it."""
     if item.msgtype == fields.JOINT_STATE:
-        return [] if result is None else records.output_records(stamp, result)
+        return [] if result is None else records.output_records(stamp, result) + scenes.records(stamp, result)
     return records.residual_records(stamp, result)
 
 
@@ -133,7 +149,8 @@ def _fewer_collections(threshold: int = 20_000) -> Iterator[None]:
 
 
 def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
-           staleness: float = 0.5, progress: bool = True, batched: bool = True) -> ReplaySummary:
+           staleness: float = 0.5, progress: bool = True, batched: bool = True,
+           scene_rate: float = REPLAY_RATE, stamp_window: StampWindow | None = None) -> ReplaySummary:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
@@ -143,7 +160,9 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
-    pipeline = LookaheadPipeline(plant or load_plant(), solver, staleness, batched)
+    plant = plant or load_plant()
+    pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window)
+    scenes = _Scenes(plant, scene_rate)
     inputs = fields.input_topics(pipeline.model.inputs)
     reader = BagReader(bag, inputs)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
@@ -151,12 +170,17 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     with BagWriter(out) as writer, _fewer_collections():
         try:
             for count, (item, result) in enumerate(pipeline.run(reader), 1):
+                if count == 1:
+                    first = divmod(item.log_time, 1_000_000_000)
+                    for topic, msgtype, data in records.static_records(first, scenes.builder):
+                        writer.write_raw(topic, msgtype, item.log_time, data, latched=True)
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
                 try:
                     if isinstance(result, Exception):
                         raise result
-                    stamp = fields.stamp_of(item.message)
-                    outputs = _records(item, stamp, result)
+                    stamp = fields.stamp_of(item.message) if hasattr(item.message, "header") else \
+                        divmod(item.log_time, 1_000_000_000)
+                    outputs = _records(item, stamp, result, scenes)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue

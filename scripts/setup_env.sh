@@ -4,6 +4,7 @@
 # mode. Idempotent: each step runs only when what it depends on has changed (stamp
 # files in .venv keyed on content hashes), so a re-run without changes takes ~1 s.
 #
+# Argument: --test also installs what only the tests need (Chromium, Node, test/viewer).
 # Environment: PYTHON=/path/to/python3.11 to choose the interpreter,
 #              FORCE=1 to redo every step.
 set -euo pipefail
@@ -14,8 +15,6 @@ cd "$ROOT"
 VENV="$ROOT/.venv"
 REQ="$ROOT/requirements"
 CONSTRAINTS="$REQ/constraints.txt"
-MSG_SRC="$ROOT/msg_defs"
-MSG_BUILD="$ROOT/build/msg_defs"
 T0=${EPOCHREALTIME/./}
 
 elapsed() { local us=$(( ${EPOCHREALTIME/./} - T0 )); printf '%d.%01ds' $((us / 1000000)) $((us / 100000 % 10)); }
@@ -69,7 +68,7 @@ for line in out.splitlines():
     if "==" not in line:
         continue
     name, ver = line.split("==", 1)
-    if norm(name) == "cable-winch-monitor-msgs":  # built from msg_defs/ by cmake, not pip
+    if norm(name) in ("cable-winch-monitor-msgs", "tf2-msgs"):  # built by cmake (step 3), not pip
         continue
     if pins.get(norm(name)) != ver:
         bad.append(f"{line} (constraints: {pins.get(norm(name), 'not pinned')})")
@@ -104,35 +103,39 @@ for path in glob.glob(os.path.join(venv, "share", "*", "cmake", "*.cmake")):
 print(f"[setup] rewrote manylinux include paths in {n} cmake files")
 EOF
     stamp_set reqs "$REQ_HASH"
-    rm -f "$VENV/.stamp-msgs" "$VENV/.stamp-editable"
+    rm -f "$VENV"/.stamp-msgs* "$VENV/.stamp-editable"
 fi
 
-# --- 3. interface package msg_defs/ -> cable_winch_monitor_msgs ------------------------
-MSG_HASH=$( { echo "$REQ_HASH"; cd "$MSG_SRC" && find . -type f -not -name '*~' | LC_ALL=C sort | xargs sha256sum; } | sha256sum | cut -c1-16)
-if ! stamp_ok msgs "$MSG_HASH"; then
-    command -v cmake >/dev/null 2>&1 || die "cmake not found: it builds msg_defs/ (Debian: apt-get install cmake)"
+# --- 3. interface packages: msg_defs/ -> cable_winch_monitor_msgs, third_party/tf2_msgs ------
+# tf2_msgs has no wheel on PyPI; its TFMessage is built from the upstream definition.
+build_interfaces() {  # $1: source dir, $2: package name, $3: a Python module that must import after
+    local src="$ROOT/$1" name="$2" module="$3" build="$ROOT/build/$2" hash
+    hash=$( { echo "$REQ_HASH"; cd "$src" && find . -type f -not -name '*~' | LC_ALL=C sort | xargs sha256sum; } | sha256sum | cut -c1-16)
+    stamp_ok "msgs-$name" "$hash" && return 0
+    command -v cmake >/dev/null 2>&1 || die "cmake not found: it builds $1/ (Debian: apt-get install cmake)"
     command -v g++ >/dev/null 2>&1 || command -v c++ >/dev/null 2>&1 \
-        || die "no C++ compiler (g++) found: it builds msg_defs/ (Debian: apt-get install g++)"
-    log "building msg_defs/ (cable_winch_monitor_msgs) with cmake (~15 s)"
-    rm -rf "$MSG_BUILD"
-    mkdir -p "$MSG_BUILD"
+        || die "no C++ compiler (g++) found: it builds $1/ (Debian: apt-get install g++)"
+    log "building $1/ ($name) with cmake (~15 s)"
+    rm -rf "$build"
+    mkdir -p "$build"
     if ! {
-        AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV" cmake -S "$MSG_SRC" -B "$MSG_BUILD" \
+        AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV" cmake -S "$src" -B "$build" \
             -DCMAKE_BUILD_TYPE=Release \
             -DCMAKE_INSTALL_PREFIX="$VENV" \
             -DCMAKE_PREFIX_PATH="$VENV" \
             -DPython3_EXECUTABLE="$VENV/bin/python" \
             -DBUILD_TESTING=OFF &&
-        AMENT_PREFIX_PATH="$VENV" cmake --build "$MSG_BUILD" -j "$(nproc)" &&
-        cmake --install "$MSG_BUILD"
-    } > "$MSG_BUILD/build.log" 2>&1; then
-        tail -n 40 "$MSG_BUILD/build.log" >&2
-        die "building msg_defs/ failed; full log: $MSG_BUILD/build.log"
+        AMENT_PREFIX_PATH="$VENV" cmake --build "$build" -j "$(nproc)" &&
+        cmake --install "$build"
+    } > "$build/build.log" 2>&1; then
+        tail -n 40 "$build/build.log" >&2
+        die "building $1/ failed; full log: $build/build.log"
     fi
-    "$VENV/bin/python" -c 'import cable_winch_monitor_msgs.msg, cable_winch_monitor_msgs.srv' \
-        || die "cable_winch_monitor_msgs built but does not import from .venv"
-    stamp_set msgs "$MSG_HASH"
-fi
+    "$VENV/bin/python" -c "import $module" || die "$name built but does not import from .venv"
+    stamp_set "msgs-$name" "$hash"
+}
+build_interfaces msg_defs cable_winch_monitor_msgs 'cable_winch_monitor_msgs.msg, cable_winch_monitor_msgs.srv'
+build_interfaces third_party/tf2_msgs tf2_msgs tf2_msgs.msg
 
 # --- 4. this package, editable ---------------------------------------------------------
 # Code is linked, not copied; only metadata, entry points and data_files (copied to
@@ -153,12 +156,28 @@ else
     fi
 fi
 
-# --- 5. headless Chromium for the HTML report test ---------------------------------------
-# Installed from Debian when missing, only as root with apt-get (a clean CI machine).
-if ! command -v chromium >/dev/null 2>&1 && [[ "$(id -u)" == 0 ]] && command -v apt-get >/dev/null 2>&1; then
-    log "installing chromium (Debian) for the HTML report test"
-    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; } >/dev/null 2>&1 \
-        || log "warning: apt-get could not install chromium; the HTML report test will fail"
+# --- 5. test tools (--test only): headless Chromium and Node --------------------------------
+# The package needs neither: Chromium renders the HTML report and the scene page in tests,
+# Node runs Foxglove's own bag readers (test/viewer, versions pinned in its package-lock.json).
+# Missing Debian packages are installed only as root with apt-get (a clean CI machine).
+if [[ "${1:-}" == "--test" ]]; then
+    missing=()
+    command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+    command -v node >/dev/null 2>&1 || missing+=(nodejs)
+    command -v npm >/dev/null 2>&1 || missing+=(npm)
+    if (( ${#missing[@]} )) && [[ "$(id -u)" == 0 ]] && command -v apt-get >/dev/null 2>&1; then
+        log "installing ${missing[*]} (Debian) for the viewer and report tests"
+        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}"; } >/dev/null 2>&1 \
+            || log "warning: apt-get could not install ${missing[*]}; the viewer and report tests will fail"
+    fi
+    VIEWER="$ROOT/test/viewer"
+    VIEWER_HASH=$(hash_files "$VIEWER/package.json" "$VIEWER/package-lock.json")
+    if command -v npm >/dev/null 2>&1 && ! { stamp_ok viewer "$VIEWER_HASH" && [[ -d "$VIEWER/node_modules" ]]; }; then
+        log "npm ci in test/viewer (Foxglove's MCAP and ROS 2 message readers)"
+        (cd "$VIEWER" && npm ci --no-audit --no-fund --loglevel=error >/dev/null) \
+            || die "npm ci in test/viewer failed"
+        stamp_set viewer "$VIEWER_HASH"
+    fi
 fi
 
 log "ready: .venv ($("$VENV/bin/python" -V 2>&1))"

@@ -1,5 +1,7 @@
 """Plants and a scenario for the effect tests: the seed-002 platform with elastic ropes as the nominal
-model, a lowering and a hoist with winch drift, realistic sensor noise (0.2 mm encoders)."""
+model, a lowering and a hoist with winch drift, realistic sensors (the simulator's defaults: 1 mm
+encoders and 150 N load pins at 10 Hz, a 0.01 deg inclinometer 30-40 ms after each winch sample, a
+5 mm depth gauge at 2 Hz). The truth is the simulator's own (sim/truth.py), not the fitted model."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,8 +16,8 @@ WIDE = {"anchors": [[5.0, 5.5, 0.0], [-5.0, 5.5, 0.0], [-5.0, -5.5, 0.0], [5.0, 
         "attachments": [[2.0, 2.5, 0.0], [-2.0, 2.5, 0.0], [-2.0, -2.5, 0.0], [2.0, -2.5, 0.0]],
         "centre_of_gravity": [0.5, 0.5, -10.0]}
 ELASTIC = {"rope_elasticity": {"enabled": True, "EA": 7.5e7}}
-SENSORS = {"joint_states": {"length_noise": 0.0002}, "imu": {"enabled": True, "rate": 10.0},
-           "position": {"enabled": True, "rate": 1.5}}
+SENSORS = {"imu": {"enabled": True}, "position": {"enabled": True}}
+NOISE = {"tension": 150.0, "roll": 1.745e-4, "pitch": 1.745e-4, "depth": 0.005, "length": 0.001}
 LOWER_AND_HOIST = {"start_length": 60.0, "segments": [{"move": 50.0, "speed": 1.0, "accel": 0.1}, {"stop": 8.0},
                                                       {"move": -25.0, "speed": 1.0, "accel": 0.1}]}
 SHALLOW = {"start_length": 8.0, "segments": [{"move": 22.0, "speed": 0.5, "accel": 0.1}, {"stop": 5.0},
@@ -28,7 +30,7 @@ def plant_file(directory: Path, name: str, geometry: dict, effects: dict) -> Pat
     path.write_text(yaml.safe_dump({"plant": {
         "name": name, "geometry": geometry, "mass": 10000.0, "g": 9.8, "shaft": {"radius": 4.0},
         "outline": {"decks": [{"name": "deck_1", "z": 0.0, "radius": 3.6, "count": 12}]},
-        "noise": {"tension": 500.0, "roll": 0.0005, "pitch": 0.0005, "depth": 0.01}, "effects": effects}}))
+        "noise": NOISE, "effects": effects}}))
     return path
 
 

@@ -10,7 +10,8 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
-from cable_winch_monitor.bagio.records import ALARM, OUTPUT_TYPES, POSE, RESIDUALS, TENSION
+from cable_winch_monitor.bagio.records import (ALARM, OUTLINE, OUTPUT_TYPES, POSE, RESIDUALS, SCENE, TENSION, TF,
+                                               TF_STATIC)
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
 from cable_winch_monitor.bagio.fields import input_topics
@@ -22,6 +23,13 @@ SLACK_TOLERANCE = AlarmPolicy().slack_tolerance
 
 def ns(stamp) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def header(item):
+    """The header of a stamped output (of the first transform or marker for /tf, /tf_static and the scene)."""
+    if item.topic in (TF, TF_STATIC):
+        return item.message.transforms[0].header
+    return item.message.markers[0].header if item.topic in (SCENE, OUTLINE) else item.message.header
 
 
 @pytest.fixture(scope="module")
@@ -93,11 +101,16 @@ def test_outputs_carry_input_stamps_and_physics(all_channels):
     input_stamps = {ns(m.message.header.stamp) for m in messages(bag)}
     outputs = messages(out, OUTPUT_TYPES)
     assert Counter(m.topic for m in outputs).keys() == set(OUTPUT_TYPES)
+    first = min(m.log_time for m in messages(bag))
     for item in outputs:
-        stamp = ns(item.message.header.stamp)
-        assert item.log_time == stamp and item.message.header.frame_id == "shaft"
-        assert stamp in (input_stamps if item.topic == RESIDUALS else joint_stamps)
+        stamp = ns(header(item).stamp)
+        assert item.log_time == stamp and header(item).frame_id == ("platform" if item.topic == OUTLINE else "shaft")
+        if item.topic in (TF_STATIC, OUTLINE):
+            assert stamp == first, "what does not change comes first"
+        else:
+            assert stamp in (input_stamps if item.topic == RESIDUALS else joint_stamps)
     poses = {ns(m.message.header.stamp) for m in outputs if m.topic == POSE}
+    assert poses == {ns(header(m).stamp) for m in outputs if m.topic == TF}, "a transform with every pose"
     for item in outputs:
         if item.topic != TENSION:
             continue

@@ -42,6 +42,9 @@ def stream(count: int) -> list[SimpleNamespace]:
     items.insert(40, SimpleNamespace(topic="/winch/joint_states", msgtype=channels.JOINT_STATE, message=broken))
     backwards = SimpleNamespace(header=header(1.0), name=["cable_1"], position=[30.0], velocity=[], effort=[])
     items.insert(90, SimpleNamespace(topic="/winch_1/joint_states", msgtype=channels.JOINT_STATE, message=backwards))
+    for item in items:  # recorded 5 ms after its stamp, as a bag's messages are
+        stamp = item.message.header.stamp
+        item.log_time = stamp.sec * 1_000_000_000 + stamp.nanosec + 5_000_000
     return items
 
 
@@ -49,7 +52,7 @@ def one_at_a_time(pipeline: MonitorPipeline, item: SimpleNamespace):
     """What the live node does with each message."""
     msg = item.message
     if item.msgtype == channels.JOINT_STATE:
-        return pipeline.on_joint_state(fields.joint_sample(msg, item.topic))
+        return pipeline.on_joint_state(fields.joint_sample(msg, item.topic)._replace(received=item.log_time * 1e-9))
     return pipeline.on_measurement(item.topic, fields.seconds(msg.header.stamp), msg)
 
 

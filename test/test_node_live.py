@@ -157,6 +157,7 @@ def test_service_refuses_invalid_commands_with_a_reason(live):
     for lengths, names, words in [
         ((20.0, float("nan"), 20.0, 20.0), (), "finite"),
         ((20.0, -1.0, 20.0, 20.0), (), "positive"),
+        ((1e300, 20.1, 20.5, 20.2), (), "beyond the maximum payout"),
         ((20.0, 20.0, 20.0), (), "need 4 lengths"),
         ((20.0, 20.0, 20.0, 20.0), ("cable_1", "cable_1", "cable_2", "cable_3"), "each of"),
     ]:

@@ -28,6 +28,8 @@ def generic_encoder(msgtype: str) -> Any:
 
 
 def generic_append(self: BagWriter, channel: int, time: int, data: bytes) -> None:
+    """rosbags' own write, under the writer's chunk policy (bounded span; the CRC is added at close_chunk)."""
+    self.close_spanning_chunk(time)
     writer = self._writer
     writer.write(next(c for c in writer.connections if c.id == channel), time, data)
 

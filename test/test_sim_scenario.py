@@ -6,6 +6,7 @@ from collections import Counter, defaultdict
 import numpy as np
 import pytest
 
+from cable_winch_monitor.model.geometry import roll_pitch_of_quaternion
 from cable_winch_monitor.paths import config_dir
 from cable_winch_monitor.sim.scenario import ScenarioError, load_scenario, scenario_path
 from cable_winch_monitor.sim.simulate import simulate
@@ -67,7 +68,10 @@ def test_rates_noise_and_timing(tmp_path):
         stamps[item.topic].append(stamp)
     rates = {topic: len(s) / 20.0 for topic, s in stamps.items()}
     assert rates == pytest.approx({**{f"/winch_{i}/joint_states": 10.0 for i in range(1, 5)},
-                                   "/platform/imu": 20.0, "/platform/position": 1.5}, abs=0.11)
+                                   "/platform/imu": 10.0, "/platform/position": 2.0}, abs=0.11)
+    # the inclinometer stamps each reading 30-40 ms after a winch stamp
+    lags = np.array(stamps["/platform/imu"]) - np.array(stamps["/winch_1/joint_states"][:len(stamps["/platform/imu"])])
+    assert 30e6 <= lags.min() and lags.max() <= 40e6 and np.ptp(lags) > 5e6
     assert all(np.all(np.diff(s) > 0) for s in stamps.values())
     assert max(Counter(s for values in stamps.values() for s in values).values()) == 1  # never aligned
     assert [item.log_time for item in items] == sorted(item.log_time for item in items)
@@ -77,6 +81,23 @@ def test_rates_noise_and_timing(tmp_path):
               ((i, i.message.header.stamp.sec * 10**9 + i.message.header.stamp.nanosec) for i in items
                if i.topic == "/winch_2/joint_states")]
     assert np.std(errors) == pytest.approx(0.001, rel=0.3) and abs(np.mean(errors)) < 0.0005
+    # load pins, inclinometer and depth gauge: their realistic noise about the truth (weightless ropes:
+    # the pin reads the tension at the platform)
+    by_time = {round(float(row["time"]) * 1e9): row for row in truth(bag)}
+    pins, tilts, depths = [], [], []
+    for item in items:
+        stamp = item.message.header.stamp.sec * 10**9 + item.message.header.stamp.nanosec
+        row = by_time[stamp]
+        if item.topic == "/winch_3/joint_states":
+            pins.append(item.message.effort[0] - float(row["tension_3"]))
+        elif item.topic == "/platform/imu":
+            quaternion = [getattr(item.message.orientation, k) for k in "xyzw"]
+            tilts.append(roll_pitch_of_quaternion(quaternion)[0] - float(row["roll"]))
+        elif item.topic == "/platform/position":
+            depths.append(item.message.point.z - float(row["z"]))
+    assert np.std(pins) == pytest.approx(150.0, rel=0.3)
+    assert np.std(tilts) == pytest.approx(np.radians(0.01), rel=0.3)
+    assert np.std(depths) == pytest.approx(0.005, rel=0.4)
     imu = next(item.message for item in items if item.topic == "/platform/imu")
     assert imu.orientation_covariance[8] > 1e3 and imu.angular_velocity_covariance[0] == -1.0
     depth = next(item.message for item in items if item.topic == "/platform/position")
@@ -90,3 +111,15 @@ def test_rope_model_switch(tmp_path, model, taut_count):
     config = load_scenario(scenario_path("nominal_lowering"), overrides)
     simulate(config, tmp_path / "bag")
     assert {len(row["taut"].split()) for row in truth(tmp_path / "bag")} == {taut_count}
+
+
+def test_shaft_air_thermometer(tmp_path):
+    """/shaft/temperature: sensor_msgs/Temperature at 1 Hz, 0.1 K about the scenario's ventilation cycle."""
+    bag = simulated(tmp_path, "nominal_lowering", "duration=30", "sensors.temperature.enabled=true",
+                    "shaft_air.amplitude=3.0", "shaft_air.period=20.0", "effects={rope_temperature: {}}")
+    readings = [item for item in messages(bag) if item.topic == "/shaft/temperature"]
+    assert len(readings) == pytest.approx(30, abs=1)
+    assert readings[0].msgtype == "sensor_msgs/msg/Temperature" and readings[0].message.variance == pytest.approx(0.01)
+    errors = [item.message.temperature - (15.0 + 3.0 * np.sin(2.0 * np.pi * (item.message.header.stamp.sec
+              + item.message.header.stamp.nanosec * 1e-9) / 20.0)) for item in readings]
+    assert np.std(errors) == pytest.approx(0.1, rel=0.4) and abs(np.mean(errors)) < 0.06

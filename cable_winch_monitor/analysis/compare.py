@@ -2,8 +2,9 @@
 
 A failure region is a stretch of time where some channel's error exceeds 3 sigma in most
 samples (isolated 3-sigma samples are noise: 0.3 % of them exceed it by chance),
-described by what the plant was doing: payout, speed and direction, tension state, and
-which channels and cables miss in which direction.
+described by what the plant was doing: payout, the share of lowering, hoisting and
+standing within it (a region may span many moves), tension state, and which channels and
+cables miss in which direction.
 """
 from __future__ import annotations
 
@@ -15,15 +16,17 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..model.result import Solution
+from .bagfields import BagFields
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
+from .follows import Finding, what_follows
+from .motion import describe, motions, shares
 
 THRESHOLD = 3.0    # [sigma]
 MERGE_GAP = 1.0    # [s] exceedances closer than this belong to one region
 MIN_SAMPLES = 3    # a region has at least this many exceeding values ...
 MIN_DENSITY = 0.3  # ... and this share of its rows exceeding somewhere
 MAX_REGIONS = 20
-STOPPED = 0.02     # [m/s] mean payout speed below which the plant is standing
 
 
 @dataclass
@@ -38,14 +41,17 @@ class Comparison:
     channels: dict[str, ChannelStats] = field(default_factory=dict)
     score: float = float("nan")
     regions: list[dict[str, Any]] = field(default_factory=list)
+    follows: list[Finding] = field(default_factory=list)
+    follows_notes: list[str] = field(default_factory=list)
 
     @property
     def residuals(self) -> np.ndarray:
         return self.data.measured - self.predicted
 
 
-def compare(model: PlantModel, data: Dataset) -> Comparison:
-    """Solve the model at every row and compare with what was measured."""
+def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -> Comparison:
+    """Solve the model at every row and compare with what was measured; rank what the error follows
+    (among the bag's other topics' `fields` too, where given)."""
     sigma, source = noise(model.plant, data)
     evaluator = Evaluator(data)
     predicted = evaluator.predicted(model)
@@ -53,6 +59,8 @@ def compare(model: PlantModel, data: Dataset) -> Comparison:
     result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
     result.score = score(result.residuals, data.measured, sigma)
     result.regions = failure_regions(result)
+    result.follows = what_follows(data, result.residuals, sigma, fields=fields)
+    result.follows_notes = fields.remarks() if fields else []
     return result
 
 
@@ -60,7 +68,7 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
     data = c.data
     payout = data.lengths[rows].mean(axis=1)
     speed = float(np.nanmean(data.speeds[rows]))
-    motion = "standing" if abs(speed) < STOPPED else ("lowering" if speed > 0 else "hoisting")
+    motion = shares(motions(data.speeds[rows]))
     states = Counter(c.solutions[k].tension_state for k in rows)
     z = c.residuals[rows] / c.noise
     misses = []
@@ -70,8 +78,9 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
             sign = "above" if np.nanmean(z[hits, ch]) > 0 else "below"
             misses.append({"channel": name, "count": int(hits.sum()), "mean_sigma": float(np.nanmean(z[hits, ch])),
                            "measured": sign + " model"})
-    text = (f"{data.times[rows[0]]:.1f}-{data.times[rows[-1]]:.1f} s: payout {payout.min():.1f}-{payout.max():.1f} m, "
-            f"{motion} ({speed:+.2f} m/s), {states.most_common(1)[0][0]}; "
+    start, end = data.times[rows[0]] - data.times[0], data.times[rows[-1]] - data.times[0]
+    text = (f"{start:.1f}-{end:.1f} s from the start: payout {payout.min():.1f}-{payout.max():.1f} m, "
+            f"{describe(motion)} (mean {speed:+.2f} m/s), {states.most_common(1)[0][0]}; "
             + ", ".join(f"{m['channel']} {m['measured']} by {abs(m['mean_sigma']):.1f} sigma" for m in misses))
     return {"start": float(data.times[rows[0]]), "end": float(data.times[rows[-1]]),
             "payout": [float(payout.min()), float(payout.max())], "speed": speed, "motion": motion,

@@ -27,9 +27,11 @@ import numpy as np
 
 from ..effects import PlantModel, available
 from ..model.plant import Plant, load_plant
+from .bagfields import BagFields, read_fields
 from .data import Dataset, read_bag
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score, split, thin
 from .fit import FitResult, chi_square, fit_effects
+from .follows import Finding, what_follows
 
 PER_KIND_SCREEN = 50   # training rows per sensor kind to screen candidates on
 PER_KIND_FIT = 150     # training rows per sensor kind to fit the selected effects on
@@ -79,6 +81,8 @@ class Diagnosis:
     heldout_rows: int
     solves: int = 0
     channels: dict[str, ChannelStats] = field(default_factory=dict)  # held-out rows under the given model
+    follows: list[Finding] = field(default_factory=list)  # what the final model's held-out error follows
+    follows_notes: list[str] = field(default_factory=list)
 
     @property
     def selected(self) -> list[str]:
@@ -102,12 +106,15 @@ def _significant(candidate: Candidate) -> bool:
     return candidate.delta_bic < MAX_DELTA_BIC and candidate.heldout_delta_bic < MAX_DELTA_BIC
 
 
-def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: list[str] | None = None) -> Diagnosis:
-    """Rank the candidate effects (default: every known effect not in `base`) and select forward-stepwise."""
+def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: list[str] | None = None,
+             fields: BagFields | None = None) -> Diagnosis:
+    """Rank the candidate effects (default: every known effect not in `base`) and select forward-stepwise;
+    then rank what the final model's held-out error follows (among the bag's other `fields` too)."""
     train_rows, held_rows = split(data)
     screen = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)))
     train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)))
-    held = Evaluator(data.subset(thin(held_rows, data.kinds, PER_KIND_SCORE)))
+    held_rows = thin(held_rows, data.kinds, PER_KIND_SCORE)
+    held = Evaluator(data.subset(held_rows))
     pool = [n for n in (candidates or available()) if base.get(n) is None and available()[n].fitted()]
     current, added, final = base, [], None
     chi2, count = chi_square(current, train, noise)
@@ -134,8 +141,10 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     for candidate in ranking:
         candidate.selected = candidate.name in [step.added for step in ladder]
     channels = channel_stats(held.residuals(base), held.data.measured, noise, held.data.channels)
+    follows = what_follows(data, held.residuals(current), noise, held_rows, fields)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
-                     screen.solves + train.solves + held.solves, channels)
+                     screen.solves + train.solves + held.solves, channels, follows,
+                     fields.remarks() if fields else [])
 
 
 def diagnose_bag(bag: str | Path, plant: Plant | None = None,
@@ -144,4 +153,4 @@ def diagnose_bag(bag: str | Path, plant: Plant | None = None,
     the diagnosis and the bag's measurements."""
     model = PlantModel.from_plant(plant or load_plant())
     data = read_bag(bag, model.inputs)
-    return diagnose(model, data, noise(model.plant, data)[0], candidates), data
+    return diagnose(model, data, noise(model.plant, data)[0], candidates, read_fields(bag)), data

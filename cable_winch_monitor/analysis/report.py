@@ -6,6 +6,7 @@ from typing import Any
 from .compare import Comparison
 from .diagnose import Diagnosis
 from .evaluate import ChannelStats
+from .follows import NOTHING, Finding
 from .refit import FitReport
 
 
@@ -20,13 +21,24 @@ def _table(stats: dict[str, ChannelStats]) -> list[str]:
     return lines
 
 
+def _follows_lines(findings: list[Finding], notes: list[str]) -> list[str]:
+    lines = ["what the remaining error follows:"]
+    lines += [f"  {f.sentence}" for f in findings] or [f"  {NOTHING}"]
+    return lines + [f"  {note}" for note in notes]
+
+
+def _follows_json(findings: list[Finding], notes: list[str]) -> dict[str, Any]:
+    return {"follows": [f.to_dict() for f in findings], "follows_notes": notes}
+
+
 def _effect_values(model: Any) -> list[dict[str, Any]]:
     return [{"name": e.name, "params": dict(e.values), "enabled": True} for e in model.effects]
 
 
 def compare_json(c: Comparison) -> dict[str, Any]:
     return {"bag": c.bag, "samples": len(c.data), "channels": _channels(c.channels), "score": c.score,
-            "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model)}
+            "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model),
+            **_follows_json(c.follows, c.follows_notes)}
 
 
 def compare_text(c: Comparison) -> str:
@@ -36,7 +48,7 @@ def compare_text(c: Comparison) -> str:
              *_table(c.channels), f"score {c.score:.3f} (1.0 = down to the sensor noise; noise: {', '.join(sources)})",
              f"failure regions (|error| > 3 sigma): {len(c.regions) or 'none'}"]
     lines += [f"  {r['description']}" for r in c.regions[:10]]
-    return "\n".join(lines)
+    return "\n".join(lines + _follows_lines(c.follows, c.follows_notes))
 
 
 def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
@@ -54,7 +66,7 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
             "ladder": [{"added": s.added, "score_train": s.score_train, "score_heldout": s.score_heldout,
                         "bic": s.bic} for s in d.ladder],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
-            "effects": ranked}
+            "effects": ranked, **_follows_json(d.follows, d.follows_notes)}
 
 
 def diagnose_text(d: Diagnosis) -> str:
@@ -78,7 +90,7 @@ def diagnose_text(d: Diagnosis) -> str:
     else:
         lines.append("found: nothing -- no candidate effect explains the data significantly better "
                      "(held-out error and BIC)")
-    return "\n".join(lines)
+    return "\n".join(lines + _follows_lines(d.follows, d.follows_notes))
 
 
 def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:

@@ -4,19 +4,22 @@ mcap's own readers stop at the first bad record. Here each chunk is read on its 
 chunk that cannot be read (broken framing, failed decompression or CRC) is skipped, its
 messages counted from the message index where that survived, and reading goes on at the
 next chunk the summary lists. A file without a readable summary (a recording cut short)
-is walked from its start until its framing breaks. Messages come out in log-time order:
+is walked from its start: the complete records of a chunk cut off by the end of the file
+are kept (a cut changes no byte before it), and where the framing breaks inside the file
+reading resumes at the next chunk whose CRC checks. Messages come out in log-time order:
 chunks are merged where their time ranges overlap, so memory stays at about one chunk.
 """
 from __future__ import annotations
 
 import heapq
+import mmap
 import struct
 import zlib
 from collections import Counter
 from dataclasses import dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import BinaryIO, Callable, Iterable, Iterator
+from typing import BinaryIO, Callable, Generator, Iterable, Iterator
 
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
@@ -25,6 +28,7 @@ from mcap.records import Channel, Chunk, ChunkIndex, MessageIndex, Schema, Stati
 MAGIC = b"\x89MCAP0\r\n"
 RECORD_HEADER = struct.Struct("<BQ")
 MESSAGE_HEADER = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
+CHUNK_HEAD = struct.Struct("<QQQII")  # start time, end time, uncompressed size, CRC, compression name length
 FOOTER_SIZE = RECORD_HEADER.size + 20 + len(MAGIC)
 
 
@@ -177,11 +181,18 @@ class McapFile:
         self._file.seek(max(footer_offset, 0))
         tail = self._file.read(FOOTER_SIZE)
         footer = footer_offset >= len(MAGIC) and tail[-len(MAGIC):] == MAGIC
+        self._cut_short = not footer
         if not footer or RECORD_HEADER.unpack_from(tail) != (Opcode.FOOTER, 20):
             self.notes.append(f"{self.path.name}: no footer (the recording was cut short?): reading it from the start")
             return None
-        summary_start = struct.unpack_from("<Q", tail, RECORD_HEADER.size)[0]
+        summary_start, _, summary_crc = struct.unpack_from("<QQI", tail, RECORD_HEADER.size)
         if not len(MAGIC) <= summary_start < footer_offset:
+            return None
+        self._file.seek(summary_start)
+        if summary_crc and zlib.crc32(self._file.read(footer_offset + FOOTER_SIZE - len(MAGIC) - 4
+                                                      - summary_start)) != summary_crc:
+            self.notes.append(f"{self.path.name}: summary section damaged (CRC mismatch): reading the file from "
+                              "the start")
             return None
         chunks: list[ChunkIndex] = []
         try:
@@ -254,10 +265,17 @@ class McapFile:
                                           self._index_counts(index)))
 
     def _scanned_chunks(self) -> Iterator[tuple[int, list[RawMessage]]]:
-        """Records from the start, in file order, until the data section ends or the framing breaks."""
+        """Records from the start, in file order, until the data section ends; past a break in the framing,
+        from the next chunk whose CRC checks."""
+        start: int | None = len(MAGIC)
+        while start is not None:
+            start = yield from self._scan_from(start)
+
+    def _scan_from(self, start: int) -> Generator[tuple[int, list[RawMessage]], None, int | None]:
+        """Records from `start` in file order; returns where to go on after a break in the framing (None: done)."""
         lost: Damage | None = None  # the last unreadable chunk: its message index records follow it
         try:
-            for offset, opcode, body in _records(self._file, len(MAGIC), self.size):
+            for offset, opcode, body in _records(self._file, start, self.size):
                 if opcode == Opcode.MESSAGE_INDEX and lost is not None:
                     try:
                         record = _parse(MessageIndex.read, body, "message index", offset)
@@ -276,14 +294,72 @@ class McapFile:
                     message = _message(body, f"byte {offset}", offset)
                     yield message.log_time, [message]
                 elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
-                    return
+                    return None
                 else:
                     _definition(opcode, body, offset, self.schemas, self.channels)
         except McapDamage as error:
-            left = self.size - error.offset
+            cut = self._cut_chunk(error.offset) if self._cut_short else None
+            if cut is not None:
+                yield cut
+                self.damage.append(Damage(error.offset, f"chunk at byte {error.offset} cut short at byte {self.size} "
+                                          f"(the end of the file): its {len(cut[1])} complete messages were read, "
+                                          "the rest of it and anything after it are lost", None))
+                return None
+            resume = self._next_intact_chunk(error.offset + 1)
+            end = self.size if resume is None else resume
             self.damage.append(Damage(error.offset, f"file damaged or cut short at byte {error.offset} of "
-                                      f"{self.size}: {error}; the last {left} bytes "
-                                      f"({100.0 * left / self.size:.1f}%) could not be read", None))
-            return
+                                      f"{self.size}: {error}; bytes {error.offset}-{end} "
+                                      f"({100.0 * (end - error.offset) / self.size:.1f}%) could not be read"
+                                      + ("" if resume is None else f", reading went on at the chunk at byte {resume}"),
+                                      None))
+            return resume
         self.damage.append(Damage(self.size, f"the file ends at byte {self.size} without its data-end record: "
                                   "the recording was cut short; everything before was read", None))
+        return None
+
+    def _cut_chunk(self, offset: int) -> tuple[int, list[RawMessage]] | None:
+        """Start time and complete messages of an uncompressed chunk at `offset` that the end of the file cuts off
+        (None if no such chunk starts there). Only for a file without footer: a cut changes no byte before it,
+        while a chunk that runs past the footer has a damaged header and its contents are not to be trusted."""
+        self._file.seek(offset)
+        head = self._file.read(RECORD_HEADER.size + CHUNK_HEAD.size)
+        if len(head) < RECORD_HEADER.size + CHUNK_HEAD.size or head[0] != Opcode.CHUNK:
+            return None
+        start_time, _, _, _, compression_length = CHUNK_HEAD.unpack_from(head, RECORD_HEADER.size)
+        if compression_length != 0:
+            return None  # compressed data cannot be read in part
+        self._file.seek(offset + RECORD_HEADER.size + CHUNK_HEAD.size + 8)  # past the records' length
+        data = self._file.read()
+        messages = []
+        try:
+            for inner, opcode, record in _records(BytesIO(data), 0, len(data)):
+                if opcode == Opcode.MESSAGE:
+                    messages.append(_message(record, f"byte {inner}", inner))
+                elif not _definition(opcode, record, inner, self.schemas, self.channels):
+                    break
+        except McapDamage:
+            pass  # the cut: everything before it was kept
+        messages.sort(key=lambda m: m.log_time)
+        return start_time, messages
+
+    def _next_intact_chunk(self, start: int) -> int | None:
+        """Offset of the first chunk record at or after `start` that reads whole with a matching CRC (None: none)."""
+        with mmap.mmap(self._file.fileno(), 0, access=mmap.ACCESS_READ) as data:
+            candidate = data.find(bytes([Opcode.CHUNK]), start)
+            while candidate >= 0:
+                if candidate + RECORD_HEADER.size + CHUNK_HEAD.size <= self.size:
+                    _, length = RECORD_HEADER.unpack_from(data, candidate)
+                    crc = CHUNK_HEAD.unpack_from(data, candidate + RECORD_HEADER.size)[3]
+                    end = candidate + RECORD_HEADER.size + length
+                    if crc and end <= self.size and self._intact(data[candidate + RECORD_HEADER.size:end], candidate):
+                        return candidate
+                candidate = data.find(bytes([Opcode.CHUNK]), candidate + 1)
+        return None
+
+    @staticmethod
+    def _intact(body: bytes, offset: int) -> bool:
+        try:
+            _decompress(_parse(Chunk.read, body, "chunk", offset), offset)
+        except McapDamage:
+            return False
+        return True

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
-import yaml
 from rosbags.typesys.store import Typestore
 
+from ..model.safe_yaml import YamlLimitError, load_yaml_file
 from .decode import decode
 from .mcapfile import McapError, McapFile
 from .typestore import typestore
@@ -52,6 +52,11 @@ class ReadReport:
         """True if every part of every file was read."""
         return not self.damage
 
+    @property
+    def missing(self) -> int | None:
+        """Messages the bag says it holds that were not found (None when it does not say)."""
+        return None if self.expected is None else max(self.expected - sum(self.read.values()), 0)
+
 
 def _metadata(path: Path) -> tuple[list[Path] | None, int | None, str]:
     """Files and message count listed by metadata.yaml, or None and why it cannot be used."""
@@ -59,11 +64,11 @@ def _metadata(path: Path) -> tuple[list[Path] | None, int | None, str]:
     if not meta.is_file():
         return None, None, f"{path} has no metadata.yaml"
     try:
-        info = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
+        info = load_yaml_file(meta)["rosbag2_bagfile_information"]
         storage = info.get("storage_identifier", "mcap")
-        files = [path / name for name in info["relative_file_paths"]]
+        files = [path / str(name) for name in info["relative_file_paths"]]
         count = info.get("message_count")
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as error:
+    except (OSError, YamlLimitError, KeyError, TypeError, AttributeError) as error:
         return None, None, f"{meta} is unreadable ({type(error).__name__}: {error})"
     if storage != "mcap":
         raise BagError(f"{path}: storage '{storage}' is not supported; only MCAP bags are read")
@@ -135,6 +140,10 @@ class BagReader:
         for file in self.files:
             with McapFile(file) as mcap:
                 yield from self._file_messages(mcap)
+        report = self.report
+        if report.damage and report.missing is not None:
+            report.damage.append(f"in all {report.missing} of the {report.expected} messages the bag lists "
+                                 "were not found")
 
     def _file_messages(self, mcap: McapFile) -> Iterator[BagMessage]:
         report = self.report

@@ -13,16 +13,22 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from . import fields
+from . import fields, frames
+from ..model.result import Solution
+from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
+from .scene import SceneBuilder
 from .cdr import encoder
 from .typestore import typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
 POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
+TF, TF_STATIC, SCENE, OUTLINE = "/tf", "/tf_static", "/platform/scene", "/platform/outline"
 OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/TensionDistribution",
-                ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals"}
+                ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals",
+                TF: "tf2_msgs/msg/TFMessage", TF_STATIC: "tf2_msgs/msg/TFMessage",
+                SCENE: "visualization_msgs/msg/MarkerArray", OUTLINE: "visualization_msgs/msg/MarkerArray"}
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
 Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
@@ -62,9 +68,26 @@ def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[R
 
 
 def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
-    """What the live node publishes for one solved sample, in its order: pose (only if solved),
+    """What the live node publishes for one solved sample, in its order: pose and /tf (only if solved),
     tension distribution, collision alarm, residuals (if any)."""
-    records = [_record(POSE, fields.pose_stamped(stamp, output.solution))] if output.solution.ok else []
+    records = [_record(POSE, fields.pose_stamped(stamp, output.solution)),
+               _record(TF, frames.platform_tf(stamp, output.solution))] if output.solution.ok else []
     records += [_record(TENSION, fields.tension_distribution(stamp, output.solution)),
                 _record(ALARM, fields.collision_alarm(stamp, output.alarm))]
     return records + residual_records(stamp, output.residuals)
+
+
+def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:
+    """What does not change, once per bag (latched): the head-sheave frames and the deck outlines."""
+    return [_record(TF_STATIC, frames.static_tf(stamp, builder.plant)), _record(OUTLINE, builder.outline(stamp))]
+
+
+def scene_cdr(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> bytes:
+    """The 3-D scene of one sample as CDR bytes (the live node publishes these raw: building the rclpy
+    MarkerArray instead cost four times as much)."""
+    return encoder(OUTPUT_TYPES[SCENE])(builder.scene(stamp, solution, alarm))
+
+
+def scene_records(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> list[Record]:
+    """The 3-D scene of one sample."""
+    return [(SCENE, OUTPUT_TYPES[SCENE], scene_cdr(stamp, builder, solution, alarm))]

@@ -4,14 +4,22 @@ Connections are added on a topic's first message; message definitions come from 
 type store, so the bag carries the schemas that other tools decode it with. Messages go
 into rosbags' MCAP chunk by `_append`, which does what rosbags' `Writer.write` does for an
 uncompressed bag (the same bytes, the same bookkeeping), in one step.
+
+Chunks are bounded, so that damage costs little: one is closed past CHUNK_SIZE bytes or
+when its messages would span more than CHUNK_SPAN of log time, and each carries the
+CRC-32 of its data (rosbags writes 0, "no CRC"), so that a reader can tell a damaged
+chunk from an intact one; the footer carries the CRC of the summary section (the index)
+for the same reason.
 """
 from __future__ import annotations
 
 import struct
+import zlib
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.errors import WriterError
@@ -22,6 +30,15 @@ from .typestore import typestore
 
 MESSAGE = struct.Struct("<BQHIQQ")  # opcode 0x05, record length, channel, sequence, log time, publish time
 CHUNK_SIZE = 2 ** 20  # rosbags closes a chunk past this many bytes
+_FOREVER = QosTime(0x7FFFFFFF, 0xFFFFFFFF)  # rosbag2's "infinite" deadline, lifespan and lease
+# What tf2's static broadcaster offers: a player republishes the topic latched, so a late subscriber still gets it.
+LATCHED = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
+              QosLiveliness.AUTOMATIC, _FOREVER, False)
+CHUNK_SPAN = 1_000_000_000  # [ns] of log time in one chunk at most
+CHUNK_CRC_OFFSET = 1 + 8 + 8 + 8 + 8  # opcode, record length, start time, end time, uncompressed size
+FOOTER = struct.Struct("<BQQQI")  # opcode 0x02, record length, summary start, summary offset start, summary CRC
+FOOTER_OPCODE = 0x02
+MAGIC = b"\x89MCAP0\r\n"
 
 
 class BagWriter:
@@ -40,17 +57,39 @@ class BagWriter:
         except (WriterError, OSError) as error:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
         self._storage: McapWriter = self._writer.storage
+        self._close_chunk_without_crc = self._storage.close_chunk
+        self._storage.close_chunk = self._close_chunk  # rosbags' own close() ends the last chunk through it too
 
-    def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes) -> None:
-        """CDR bytes as they are, at `log_time` [ns]."""
+    def _close_chunk(self) -> None:
+        """rosbags' close_chunk, then the CRC-32 of the chunk's data written into the chunk record."""
+        storage = self._storage
+        crc = zlib.crc32(storage.chunk.bio.getbuffer())
+        start = storage.bio.tell()
+        self._close_chunk_without_crc()
+        end = storage.bio.tell()
+        storage.bio.seek(start + CHUNK_CRC_OFFSET)
+        storage.bio.write(struct.pack("<I", crc))
+        storage.bio.seek(end)
+
+    def close_spanning_chunk(self, time: int) -> None:
+        """End the open chunk if a message at `time` [ns] would make it span more than CHUNK_SPAN."""
+        chunk = self._storage.chunk
+        if chunk.msgs and max(time, chunk.message_end_time) - min(time, chunk.message_start_time) > CHUNK_SPAN:
+            self._close_chunk()
+
+    def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes, latched: bool = False) -> None:
+        """CDR bytes as they are, at `log_time` [ns]; a `latched` topic is recorded as offered transient-local
+        (its first message decides)."""
         connection = self._connections.get(topic)
         if connection is None:
-            connection = self._connections[topic] = self._writer.add_connection(topic, msgtype, typestore=self.store)
+            connection = self._connections[topic] = self._writer.add_connection(
+                topic, msgtype, typestore=self.store, offered_qos_profiles=[LATCHED] if latched else ())
         self._append(connection.id, log_time if log_time > 0 else 0, data)
         self.counts[topic] += 1
 
     def _append(self, channel: int, time: int, data: bytes) -> None:
         """rosbags' Writer.write and McapWriter.write (rosbags 0.11.9, no compression) in one step."""
+        self.close_spanning_chunk(time)
         writer, storage = self._writer, self._storage
         writer.counts[channel] += 1
         storage.channel_stats[channel] += 1
@@ -68,7 +107,7 @@ class BagWriter:
         chunk.msgs[channel].append((time, offset))
         bio.write(MESSAGE.pack(0x05, MESSAGE.size - 9 + len(data), channel, 0, time, time) + data)
         if offset + MESSAGE.size + len(data) > CHUNK_SIZE:
-            storage.close_chunk()
+            self._close_chunk()
 
     def write(self, topic: str, msgtype: str, log_time: int, message: Any) -> None:
         """A rosbags message object, serialised to CDR."""
@@ -79,9 +118,25 @@ class BagWriter:
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+            _seal_summary(self._storage.path)
 
     def __enter__(self) -> "BagWriter":
         return self
 
     def __exit__(self, *_: object) -> None:
         self.close()
+
+
+def _seal_summary(mcap: Path) -> None:
+    """Write the footer's summary CRC: CRC-32 of the summary section and the footer's first two fields."""
+    with mcap.open("r+b") as file:
+        footer = file.seek(0, 2) - FOOTER.size - len(MAGIC)
+        file.seek(footer)
+        opcode, _, summary_start, _, _ = FOOTER.unpack(file.read(FOOTER.size))
+        if opcode != FOOTER_OPCODE or summary_start == 0:
+            return
+        file.seek(summary_start)
+        crc = zlib.crc32(file.read(footer + FOOTER.size - 4 - summary_start))
+        file.seek(footer + FOOTER.size - 4)
+        file.write(struct.pack("<I", crc))
+

@@ -139,6 +139,17 @@ def connect(probe: Probe, node: subprocess.Popen) -> None:
         raise SystemExit("node_latency: no pose came back during the warm-up")
 
 
+def publish_paced(probe: Probe, lengths: np.ndarray, rate: float) -> dict[tuple[int, int], int]:
+    """Publish one sample per 1/rate seconds from now; stamp key -> send time [ns, perf_counter]."""
+    sent: dict[tuple[int, int], int] = {}
+    start = time.monotonic()
+    for k, sample in enumerate(lengths):
+        time.sleep(max(0.0, start + k / rate - time.monotonic()))
+        key, at = probe.publish(sample)
+        sent[key] = at
+    return sent
+
+
 def percentiles(values_ms: np.ndarray) -> str:
     if values_ms.size == 0:
         return "n/a"
@@ -168,12 +179,8 @@ def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
         try:
             connect(probe, node)
             probe.received.clear()
-            sent: dict[tuple[int, int], int] = {}
             cpu0, wall0 = cpu_seconds(node.pid), time.monotonic()
-            for k, sample in enumerate(lengths):
-                time.sleep(max(0.0, wall0 + k / rate - time.monotonic()))
-                key, at = probe.publish(sample)
-                sent[key] = at
+            sent = publish_paced(probe, lengths, rate)
             time.sleep(0.5)
             cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
         finally:

@@ -134,6 +134,16 @@ class PlantModel:
         return tuple({i.key: i for e in self.effects for i in e.inputs}.values())
 
     @property
+    def measuring(self) -> bool:
+        """Some effect changes what a sensor reads (the plain channel predictions do not hold)."""
+        return bool(self._measurers)
+
+    @property
+    def refining(self) -> bool:
+        """Some effect's geometry depends on the pose (solved by fixed-point refinement)."""
+        return bool(self._refiners)
+
+    @property
     def plain(self) -> bool:
         """No effect at all: the rigid model."""
         return not self.effects
@@ -141,7 +151,7 @@ class PlantModel:
     @property
     def batchable(self) -> bool:
         """`solve_batch` solves many samples at once: the energy solver, no pose-dependent geometry."""
-        return self.solver == "energy" and not self._refiners
+        return self.solver == "energy" and not self.refining
 
     @cached_property
     def _lengtheners(self) -> tuple[Effect, ...]:

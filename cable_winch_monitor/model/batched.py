@@ -8,7 +8,8 @@ Jacobians go to one `np.linalg.solve`. A chunk starts from the previous chunk's 
 solution (warm start along the trajectory). The taut set is changed by the per-sample
 solver's rules, batched; a sample that does not settle on an admissible set of two or
 three taut cables (no convergence, four taut, single cable, bad input) is handed to
-`solve_energy`, warm-started from its predecessor. The answers are the same.
+`solve_energy`, warm-started from its predecessor; so is a sample whose batched answer
+fails the physics check. The answers are the same.
 """
 from __future__ import annotations
 
@@ -20,9 +21,9 @@ import numpy as np
 from . import load as loads_
 from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTON_TOL, SLACK_TOL, TENSION_TOL, \
     solve_energy
-from .geometry import skew
+from .geometry import rotations_from_vectors, skew
 from .plant import Plant
-from .result import Solution, SolveStatus, solved, solved_rows
+from .result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
 
 CHUNK = 1024              # samples solved together from one warm start
 
@@ -82,7 +83,7 @@ def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None =
     """Equilibria for the rows of `lengths` (N, 4), in order along a trajectory, under `loads` (one
     wrench per row (N, 6), one for all (6,), or None: gravity); never raises."""
     out = empty_batch(plant, lengths, loads)
-    solve_chunks(out, warm_start, lambda rows, seed: _solve_chunk(plant, out, rows, seed),
+    solve_chunks(out, warm_start, lambda rows, seed: _solve_checked_chunk(plant, out, rows, seed),
                  lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]))
     return out
 
@@ -109,7 +110,8 @@ def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: C
     seed = warm_start if warm_start is not None and warm_start.ok else None
     for start in range(0, count, CHUNK):
         rows = np.arange(start, min(start + CHUNK, count))
-        valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0), axis=1)
+        valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= out.plant.max_payout),
+                            axis=1)
                      & np.all(np.isfinite(out.loads[rows]), axis=1) & (out.loads[rows, 2] < 0.0)]
         if seed is None and valid.size:
             seed = _fallback(out, int(valid[0]), None, solve_one)
@@ -120,6 +122,22 @@ def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: C
             _fallback(out, int(i), _previous(out, int(i), seed), solve_one)
         last = rows[out.ok[rows]]
         seed = out.solution(int(last[-1])) if last.size else seed
+
+
+def _solve_checked_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:
+    _solve_chunk(plant, out, rows, seed)
+    _unsolve_unphysical(plant, out, rows)
+
+
+def _unsolve_unphysical(plant: Plant, out: BatchSolution, rows: np.ndarray) -> None:
+    """Batched answers among `rows` that fail the physics check go back to SOLVER_FAILED (the fallback's)."""
+    rows = rows[out.ok[rows] & ~np.isin(rows, list(out.fallback))]
+    rotation, position = out.rotation[rows], out.position[rows]
+    points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
+    point_c = position + rotation @ plant.cog
+    check = check_physics_rows(plant, out.lengths[rows], points_b, point_c, out.tensions[rows], out.taut[rows],
+                               out.loads[rows])
+    out.status[rows[~passing_rows(check)]] = SolveStatus.SOLVER_FAILED.value
 
 
 def _previous(out: BatchSolution, i: int, seed: Solution | None) -> Solution | None:
@@ -199,17 +217,6 @@ def _geometry(plant: Plant, rotation: np.ndarray, position: np.ndarray):
     return arms, levers, spans / norms[..., None], norms
 
 
-def _rotations(omega: np.ndarray) -> np.ndarray:
-    """exp([omega]x) for stacked rotation vectors (Rodrigues)."""
-    angle = np.linalg.norm(omega, axis=1)
-    small = angle < 1e-12
-    axis = omega / np.where(small, 1.0, angle)[:, None]
-    k = skew(axis)
-    sin, cos = np.sin(angle)[:, None, None], (1.0 - np.cos(angle))[:, None, None]
-    exact = np.eye(3) + sin * k + cos * (k @ k)
-    return np.where(small[:, None, None], np.eye(3) + skew(omega), exact)
-
-
 def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
     """Newton steps on the group's taut set until every sample converges; True where converged.
 
@@ -255,7 +262,7 @@ def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
                                      np.abs(step[:, 0:3]).max(axis=1) / (0.2 * scale), np.ones(live.size)])
         step /= largest[:, None]
         group.position[live] += step[:, 0:3]
-        group.rotation[live] = _rotations(step[:, 3:6]) @ group.rotation[live]
+        group.rotation[live] = rotations_from_vectors(step[:, 3:6]) @ group.rotation[live]
         group.mu[live[:, None], idx] += step[:, 6:]
         group.steps[live] += 1
     return converged

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .batched import BatchSolution, _geometry, _rotations, empty_batch, solve_chunks
+from .batched import BatchSolution, _geometry, empty_batch, solve_chunks
 from .elastic import MAX_STEPS, METHOD, ROUNDING_TOL, TOL, solve_elastic
-from .geometry import skew
+from .geometry import rotations_from_vectors, skew
 from .plant import Plant
 from .result import Solution, SolveStatus
 
@@ -102,7 +102,7 @@ def _newton(plant: Plant, out: BatchSolution, rows: np.ndarray, ea: np.ndarray, 
         step_size[moved] = np.maximum(np.abs(delta[~limp, 0:3]).max(axis=1) / lengths[moved].max(axis=1),
                                       np.abs(delta[~limp, 3:6]).max(axis=1))
         position[live] += delta[:, 0:3]
-        rotation[live] = _rotations(delta[:, 3:6]) @ rotation[live]
+        rotation[live] = rotations_from_vectors(delta[:, 3:6]) @ rotation[live]
         steps[live] += 1
 
 

@@ -62,7 +62,7 @@ def solve_energy(plant: Plant, lengths: object, warm_start: Solution | None = No
     the status says what happened."""
     wrench = loads.resolve(plant, load)
     reason = loads.check(wrench)
-    return guarded_solve(METHOD, lengths, lambda array: _solve(plant, array, warm_start, wrench), reason)
+    return guarded_solve(METHOD, lengths, lambda array: _solve(plant, array, warm_start, wrench), reason, plant)
 
 
 def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None, load: np.ndarray) -> Solution:

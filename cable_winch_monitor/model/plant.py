@@ -13,11 +13,14 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
 
 from ..paths import default_plant_file
+from .safe_yaml import YamlLimitError, load_yaml_file
+from .plant_checks import degenerate_points
 
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
+DEFAULT_MAX_PAYOUT = 3000.0  # [m] deeper than any shaft sunk with a hanging platform
+DEFAULT_MAX_PAYOUT_SPEED = 5.0  # [m/s] sinking winches run below 1 m/s
 ALARM_KEYS = ("warning_margin", "critical_margin", "hysteresis", "slack_tolerance")
 
 
@@ -54,6 +57,8 @@ class Plant:
     shaft_radius: float = float("inf")
     shaft_centre: np.ndarray = field(default_factory=lambda: np.zeros(2))
     outline: tuple[OutlinePoint, ...] = ()
+    max_payout: float = DEFAULT_MAX_PAYOUT  # [m] longest cable length a winch can pay out
+    max_payout_speed: float = DEFAULT_MAX_PAYOUT_SPEED  # [m/s]
     noise: Mapping[str, float] = field(default_factory=dict)  # 1-sigma noise by channel noise key
     alarm: Mapping[str, float] = field(default_factory=dict)  # alarm margins given (monitor.alarm)
     effects: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # effect name -> its parameters
@@ -127,8 +132,11 @@ def _outline(section: Any) -> tuple[OutlinePoint, ...]:
         return ()
     if not isinstance(section, Mapping) or "decks" not in section:
         raise PlantConfigError("plant file: key 'outline' must be a mapping with a list 'decks'")
+    decks = section["decks"]
+    if not isinstance(decks, list):
+        raise PlantConfigError(f"plant file: key 'outline.decks' must be a list of decks, got {decks!r}")
     points: list[OutlinePoint] = []
-    for index, deck in enumerate(section["decks"]):
+    for index, deck in enumerate(decks):
         where = f"outline.decks[{index}]."
         if not isinstance(deck, Mapping):
             raise PlantConfigError(f"plant file: '{where[:-1]}' must be a mapping")
@@ -138,11 +146,22 @@ def _outline(section: Any) -> tuple[OutlinePoint, ...]:
             xy = _points(deck["points"], where + "points", None, dim=2)
         else:
             radius = _number(deck, "radius", where, positive=True)
-            count = int(deck.get("count", 36))
+            count = deck.get("count", 36)
+            if isinstance(count, bool) or not isinstance(count, int) or not 3 <= count <= 10_000:
+                raise PlantConfigError(f"plant file: key '{where}count' must be a whole number of points 3..10000, "
+                                       f"got {count!r}")
             angles = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
             xy = radius * np.column_stack([np.cos(angles), np.sin(angles)])
         points += [OutlinePoint(f"{name}/p{k + 1}", np.array([x, y, z])) for k, (x, y) in enumerate(xy)]
     return tuple(points)
+
+
+def _limits(section: Any) -> tuple[float, float]:
+    """Maximum payout [m] and payout speed [m/s] from 'plant.limits' (defaults where not given)."""
+    if not isinstance(section, Mapping):
+        raise PlantConfigError("plant file: key 'plant.limits' must be a mapping")
+    return tuple(_number(section, key, "plant.limits.", positive=True) if key in section else default
+                 for key, default in (("max_payout", DEFAULT_MAX_PAYOUT), ("max_payout_speed", DEFAULT_MAX_PAYOUT_SPEED)))
 
 
 def _numbers(section: Any, where: str, keys: tuple[str, ...] | None = None) -> dict[str, float]:
@@ -213,6 +232,10 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
                 raise PlantConfigError(f"plant file: key 'plant.geometry.{key}' must lie in (-1, 1), got {value}")
         anchors, attachments, cog = seed002_rectangle(a, b, h, k1, k2)
         rectangle = (a, b)
+    for key, points in (("plant.geometry.anchors", anchors), ("plant.geometry.attachments", attachments)):
+        problem = degenerate_points(points)
+        if problem:
+            raise PlantConfigError(f"plant file: key '{key}': {problem}")
     if cog[2] >= attachments[:, 2].min():
         raise PlantConfigError("plant file: the centre of gravity must lie below the attachment points (hanging platform)")
     shaft = section.get("shaft", {}) or {}
@@ -220,6 +243,7 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         raise PlantConfigError("plant file: key 'plant.shaft' must be a mapping")
     shaft_radius = _number(shaft, "radius", "plant.shaft.", positive=True) if "radius" in shaft else float("inf")
     shaft_centre = _points([shaft.get("centre", [0.0, 0.0])], "plant.shaft.centre", 1, dim=2)[0]
+    max_payout, max_payout_speed = _limits(section.get("limits", {}) or {})
     return Plant(
         name=str(section.get("name", name)),
         anchors=anchors,
@@ -231,6 +255,8 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         shaft_radius=shaft_radius,
         shaft_centre=shaft_centre,
         outline=_outline(section.get("outline")),
+        max_payout=max_payout,
+        max_payout_speed=max_payout_speed,
         noise=_numbers(section.get("noise"), "plant.noise"),
         alarm=_numbers(section.get("alarm"), "plant.alarm", ALARM_KEYS),
         effects=_effects(section.get("effects")),
@@ -243,13 +269,11 @@ def load_plant(path: str | Path | None = None) -> Plant:
     """Read a plant YAML file (the bundled seed-002 plant when path is None)."""
     path = Path(path) if path else default_plant_file()
     try:
-        text = path.read_text()
+        config = load_yaml_file(path)
     except OSError as error:
         raise PlantConfigError(f"plant file {path}: cannot be read ({error.strerror})") from None
-    try:
-        config = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise PlantConfigError(f"plant file {path}: not valid YAML ({error})") from None
+    except YamlLimitError as error:
+        raise PlantConfigError(f"plant file {path}: {error}") from None
     try:
         return plant_from_mapping(config, name=path.stem)
     except PlantConfigError as error:

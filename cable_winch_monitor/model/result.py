@@ -8,7 +8,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .geometry import quaternion_from_rotation, roll_pitch_yaw, wrench_residual, wrench_residuals
+from .geometry import quaternion_from_rotation, roll_pitch_yaw, wrench_residuals
 from .plant import CABLE_NAMES, Plant
 
 
@@ -109,8 +109,8 @@ def failed(status: SolveStatus, message: str, method: str, lengths: Sequence[flo
     return Solution(status=status, message=message, method=method, lengths=np.asarray(lengths, dtype=float), **kwargs)
 
 
-def validate_lengths(lengths: Any) -> tuple[np.ndarray | None, str]:
-    """Four finite positive lengths as an array, or None and the reason they are not.
+def validate_lengths(lengths: Any, max_length: float = np.inf) -> tuple[np.ndarray | None, str]:
+    """Four finite positive lengths no longer than `max_length` as an array, or None and the reason they are not.
 
     Strings are refused even where numpy would parse them: a length is a number.
     """
@@ -131,6 +131,9 @@ def validate_lengths(lengths: Any) -> tuple[np.ndarray | None, str]:
     bad = [f"{CABLE_NAMES[i]}={array[i]}" for i in range(4) if array[i] <= 0.0]
     if bad:
         return None, "cable lengths must be positive: " + ", ".join(bad)
+    bad = [f"{CABLE_NAMES[i]}={array[i]:.6g}" for i in range(4) if array[i] > max_length]
+    if bad:
+        return None, f"cable lengths beyond the maximum payout {max_length:g} m: " + ", ".join(bad)
     return array, ""
 
 
@@ -149,23 +152,42 @@ def single_cable_result(plant: Plant, method: str, lengths: np.ndarray, cable: i
 
 
 def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray], Solution],
-                  load_problem: str = "") -> Solution:
+                  load_problem: str = "", plant: Plant | None = None) -> Solution:
     """Validate the lengths (and take `load_problem`, why the load is unusable, as invalid input),
     then solve; a bad input or a numerical failure becomes a status.
 
     The contract of every solver: whatever the input, a Solution comes back, never an
-    exception (a live monitor must report and go on).
+    exception (a live monitor must report and go on). The rigid solvers pass their
+    `plant`: lengths beyond its maximum payout are refused and a solved result must pass
+    the physics check (`physics_guard`).
     """
-    array, reason = validate_lengths(lengths)
+    array, reason = validate_lengths(lengths, np.inf if plant is None else plant.max_payout)
     if array is None or load_problem:
         return failed(SolveStatus.INVALID_INPUT, reason or load_problem, method,
                       np.full(4, np.nan) if array is None else array)
     try:
         with np.errstate(all="ignore"):
-            return solve_valid(array)
+            solution = solve_valid(array)
+            return solution if plant is None else physics_guard(plant, solution)
     except Exception as error:  # noqa: BLE001 -- the contract is a status, never an exception
         return failed(SolveStatus.SOLVER_FAILED, f"{method} solver failed: {type(error).__name__}: {error}",
                       method, array)
+
+
+def physics_guard(plant: Plant, solution: Solution) -> Solution:
+    """`solution` if it is not SOLVED or passes `check_physics`; else SOLVER_FAILED with what failed.
+
+    Nothing reaches the monitor as solved that does not balance: a solver that converged
+    to nonsense (huge lengths, lost precision) is a failure, said as one.
+    """
+    if not solution.ok:
+        return solution
+    reason = check_physics(plant, solution).failure()
+    if not reason:
+        return solution
+    return failed(SolveStatus.SOLVER_FAILED, f"{solution.method} solver: result fails the physics check ({reason})",
+                  solution.method, solution.lengths, iterations=solution.iterations,
+                  force_residual=solution.force_residual, moment_residual=solution.moment_residual)
 
 
 def solved(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
@@ -211,37 +233,63 @@ class PhysicsCheck:
     mirrored: bool  # solved points are the mirror image of the body
 
     def passes(self, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> bool:
-        return (self.force_residual <= balance_tol and self.moment_residual <= balance_tol
-                and self.min_tension >= 0.0 and self.max_overstretch <= length_tol
-                and self.taut_length_error <= length_tol and self.rigid_error <= length_tol
-                and self.slack_tension == 0.0 and not self.mirrored)
+        return bool(passing_rows(self, balance_tol, length_tol))
+
+    def failure(self, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> str:
+        """What fails, in words ('' if the check passes; NaN fails every comparison)."""
+        problems = [
+            (self.force_residual <= balance_tol, f"force residual {self.force_residual:.3g} mg"),
+            (self.moment_residual <= balance_tol, f"moment residual {self.moment_residual:.3g}"),
+            (self.min_tension >= 0.0, f"negative tension {self.min_tension:.6g} N"),
+            (self.max_overstretch <= length_tol, f"a span exceeds its length by {self.max_overstretch:.3g} m"),
+            (self.taut_length_error <= length_tol, f"a taut span misses its length by {self.taut_length_error:.3g} m"),
+            (self.rigid_error <= length_tol, f"body deformed by {self.rigid_error:.3g} m"),
+            (self.slack_tension == 0.0, f"slack cable carries {self.slack_tension:.6g} N"),
+            (not self.mirrored, "mirror image of the body"),
+        ]
+        return "; ".join(text for ok, text in problems if not ok)
 
 
 def check_physics(plant: Plant, solution: Solution) -> PhysicsCheck:
     """Recompute the physics of a SOLVED solution from its points, independently of the solver."""
     if solution.status is not SolveStatus.SOLVED:
         raise ValueError(f"no pose to check: {solution.tension_state}")
-    points_b, point_c = solution.points_b, solution.point_c
-    force, moment = wrench_residual(plant, points_b, point_c, solution.tensions, solution.load)
-    spans = np.linalg.norm(points_b - plant.anchors, axis=1)
-    excess = spans - solution.lengths
-    body = np.vstack([plant.attachments, plant.cog])
-    world = np.vstack([points_b, point_c])
-    body_distances = np.linalg.norm(body[:, None] - body[None], axis=2)
-    world_distances = np.linalg.norm(world[:, None] - world[None], axis=2)
-    taut = solution.taut
+    rows = check_physics_rows(plant, solution.lengths[None], solution.points_b[None], solution.point_c[None],
+                              np.asarray(solution.tensions)[None], np.asarray(solution.taut)[None],
+                              None if solution.load is None else np.asarray(solution.load)[None])
+    return PhysicsCheck(**{name: getattr(rows, name)[0].item() for name in PhysicsCheck.__dataclass_fields__})
 
-    def handedness(points: np.ndarray) -> float:
+
+def check_physics_rows(plant: Plant, lengths: np.ndarray, points_b: np.ndarray, point_c: np.ndarray,
+                       tensions: np.ndarray, taut: np.ndarray, loads: np.ndarray | None = None) -> PhysicsCheck:
+    """`check_physics` of N stacked solved states (lengths (N, 4), points_b (N, 4, 3), loads (N, 6) or None
+    for gravity, ...): a PhysicsCheck whose fields are (N,) arrays; `passing_rows` says which rows pass."""
+    force, moment = wrench_residuals(plant, points_b, point_c, tensions, loads)
+    excess = np.linalg.norm(points_b - plant.anchors, axis=-1) - lengths
+    body = np.vstack([plant.attachments, plant.cog])
+    world = np.concatenate([points_b, point_c[:, None, :]], axis=1)
+    body_distances = np.linalg.norm(body[:, None] - body[None], axis=-1)
+    world_distances = np.linalg.norm(world[:, :, None] - world[:, None], axis=-1)
+
+    def handedness(points: np.ndarray) -> np.ndarray:
         """Signed volume of B1, B2, B3, C: changes sign under a mirror image."""
-        return float(np.linalg.det(points[[1, 2, 4]] - points[0]))
+        return np.linalg.det(points[..., [1, 2, 4], :] - points[..., :1, :])
 
     return PhysicsCheck(
         force_residual=force,
         moment_residual=moment,
-        min_tension=float(solution.tensions.min()),
-        max_overstretch=float(excess.max()),
-        taut_length_error=float(np.abs(excess[taut]).max()) if taut.any() else 0.0,
-        rigid_error=float(np.abs(world_distances - body_distances).max()),
-        slack_tension=float(np.abs(solution.tensions[~taut]).max()) if (~taut).any() else 0.0,
+        min_tension=tensions.min(axis=1),
+        max_overstretch=excess.max(axis=1),
+        taut_length_error=np.where(taut, np.abs(excess), 0.0).max(axis=1),
+        rigid_error=np.abs(world_distances - body_distances).max(axis=(1, 2)),
+        slack_tension=np.where(taut, 0.0, np.abs(tensions)).max(axis=1),
         mirrored=handedness(world) * handedness(body) < 0.0,
     )
+
+
+def passing_rows(check: PhysicsCheck, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> np.ndarray:
+    """Which rows of a `check_physics_rows` check pass (the conditions of `PhysicsCheck.passes`)."""
+    return ((check.force_residual <= balance_tol) & (check.moment_residual <= balance_tol)
+            & (check.min_tension >= 0.0) & (check.max_overstretch <= length_tol)
+            & (check.taut_length_error <= length_tol) & (check.rigid_error <= length_tol)
+            & (check.slack_tension == 0.0) & ~check.mirrored)

@@ -195,4 +195,5 @@ def solve_traversal(plant: Plant, lengths: Any, *, method_name: str = "traversal
     wrench = loads.resolve(plant, load)
     problem = loads.check(wrench) or ("" if loads.is_vertical(wrench) else
                                       "seed 002's traversal takes a vertical load only; use the energy solver")
-    return guarded_solve(method_name, lengths, lambda array: _traverse(plant, array, method_name, wrench), problem)
+    return guarded_solve(method_name, lengths, lambda array: _traverse(plant, array, method_name, wrench), problem,
+                         plant)

@@ -24,7 +24,7 @@ from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
-from .inputs import CableLengthMerger, InputSeries, JointSample
+from .inputs import CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason
 from .residuals import Residuals, noise_levels, residuals
 
 
@@ -72,10 +72,12 @@ class MonitorStats:
 class MonitorPipeline:
     """Merges inputs, solves each complete sample (warm-started), and derives alarm and residuals."""
 
-    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5):
+    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
+                 stamp_window: StampWindow | None = None):
         self.model = PlantModel.from_plant(plant, solver)  # the one solve path: effects, load, solver
         self.plant, self.solver = plant, solver
-        self.merger = CableLengthMerger(staleness)
+        self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
+        self.merger = CableLengthMerger(staleness, stamp_window, self.limits)
         self.alarms = AlarmTracker(AlarmPolicy.from_plant(plant))
         self.stats = MonitorStats()
         self.last: MonitorOutput | None = None
@@ -157,6 +159,10 @@ class MonitorPipeline:
         """A sensor message (inclinometer, depth gauge, a declared channel's topic): the residuals of
         its channels against the latest solved pose."""
         self.stats.messages[topic] += 1
+        reason = measurement_reason(message, self.limits)
+        if reason:
+            self._reject(topic, reason)
+            return None
         values = {c.name: c.read(message) for c in channels.on_topic(topic)}
         if not any(math.isfinite(v) for v in values.values()):
             self._reject(topic, "bad measurement: no finite value in " + ", ".join(values))

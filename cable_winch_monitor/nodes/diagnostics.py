@@ -1,6 +1,7 @@
 """/diagnostics from the monitor's counters and the node clock.
 
-Four statuses: the solver, the inputs (per cable stamp, age and rate; rejections), the
+Four statuses: the solver (with input and solve rates and the samples skipped because a
+newer one came first), the inputs (per cable stamp, age and rate; rejections), the
 collision alarm and model-versus-measurement residuals. Ages and rates are taken
 against the node clock, so under `use_sim_time` they follow the bag's /clock.
 """
@@ -16,7 +17,7 @@ from std_msgs.msg import Header
 from ..model.plant import CABLE_NAMES
 from ..model.result import SolveStatus
 from ..monitor.alarm import AlarmLevel
-from ..monitor.pipeline import MonitorPipeline
+from ..monitor.latest import LatestSamplePipeline
 from ..monitor.residuals import Residuals
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
@@ -48,6 +49,7 @@ class DiagnosticsReporter:
         self.last_callback_error = ""
         self._rejected_seen = 0
         self._last_rejection_time = -np.inf
+        self.throughput: deque[tuple[float, int, int]] = deque()  # node time, winch messages, samples solved
 
     def note_readings(self, cables: list[int], now: float) -> None:
         """Cables whose reading was just accepted, at node time `now` [s]."""
@@ -74,15 +76,33 @@ class DiagnosticsReporter:
         while arrivals and arrivals[0] < now - RATE_WINDOW:
             arrivals.popleft()
 
-    def build(self, pipeline: MonitorPipeline, now: float, stamp: Time) -> DiagnosticArray:
+    def build(self, pipeline: LatestSamplePipeline, now: float, stamp: Time) -> DiagnosticArray:
         """All four statuses at node time `now` [s], stamped `stamp`."""
-        statuses = [self._solver(pipeline), self._inputs(pipeline, now), self._alarm(pipeline), self._model()]
+        statuses = [self._solver(pipeline, now), self._inputs(pipeline, now), self._alarm(pipeline), self._model()]
         return DiagnosticArray(header=Header(stamp=stamp), status=statuses)
 
-    def _solver(self, pipeline: MonitorPipeline) -> DiagnosticStatus:
+    def throughput_rates(self, pipeline: LatestSamplePipeline, now: float) -> tuple[float, float]:
+        """Winch messages and samples solved per second over the last RATE_WINDOW of node time."""
+        samples = sum(pipeline.stats.states.values())
+        self.throughput.append((now, pipeline.offered, samples))
+        while len(self.throughput) > 2 and self.throughput[1][0] <= now - RATE_WINDOW:
+            self.throughput.popleft()
+        start, offered, solved = self.throughput[0]
+        span = now - start
+        if span <= 0.0:
+            return float("nan"), float("nan")
+        return (pipeline.offered - offered) / span, (samples - solved) / span
+
+    def _solver(self, pipeline: LatestSamplePipeline, now: float) -> DiagnosticStatus:
         stats, last = pipeline.stats, pipeline.last
+        input_rate, solve_rate = self.throughput_rates(pipeline, now)
         values: dict[str, object] = {"solver": pipeline.solver, "solved": stats.solved, "failed": stats.failures,
-                                     "samples": sum(stats.states.values())}
+                                     "samples": sum(stats.states.values()), "complete samples": pipeline.complete,
+                                     "skipped (a newer sample came first)": pipeline.skipped,
+                                     "winch messages": pipeline.offered,
+                                     "winch messages lost before the node": pipeline.unseen,
+                                     "waiting": pipeline.waiting, "input rate [Hz]": f"{input_rate:.1f}",
+                                     "solve rate [Hz]": f"{solve_rate:.1f}"}
         values.update({f"state {state}": count for state, count in stats.states.items()})
         if last is None:
             return _status("solver", OK, "no complete sample yet", values, self.hardware_id)
@@ -93,7 +113,7 @@ class DiagnosticsReporter:
         return _status("solver", SOLVER_DIAGNOSTIC[solution.status], f"{solution.tension_state} ({pipeline.solver})",
                        values, self.hardware_id)
 
-    def _inputs(self, pipeline: MonitorPipeline, now: float) -> DiagnosticStatus:
+    def _inputs(self, pipeline: LatestSamplePipeline, now: float) -> DiagnosticStatus:
         stats, staleness = pipeline.stats, pipeline.staleness
         values: dict[str, object] = {}
         missing, stale = [], []
@@ -131,7 +151,7 @@ class DiagnosticsReporter:
         level = ERROR if missing or stale else WARN if recent else OK
         return _status("inputs", level, "; ".join(problems) or "all four cables fresh", values, self.hardware_id)
 
-    def _alarm(self, pipeline: MonitorPipeline) -> DiagnosticStatus:
+    def _alarm(self, pipeline: LatestSamplePipeline) -> DiagnosticStatus:
         values: dict[str, object] = {f"samples {level}": count for level, count in pipeline.stats.levels.items()}
         last = pipeline.last
         if last is None:

@@ -1,13 +1,17 @@
-"""The live monitor node: winch joint states in; pose, tensions, alarm, residuals and diagnostics out.
+"""The live monitor node: winch joint states in; pose, /tf, tensions, alarm, residuals, the 3-D scene and
+diagnostics out.
 
-A thin adapter around MonitorPipeline: every callback converts a message, calls the
-pipeline and publishes what it returns, stamped with the input's own stamp. Callbacks
-never raise: bad input is counted (diagnostics), logged with a throttle and skipped.
+A thin adapter around the monitor pipeline: every callback converts a message and hands
+it to the pipeline; winch messages are merged in the callback and the newest complete
+sample is solved by a worker thread (monitor.latest), so that a burst never queues stale
+work. Outputs are stamped with the input's own stamp. Callbacks never raise: bad input
+is counted (diagnostics), logged with a throttle and skipped.
 """
 from __future__ import annotations
 
 import importlib
 import sys
+import threading
 from typing import Any, Callable, Sequence
 
 import rclpy
@@ -17,32 +21,44 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import MarkerArray
 
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
 from .. import channels
-from ..bagio import fields
+from ..bagio import fields, frames, records
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
-from ..monitor.pipeline import MonitorOutput, MonitorPipeline
+from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
+from ..monitor.inputs import StampWindow
+from ..monitor.latest import LatestSamplePipeline
+from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
 from .diagnostics import DiagnosticsReporter
+from .winch_input import WinchInput
 
 NODE_NAME = "winch_monitor"
 MERGED_TOPIC = "/winch/joint_states"
 DEFAULT_WINCH_TOPICS = [f"/winch_{i}/joint_states" for i in range(1, 5)]
-# Reliable and one second deep at 1 kHz: a burst is queued and worked off, not dropped unseen.
-# (The node handles about 1,000 samples/s on an idle core; with a queue of 50 a one-second
-# burst of 1,000 lost 40-50 % of its messages once the CPU was shared.)
-SENSOR_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1000)
+# Reliable, and 50 ms deep at 1 kHz: a callback takes the whole queue and only merges, the
+# solves are the worker's; a queue that overflows drops its oldest samples, counted from the
+# sequence gaps (winch_input), never a backlog of stale ones.
+SENSOR_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=50)
 OUTPUT_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=10)
+# As tf2's broadcasters: /tf reliable and 100 deep; what never changes (/tf_static, the deck outlines) latched
+# (transient local) for late subscribers.
+TF_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
+LATCHED_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_THROTTLE = 5.0  # [s] between log lines about rejected input
+WORKER_POLL = 0.1  # [s] the solving worker checks this often whether the node is shutting down
 
 
 def _range(low: float, high: float) -> list[FloatingPointRange]:
@@ -60,9 +76,21 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
     ("staleness", 0.5, ParameterDescriptor(
         description="[s] a sample is solved only when no cable's latest length is older than this",
         floating_point_range=_range(0.001, 60.0), read_only=True)),
+    ("stamp_ahead", StampWindow.ahead, ParameterDescriptor(
+        description="[s] a winch stamp later than its arrival on the node clock by more than this is refused",
+        floating_point_range=_range(0.001, 1e10), read_only=True)),
+    ("stamp_behind", StampWindow.behind, ParameterDescriptor(
+        description="[s] a winch stamp earlier than its arrival on the node clock by more than this is refused",
+        floating_point_range=_range(0.001, 1e10), read_only=True)),
+    ("stamp_skew", StampWindow.skew, ParameterDescriptor(
+        description="[s] a winch stamp later than the other reporting winches' newest by more than this is refused",
+        floating_point_range=_range(0.001, 1e10), read_only=True)),
     ("diagnostics_period", 1.0, ParameterDescriptor(
         description="[s] period of /diagnostics (at most 1 s)", floating_point_range=_range(0.01, 1.0),
         read_only=True)),
+    ("scene_rate", LIVE_RATE, ParameterDescriptor(
+        description="[1/s] most 3-D scenes (/platform/scene) per second of sample stamps",
+        floating_point_range=_range(0.1, 100.0), read_only=True)),
     ("winch_topics", DEFAULT_WINCH_TOPICS, ParameterDescriptor(
         description=f"per-winch sensor_msgs/JointState topics, merged by cable name with {MERGED_TOPIC}",
         read_only=True)),
@@ -78,7 +106,8 @@ class WinchMonitorNode(Node):
             self.declare_parameter(name, default, descriptor)
         value = self._parameter
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
-        self.pipeline = MonitorPipeline(plant, value("solver"), value("staleness"))
+        window = StampWindow(value("stamp_ahead"), value("stamp_behind"), value("stamp_skew"))
+        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window)
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0
@@ -88,9 +117,19 @@ class WinchMonitorNode(Node):
         self.alarm_pub = self.create_publisher(CollisionAlarm, "/platform/collision_alarm", OUTPUT_QOS)
         self.residuals_pub = self.create_publisher(ModelResiduals, "/model/residuals", OUTPUT_QOS)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.tf_pub = self.create_publisher(TFMessage, "/tf", TF_QOS)
+        self.scene_pub = self.create_publisher(MarkerArray, "/platform/scene", OUTPUT_QOS)
+        self.scene, self.scene_throttle = SceneBuilder(plant), SceneThrottle(value("scene_rate"))
+        self.tf_static_pub = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
+        self.outline_pub = self.create_publisher(MarkerArray, "/platform/outline", LATCHED_QOS)
+        now = self.get_clock().now().to_msg()
+        self.tf_static_pub.publish(build(TFMessage, frames.static_tf((now.sec, now.nanosec), plant)))
+        self.outline_pub.publish(build(MarkerArray, self.scene.outline((now.sec, now.nanosec))))
 
-        for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")]):
-            self.create_subscription(JointState, topic, self._guarded(topic, self._on_joint_state, topic), SENSOR_QOS)
+        self.winch_inputs = [WinchInput(topic) for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")])]
+        for winch in self.winch_inputs:
+            winch.subscription = self.create_subscription(JointState, winch.topic, self._winch_callback(winch),
+                                                          SENSOR_QOS)
         for topic, msgtype in channels.topic_types().items():  # inclinometer, depth gauge, declared sensors
             if topic not in WINCH_TOPICS:
                 self.create_subscription(message_class(msgtype), topic,
@@ -100,7 +139,23 @@ class WinchMonitorNode(Node):
                                      self._guarded(spec.topic, self._on_input, spec), SENSOR_QOS)
         self.create_service(CheckCableLengths, "~/check_cable_lengths", self._check_cable_lengths)
         self.create_timer(value("diagnostics_period"), self._guarded("diagnostics", self._publish_diagnostics))
+        self._stopping = threading.Event()
+        self._worker = threading.Thread(target=self._work, name="winch_monitor solver", daemon=True)
+        self._worker.start()
         self.get_logger().info(f"monitoring plant '{plant.name}' with the {self.pipeline.solver} solver")
+
+    def destroy_node(self) -> None:
+        self._stopping.set()
+        self._worker.join(timeout=5.0)
+        super().destroy_node()
+
+    def _work(self) -> None:
+        """Solve the newest complete sample whenever there is one, until the node shuts down."""
+        while not self._stopping.is_set():
+            taken = self.pipeline.take(WORKER_POLL)
+            if taken is not None:
+                stamp, sample = taken
+                self._guarded("solver", lambda: self._publish(stamp, self.pipeline.solve(sample)))()
 
     def _parameter(self, name: str) -> Any:
         return self.get_parameter(name).value
@@ -120,42 +175,65 @@ class WinchMonitorNode(Node):
         return callback
 
     def _log_rejections(self) -> None:
-        total = sum(self.pipeline.stats.rejected.values())
+        with self.pipeline.lock:
+            total = sum(self.pipeline.stats.rejected.values())
         if total > self._rejections_logged:
             self._rejections_logged = total
             self.get_logger().warning(f"input rejected ({total} so far): {self.pipeline.stats.last_rejection}",
                                       throttle_duration_sec=LOG_THROTTLE)
 
-    def _on_joint_state(self, msg: JointState, topic: str) -> None:
-        before = list(self.pipeline.merger.readings)
-        output = self.pipeline.on_joint_state(fields.joint_sample(msg, topic))
-        accepted = [i for i, reading in enumerate(self.pipeline.merger.readings) if reading is not before[i]]
-        self.reporter.note_readings(accepted, self._now())
-        if output is not None:
-            self._publish(fields.stamp_of(msg), output)
+    def _winch_callback(self, winch: WinchInput) -> Callable[[JointState, dict], None]:
+        guarded = self._guarded(winch.topic, self._on_joint_states, winch)
+
+        def callback(msg: JointState, info: dict) -> None:  # two parameters: rclpy passes the message info
+            guarded(msg, info)
+        return callback
+
+    def _on_joint_states(self, msg: JointState, info: dict, winch: WinchInput) -> None:
+        """Merge this message and every one queued behind it; the worker solves the newest complete sample."""
+        messages = winch.drain(msg, info)
+        now = self._now()
+        with self.pipeline.lock:
+            self.pipeline.unseen = sum(w.unseen for w in self.winch_inputs)
+            for message in messages:
+                before = list(self.pipeline.merger.readings)
+                self.pipeline.offer(fields.joint_sample(message, winch.topic)._replace(received=now),
+                                    fields.stamp_of(message))
+                accepted = [i for i, reading in enumerate(self.pipeline.merger.readings) if reading is not before[i]]
+                self.reporter.note_readings(accepted, now)
 
     def _publish(self, stamp: fields.Stamp, output: MonitorOutput) -> None:
         if output.solution.ok:  # never a pose that was not solved
             self.pose_pub.publish(build(PoseStamped, fields.pose_stamped(stamp, output.solution)))
+            self.tf_pub.publish(build(TFMessage, frames.platform_tf(stamp, output.solution)))
         self.tension_pub.publish(build(TensionDistribution, fields.tension_distribution(stamp, output.solution)))
         self.alarm_pub.publish(build(CollisionAlarm, fields.collision_alarm(stamp, output.alarm)))
         self._publish_residuals(stamp, output.residuals)
+        if self.scene_throttle.due(output.stamp):
+            self.scene_pub.publish(records.scene_cdr(stamp, self.scene, output.solution, output.alarm))
 
     def _publish_residuals(self, stamp: fields.Stamp, residuals: Residuals | None) -> None:
         if residuals is not None:
-            self.reporter.note_residuals(residuals)
+            with self.pipeline.lock:
+                self.reporter.note_residuals(residuals)
             self.residuals_pub.publish(build(ModelResiduals, fields.model_residuals(stamp, residuals)))
 
     def _on_measurement(self, msg: Any, topic: str) -> None:
-        residuals = self.pipeline.on_measurement(topic, fields.seconds(msg.header.stamp), msg)
-        self._publish_residuals(fields.stamp_of(msg), residuals)
+        now = self.get_clock().now().nanoseconds
+        with self.pipeline.lock:
+            residuals = self.pipeline.on_measurement(topic, fields.message_seconds(msg, now), msg)
+        stamp = fields.stamp_of(msg) if hasattr(msg, "header") else divmod(now, 1_000_000_000)
+        self._publish_residuals(stamp, residuals)
 
     def _on_input(self, msg: Any, spec: Input) -> None:
-        self.pipeline.on_input(spec, fields.seconds(msg.header.stamp), msg)
+        with self.pipeline.lock:
+            self.pipeline.on_input(spec, fields.message_seconds(msg, self.get_clock().now().nanoseconds), msg)
 
     def _publish_diagnostics(self) -> None:
         now = self.get_clock().now()
-        self.diagnostics_pub.publish(self.reporter.build(self.pipeline, now.nanoseconds * 1e-9, now.to_msg()))
+        with self.pipeline.lock:
+            diagnostics = self.reporter.build(self.pipeline, now.nanoseconds * 1e-9, now.to_msg())
+        self.diagnostics_pub.publish(diagnostics)
 
     def _check_cable_lengths(self, request: CheckCableLengths.Request,
                              response: CheckCableLengths.Response) -> CheckCableLengths.Response:
@@ -163,7 +241,8 @@ class WinchMonitorNode(Node):
             lengths, error = requested_lengths(request.names, request.lengths)
             if lengths is None:
                 return rejected_response(f"invalid request: {error}")
-            solution, _, alarm = self.pipeline.evaluate(lengths)
+            with self.pipeline.lock:
+                solution, _, alarm = self.pipeline.evaluate(lengths)
             now = self.get_clock().now().to_msg()
             return check_response((now.sec, now.nanosec), solution, alarm)
         except Exception as error:  # noqa: BLE001 - answer, do not crash the service

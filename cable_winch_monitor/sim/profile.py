@@ -1,4 +1,5 @@
-"""The commanded payout: lowering and hoisting moves within speed and acceleration limits, and stops.
+"""The commanded payout (lowering and hoisting moves within speed and acceleration limits, and stops),
+and the shaft air temperature over time.
 
 Each move is a trapezoidal speed profile (triangular when too short to reach the speed
 limit); the payout is then piecewise quadratic in time and evaluated exactly.
@@ -6,6 +7,7 @@ limit); the payout is then piecewise quadratic in time and evaluated exactly.
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -51,8 +53,15 @@ class Profile:
             pieces = [(ramp, sign * accel), (cruise, 0.0), (ramp, -sign * accel)]
         return [(d, a) for d, a in pieces if d > 0.0]
 
-    def __call__(self, t: float) -> tuple[float, float]:
-        """Payout [m] and payout speed [m/s] at time t [s] (held at the last value after the end)."""
+    def __call__(self, t: float) -> tuple[float, float, float]:
+        """Payout [m], payout speed [m/s] and acceleration [m/s^2] at time t [s] (held after the end)."""
         phase = self.phases[max(bisect.bisect_right(self.starts, t) - 1, 0)]
         tau = max(t - phase.start, 0.0)
-        return phase.length + phase.speed * tau + 0.5 * phase.accel * tau ** 2, phase.speed + phase.accel * tau
+        return (phase.length + phase.speed * tau + 0.5 * phase.accel * tau ** 2, phase.speed + phase.accel * tau,
+                phase.accel if t >= phase.start else 0.0)
+
+
+def air_temperature(shaft_air: Mapping[str, float], t: float) -> float:
+    """The shaft air temperature [deg C] at time t [s]: a slow drift and a ventilation cycle."""
+    return (shaft_air["temperature"] + shaft_air["drift"] * t
+            + shaft_air["amplitude"] * math.sin(2.0 * math.pi * t / shaft_air["period"]))

@@ -9,9 +9,8 @@ import copy
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-import yaml
-
 from ..paths import config_dir
+from ..model.safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
 
 # None marks an optional value; its kind is in OPTIONAL.
 DEFAULTS: dict[str, Any] = {
@@ -28,7 +27,13 @@ DEFAULTS: dict[str, Any] = {
         "model": "rigid",       # rigid | elastic
         "EA": 5.0e8,            # [N] axial stiffness of each rope (elastic)
     },
-    "effects": {},              # physical effects hidden in the truth: {name: {parameter: value, enabled: bool}}
+    "effects": {},              # physical effects hidden in the truth (sim/physics.py): {name: {parameter: value, enabled: bool}}
+    "shaft_air": {              # air temperature in the shaft: mean + drift t + amplitude sin(2 pi t / period)
+        "temperature": 15.0,    # [deg C] at t = 0
+        "amplitude": 0.0,       # [K] ventilation cycle
+        "period": 300.0,        # [s]
+        "drift": 0.0,           # [K/s]
+    },
     "sync": {
         "sigma": 0.0,           # [m] stationary standard deviation of each winch's random drift (Ornstein-Uhlenbeck)
         "tau": 30.0,            # [s] its correlation time
@@ -44,13 +49,20 @@ DEFAULTS: dict[str, Any] = {
             "velocity": True,       # publish payout speed
             "velocity_noise": 0.002,  # [m/s]
             "effort": True,         # publish load-pin tension
-            "tension_noise": 500.0,   # [N]
+            "tension_noise": 150.0,   # [N] load pin
         },
-        "imu": {"enabled": False, "rate": 15.0, "noise": 0.0005},        # [Hz], roll/pitch [rad]
-        "position": {"enabled": False, "rate": 1.5, "noise": 0.01},      # [Hz], depth [m]
+        "imu": {                    # inclinometer: roll and pitch
+            "enabled": False,
+            "rate": None,           # [Hz] None: one reading per winch sample, `lag_min`..`lag_max` after it
+            "lag_min": 0.030,       # [s]
+            "lag_max": 0.040,       # [s]
+            "noise": 1.745e-4,      # [rad] (0.01 deg)
+        },
+        "position": {"enabled": False, "rate": 2.0, "noise": 0.005},     # depth gauge: [Hz], [m]
+        "temperature": {"enabled": False, "rate": 1.0, "noise": 0.1},   # shaft air thermometer: [Hz], [K]
     },
 }
-OPTIONAL = {"plant": str, "duration": float}
+OPTIONAL = {"plant": str, "duration": float, "rate": float}
 MOVE = {"move": float, "speed": float, "accel": float}
 STOP = {"stop": float}
 EVENT = {"winch": int, "lag": float, "start": float, "duration": float, "hold": float}
@@ -117,7 +129,7 @@ def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any
         if path == "effects":  # free-form: checked against the effect registry in _check_physics
             if not isinstance(value, Mapping):
                 raise ScenarioError(f"key 'effects' must be a mapping of effect names to parameters, got {value!r}")
-            merged[key] = {str(name): dict(spec or {}) for name, spec in value.items()}
+            merged[key] = {str(name): copy.deepcopy(spec) for name, spec in value.items()}
         elif isinstance(default, Mapping):
             merged[key] = _merge(default, value, path)
         elif isinstance(default, list):
@@ -132,19 +144,18 @@ def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any
 
 
 def _check_physics(config: dict[str, Any]) -> None:
-    from ..effects import EffectError, effects_from_mapping
+    from .hidden import effects_section
 
-    try:
-        effects_from_mapping(config["effects"], "effects")
-    except EffectError as error:
-        raise ScenarioError(str(error)) from None
+    effects_section(config["effects"], "effects")
     if config["ropes"]["model"] not in ROPE_MODELS:
         raise ScenarioError(f"key 'ropes.model' must be one of {', '.join(ROPE_MODELS)}, "
                             f"got {config['ropes']['model']!r}")
     positive = [("ropes.EA", config["ropes"]["EA"]), ("sync.tau", config["sync"]["tau"]),
                 ("profile.start_length", config["profile"]["start_length"])]
     positive += [(f"sensors.{name}.rate", config["sensors"][name]["rate"])
-                 for name in ("joint_states", "imu", "position")]
+                 for name in ("joint_states", "imu", "position", "temperature")
+                 if config["sensors"][name]["rate"] is not None]
+    positive.append(("shaft_air.period", config["shaft_air"]["period"]))
     for i, segment in enumerate(config["profile"]["segments"]):
         positive += [(f"profile.segments[{i}].{k}", segment[k]) for k in ("speed", "accel") if k in segment]
     if config["duration"] is not None:
@@ -152,6 +163,10 @@ def _check_physics(config: dict[str, Any]) -> None:
     for where, value in positive:
         if not value > 0.0:
             raise ScenarioError(f"key '{where}' must be positive, got {value}")
+    imu = config["sensors"]["imu"]
+    if not 0.0 <= imu["lag_min"] <= imu["lag_max"]:
+        raise ScenarioError(f"keys 'sensors.imu.lag_min' and 'lag_max' must satisfy 0 <= lag_min <= lag_max, "
+                            f"got {imu['lag_min']} and {imu['lag_max']}")
     payout = config["profile"]["start_length"]
     for i, segment in enumerate(config["profile"]["segments"]):
         payout += segment.get("move", 0.0)
@@ -168,8 +183,8 @@ def apply_override(config: dict[str, Any], assignment: str) -> None:
     if not sep or not key:
         raise ScenarioError(f"--set {assignment!r}: expected key=value, e.g. sync.sigma=0.01")
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
+        value = parse_yaml(text)
+    except YamlLimitError:
         value = text
     parts = key.split(".")
     target: Any = config
@@ -203,11 +218,11 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), seed: int | N
     """The checked scenario: file, then `--set` overrides, then `seed` if given."""
     path = Path(path)
     try:
-        raw = yaml.safe_load(path.read_text()) or {}
+        raw = load_yaml_file(path) or {}
     except OSError as error:
         raise ScenarioError(f"scenario {path}: cannot be read ({error.strerror})") from None
-    except yaml.YAMLError as error:
-        raise ScenarioError(f"scenario {path}: not valid YAML ({error})") from None
+    except YamlLimitError as error:
+        raise ScenarioError(f"scenario {path}: {error}") from None
     try:
         if not isinstance(raw, dict):
             raise ScenarioError("the file must hold a mapping of keys")

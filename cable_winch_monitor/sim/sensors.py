@@ -1,12 +1,13 @@
 """What the plant's sensors report of the true state: noisy readings at their own, unaligned rates.
 
-- winch encoders and load pins: sensor_msgs/JointState at ~10 Hz, on /winch/joint_states
-  or one topic per winch; position = paid-out length, velocity = payout speed, effort =
-  rope tension at the head sheave (the top of the rope; equal to the tension at the
-  platform for the weightless ropes simulated here);
-- inclinometer: sensor_msgs/Imu, roll and pitch (yaw not measured: covariance huge);
-- depth gauge: geometry_msgs/PointStamped with z only (x, y NaN).
-Every stream starts at a random phase and has timing jitter, so no two are aligned.
+- winch encoders and load pins: sensor_msgs/JointState at 10 Hz, on /winch/joint_states
+  or one topic per winch; position = paid-out length (1 mm), velocity = payout speed,
+  effort = what the load pin at the head sheave reads (150 N);
+- inclinometer: sensor_msgs/Imu, roll and pitch (0.01 deg; yaw not measured: covariance
+  huge), by default one reading per winch sample, stamped 30-40 ms after it;
+- depth gauge: geometry_msgs/PointStamped with z only (x, y NaN), 5 mm at 2 Hz;
+- shaft air thermometer: sensor_msgs/Temperature on /shaft/temperature, 0.1 K at 1 Hz.
+Every other stream starts at a random phase and has timing jitter, so no two are aligned.
 """
 from __future__ import annotations
 
@@ -15,16 +16,14 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..model.geometry import roll_pitch_yaw
 from ..model.plant import CABLE_NAMES
-from ..model.result import Solution
 from ..bagio.fields import Stamp, header
-from ..channels import IMU, JOINT_STATE, POINT
-from ..channels import TENSION_CHANNELS
+from ..channels import IMU, JOINT_STATE, POINT, TENSION_CHANNELS
 
 NAN = float("nan")
 UNKNOWN = -1.0  # covariance[0] of a quantity that is not measured (sensor_msgs convention)
 YAW_VARIANCE = 1.0e6  # [rad^2] the inclinometer does not measure yaw
+TEMPERATURE = "sensor_msgs/msg/Temperature"
 
 
 @dataclass(frozen=True)
@@ -47,6 +46,13 @@ def sample_times(rate: float, duration: float, jitter: float, rng: np.random.Gen
     return times[(times >= 0.0) & (times < duration)]
 
 
+def lagging_times(times: np.ndarray, low: float, high: float, duration: float,
+                  rng: np.random.Generator) -> np.ndarray:
+    """One time `low`..`high` [s] after each of `times`, within [0, duration)."""
+    lagged = times + rng.uniform(low, high, len(times))
+    return lagged[lagged < duration]
+
+
 def sensor_streams(sensors: Mapping[str, Any], duration: float, rng: np.random.Generator) -> list[Stream]:
     """The enabled streams of the scenario's `sensors` section."""
     joints, jitter = sensors["joint_states"], sensors["jitter"]
@@ -56,7 +62,13 @@ def sensor_streams(sensors: Mapping[str, Any], duration: float, rng: np.random.G
     else:
         streams = [Stream("joint_states", "/winch/joint_states", JOINT_STATE,
                           sample_times(joints["rate"], duration, jitter, rng), tuple(range(4)))]
-    for name, topic, msgtype in (("imu", "/platform/imu", IMU), ("position", "/platform/position", POINT)):
+    imu = sensors["imu"]
+    if imu["enabled"]:
+        times = sample_times(imu["rate"], duration, jitter, rng) if imu["rate"] is not None else \
+            lagging_times(streams[0].times, imu["lag_min"], imu["lag_max"], duration, rng)
+        streams.append(Stream("imu", "/platform/imu", IMU, times))
+    for name, topic, msgtype in (("position", "/platform/position", POINT),
+                                 ("temperature", "/shaft/temperature", TEMPERATURE)):
         if sensors[name]["enabled"]:
             streams.append(Stream(name, topic, msgtype, sample_times(sensors[name]["rate"], duration, jitter, rng)))
     return streams
@@ -87,12 +99,11 @@ class Sensors:
                 "velocity": self._noisy(speeds[cables], joints["velocity_noise"]) if joints["velocity"] else [],
                 "effort": self._noisy(tensions, joints["tension_noise"]) if joints["effort"] else []}
 
-    def imu(self, stamp: Stamp, truth: Solution) -> dict[str, Any] | None:
-        if not truth.ok:
+    def imu(self, stamp: Stamp, channels: Mapping[str, float]) -> dict[str, Any] | None:
+        if "roll" not in channels:
             return None
         sigma = self.config["imu"]["noise"]
-        roll, pitch, _ = roll_pitch_yaw(truth.rotation)
-        roll, pitch = self._noisy(np.array([roll, pitch]), sigma)
+        roll, pitch = self._noisy(np.array([channels["roll"], channels["pitch"]]), sigma)
         unknown = [UNKNOWN] + [0.0] * 8
         return {"header": header(stamp, "platform"),
                 "orientation": dict(zip("xyzw", quaternion_from_roll_pitch(roll, pitch))),
@@ -100,15 +111,23 @@ class Sensors:
                 "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular_velocity_covariance": unknown,
                 "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 0.0}, "linear_acceleration_covariance": unknown}
 
-    def position(self, stamp: Stamp, truth: Solution) -> dict[str, Any] | None:
-        if not truth.ok:
+    def position(self, stamp: Stamp, channels: Mapping[str, float]) -> dict[str, Any] | None:
+        if "depth" not in channels:
             return None
-        depth = float(self._noisy(truth.position[2], self.config["position"]["noise"]))
+        depth = float(self._noisy(channels["depth"], self.config["position"]["noise"]))
         return {"header": header(stamp, "shaft"), "point": {"x": NAN, "y": NAN, "z": depth}}
 
+    def temperature(self, stamp: Stamp, air: float) -> dict[str, Any]:
+        sigma = self.config["temperature"]["noise"]
+        return {"header": header(stamp, "shaft"), "temperature": float(self._noisy(air, sigma)),
+                "variance": sigma ** 2}
+
     def reading(self, stamp: Stamp, stream: Stream, lengths: np.ndarray, speeds: np.ndarray,
-                truth: Solution, channels: Mapping[str, float]) -> dict[str, Any] | None:
-        """The message fields of one sample of `stream`; load pins read `channels` (the measurement model)."""
+                channels: Mapping[str, float], air: float) -> dict[str, Any] | None:
+        """The message fields of one sample of `stream` from the truth's noise-free `channels`
+        (None: nothing to report, e.g. no true equilibrium)."""
         if stream.msgtype == JOINT_STATE:
             return self.joint_state(stamp, stream, lengths, speeds, channels)
-        return self.imu(stamp, truth) if stream.msgtype == IMU else self.position(stamp, truth)
+        if stream.msgtype == TEMPERATURE:
+            return self.temperature(stamp, air)
+        return self.imu(stamp, channels) if stream.msgtype == IMU else self.position(stamp, channels)

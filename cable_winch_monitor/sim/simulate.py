@@ -1,8 +1,10 @@
 """Run a scenario: the true plant at every sensor sample, the noisy readings into a rosbag2 bag.
 
 At each sample time (all streams merged in time order) the commanded payout plus the
-synchronisation errors give the true cable lengths, the truth model gives the true
-equilibrium, and the sensor of that stream reports it with noise. Messages are written
+synchronisation errors give the lengths the winches report, the truth (`sim.truth`, the
+simulator's own equilibrium and effect physics, independent of the package's model)
+gives the true equilibrium and the noise-free readings, and the sensor of that stream
+reports them with noise. Messages are written
 in receive order (log time = header stamp + a random latency), as a recorder would.
 Beside the bag: ground_truth.csv (one row per sample) and scenario.yaml (as resolved).
 """
@@ -26,10 +28,10 @@ from ..model.plant import load_plant
 from ..model.result import Solution
 from ..monitor.clearance import solution_clearance
 from ..bagio.fields import Stamp, stamp_ns
-from .profile import Profile
+from .profile import Profile, air_temperature
 from .sensors import Sensors, Stream, sensor_streams
 from .sync import SyncErrors
-from .truth import TruthModel, truth_model
+from .truth import Sample, TruthModel
 
 TRUTH_FILE = "ground_truth.csv"
 SCENARIO_FILE = "scenario.yaml"
@@ -84,7 +86,7 @@ def simulate(config: dict[str, Any], out: str | Path) -> SimResult:
     profile = Profile(config["profile"]["start_length"], config["profile"]["segments"])
     duration = config["duration"] if config["duration"] is not None else profile.end + TAIL
     sync = SyncErrors(config["sync"]["sigma"], config["sync"]["tau"], config["sync"]["events"], sync_rng)
-    truth = TruthModel(truth_model(plant, config))
+    truth = TruthModel(plant, config)
     sensors = Sensors(config["sensors"], noise_rng)
     streams = sensor_streams(config["sensors"], duration, timing_rng)
     latency = config["sensors"]["latency"]
@@ -96,10 +98,10 @@ def simulate(config: dict[str, Any], out: str | Path) -> SimResult:
         table = csv.writer(truth_file)
         table.writerow(TRUTH_COLUMNS)
         for order, (t, stream) in enumerate(_events(streams)):
-            commanded, speed = profile(t)
+            commanded, speed, acceleration = profile(t)
             errors, rates = sync(t)
-            lengths = commanded + errors
-            state, channels = truth(lengths, speed + rates)
+            lengths, air = commanded + errors, air_temperature(config["shaft_air"], t)
+            state, channels = truth(lengths, Sample(t, speed + rates, acceleration, air))
             clearance = solution_clearance(plant, state)
             table.writerow(_truth_row(config["start_time"] + t, stream.name, lengths, state,
                                       clearance.value if clearance is not None else np.nan))
@@ -107,7 +109,7 @@ def simulate(config: dict[str, Any], out: str | Path) -> SimResult:
             stamp = _stamp(config["start_time"] + t)
             while pending and pending[0][0] <= stamp_ns(stamp):
                 _flush(writer, pending)
-            values = sensors.reading(stamp, stream, lengths, speed + rates, state, channels)
+            values = sensors.reading(stamp, stream, lengths, speed + rates, channels, air)
             if values is not None:
                 log_time = stamp_ns(stamp) + int(latency * latency_rng.uniform(0.5, 1.5) * 1e9)
                 heapq.heappush(pending, (log_time, order, stream.topic, stream.msgtype, build(stream.msgtype, values)))

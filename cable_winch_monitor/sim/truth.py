@@ -1,55 +1,140 @@
-"""The plant's true state: the equilibrium for the winches' lengths under the true plant and its effects.
+"""The plant's true state at each sample, and what its sensors read of it before noise.
 
-The truth is a PlantModel: the plant file's effects, `ropes.model: elastic` as the
-rope_elasticity effect, and the scenario's `effects:` section on top, so any effect
-(built-in or user) can be hidden in simulated data. Each solve is warm-started from the
-previous one, as the platform moves little between samples; the winches' direction of
-motion is tracked for effects that depend on it (sheave friction).
+Independent of the package's model: the equilibrium is `sim.equilibrium` (root finding
+on force and moment balance) and every hidden effect is the function of the same name in
+`sim.physics`, never the package's effect class. The effects come from the plant file's
+`effects:` section with the scenario's on top (same names and parameters as the
+package's); `ropes.model: elastic` is rope_elasticity with `ropes.EA`. In the plant's
+physical order:
+
+  reported lengths -> encoder_scale, encoder_offset -> rope_temperature -> true lengths
+  plant -> cog_offset, payload_mass; load m (g - a) with platform_acceleration
+  ropes: rigid or rope_elasticity, with rope_weight's own-weight stretch; sheave_geometry
+  load pins: tension + rope_weight below -> sheave_friction -> tension_sensor_bending
+             -> load_pin_calibration; inclinometer: roll, pitch + inclinometer_offset
+
+A user's effect class (`simulate --effect-module`) can only be a measurement effect: it
+edits the truth's channels after the built-in ones. Geometry and rope-law effects of the
+package cannot enter the truth: that would make it the code under test again.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
-from ..effects import (
-    Conditions,
-    EffectError,
-    PlantModel,
-    effect_class,
-    effects_from_mapping,
-)
-from ..model.conditions import motion_direction
+from ..channels import TENSION_CHANNELS
+from ..effects import Conditions
 from ..model.plant import Plant
-from ..model.result import Solution
-from .scenario import ScenarioError
+from ..model.result import Solution, SolveStatus, failed
+from . import physics
+from .equilibrium import NoEquilibrium, Rig, State, Trajectory, imbalance
+from .hidden import hidden_effects
+
+METHOD = "truth"
+AIR_TEMPERATURE = "/shaft/temperature.temperature"  # the input key a user's effect reads the air temperature by
 
 
-def truth_model(plant: Plant, config: Mapping[str, Any]) -> PlantModel:
-    """The true plant of a checked scenario."""
-    model = PlantModel.from_plant(plant)
-    extra = []
-    if config["ropes"]["model"] == "elastic":
-        extra.append(effect_class("rope_elasticity")({"EA": config["ropes"]["EA"]}))
-    try:
-        extra += effects_from_mapping(config.get("effects"), "effects")
-    except EffectError as error:
-        raise ScenarioError(f"scenario: {error}") from None
-    return model.with_effects(extra)
+@dataclass(frozen=True)
+class Sample:
+    """What the truth depends on at one instant besides the lengths."""
+
+    time: float                 # [s]
+    speeds: np.ndarray          # true payout speed of each winch [m/s]
+    acceleration: float         # payout acceleration [m/s^2] (positive: paying out faster)
+    temperature: float          # shaft air [deg C]
+
+
+def sheave_planes(plant: Plant) -> np.ndarray:
+    """Horizontal unit vectors from the shaft axis through each anchor: each sheave turns the rope
+    towards its winch outside the shaft."""
+    outward = plant.anchors[:, :2] - plant.shaft_centre
+    outward = outward / np.linalg.norm(outward, axis=1, keepdims=True)
+    return np.column_stack([outward, np.zeros(4)])
 
 
 class TruthModel:
-    def __init__(self, model: PlantModel):
-        self.model = model
-        self.previous: Solution | None = None
+    """The true equilibrium along a simulated run, and the sensors' noise-free readings."""
+
+    def __init__(self, plant: Plant, config: Mapping[str, Any]):
+        self.plant = plant
+        self.effects, self.user_effects = hidden_effects(plant, config)
+        e = self.effects
+        cog = physics.cog_offset(plant.cog, e["cog_offset"]) if "cog_offset" in e else plant.cog
+        self.mass = physics.payload_mass(plant.mass, e["payload_mass"]) if "payload_mass" in e else plant.mass
+        self.physical = plant.with_changes(cog=cog, mass=self.mass)
+        self.rig = Rig(anchors=plant.anchors, attachments=plant.attachments, cog=cog,
+                       weight_scale=plant.weight, lever_scale=float(np.linalg.norm(plant.attachments - cog, axis=1).max()),
+                       EA=e["rope_elasticity"]["EA"] if "rope_elasticity" in e else None,
+                       rope_weight=e["rope_weight"]["w"] if "rope_weight" in e else 0.0,
+                       sheave_radius=e["sheave_geometry"]["r"] if "sheave_geometry" in e else 0.0,
+                       sheave_planes=sheave_planes(plant) if "sheave_geometry" in e else None)
+        self.trajectory = Trajectory(self.rig)
         self.direction = np.zeros(4)
 
-    def __call__(self, lengths: np.ndarray, speeds: np.ndarray) -> tuple[Solution, dict[str, float]]:
-        """The true equilibrium for the lengths the winches report, and what the sensors see of it."""
-        solution = self.model.solve(lengths, self.previous)
-        self.previous = solution if solution.ok else None
-        self.direction = motion_direction(speeds, self.direction)
-        channels = self.model.predict(solution, Conditions(speeds=np.asarray(speeds, dtype=float),
-                                                           direction=self.direction)) \
-            if solution.ok else {}
-        return solution, channels
+    def lengths(self, reported: np.ndarray, temperature: float) -> np.ndarray:
+        """The unstretched rope lengths the winches have paid out for what they report."""
+        e, lengths = self.effects, np.asarray(reported, dtype=float)
+        if "encoder_scale" in e:
+            lengths = physics.encoder_scale(lengths, e["encoder_scale"])
+        if "encoder_offset" in e:
+            lengths = physics.encoder_offset(lengths, e["encoder_offset"])
+        if "rope_temperature" in e:
+            lengths = physics.rope_temperature(lengths, e["rope_temperature"], temperature)
+        return lengths
+
+    def load(self, acceleration: float) -> np.ndarray:
+        """The external wrench on the platform (force [N], moment about C [N m], shaft frame)."""
+        g = self.plant.g
+        if "platform_acceleration" in self.effects:
+            g = physics.platform_acceleration(g, self.effects["platform_acceleration"], acceleration)
+        return np.array([0.0, 0.0, -self.mass * g, 0.0, 0.0, 0.0])
+
+    def __call__(self, reported: np.ndarray, sample: Sample) -> tuple[Solution, dict[str, float]]:
+        """The true equilibrium for the lengths the winches report, and what the sensors read of it."""
+        lengths, load = self.lengths(reported, sample.temperature), self.load(sample.acceleration)
+        self.direction = physics.motion_direction(np.asarray(sample.speeds, dtype=float), self.direction)
+        try:
+            state = self.trajectory(sample.time, lengths, load)
+        except NoEquilibrium as error:
+            return failed(SolveStatus.NO_EQUILIBRIUM, f"truth: {error}", METHOD, lengths), {}
+        solution = self._solution(state, load)
+        return solution, self._readings(state, solution, sample)
+
+    def _solution(self, state: State, load: np.ndarray) -> Solution:
+        force, moment = imbalance(state, load)
+        force = np.linalg.norm(force) / self.rig.weight_scale
+        moment = np.linalg.norm(moment) / (self.rig.weight_scale * self.rig.lever_scale)
+        return Solution(status=SolveStatus.SOLVED, message="true equilibrium", method=METHOD,
+                        lengths=state.free_lengths, taut=state.taut, tensions=state.tensions,
+                        rotation=state.rotation, position=state.position, points_b=state.points_b,
+                        point_c=state.point_c, spans=state.spans, force_residual=float(force),
+                        moment_residual=float(moment), iterations=state.evaluations,
+                        extras={"exits": state.exits, "angles": state.angles})
+
+    def _readings(self, state: State, solution: Solution, sample: Sample) -> dict[str, float]:
+        e = self.effects
+        pins = state.tensions
+        if "rope_weight" in e:
+            vertical = (state.exits[:, 2] - state.points_b[:, 2]) / state.spans
+            pins = physics.rope_weight(pins, e["rope_weight"], state.free_lengths, vertical)
+        if "sheave_friction" in e:
+            pins = physics.sheave_friction(pins, e["sheave_friction"], self.direction)
+        if "tension_sensor_bending" in e:
+            pins = physics.tension_sensor_bending(pins, e["tension_sensor_bending"])
+        if "load_pin_calibration" in e:
+            pins = physics.load_pin_calibration(pins, e["load_pin_calibration"])
+        roll, pitch = float(state.angles[0]), float(state.angles[1])
+        if "inclinometer_offset" in e:
+            roll, pitch = physics.inclinometer_offset(roll, pitch, e["inclinometer_offset"])
+        channels = dict(zip(TENSION_CHANNELS, pins.tolist()))
+        channels.update(roll=roll, pitch=pitch, x=float(state.position[0]), y=float(state.position[1]),
+                        depth=float(state.position[2]))
+        if self.user_effects:
+            conditions = Conditions(time=sample.time, speeds=np.asarray(sample.speeds, dtype=float),
+                                    accelerations=np.full(4, sample.acceleration), direction=self.direction.copy(),
+                                    inputs={AIR_TEMPERATURE: sample.temperature})
+            for effect in self.user_effects:
+                effect.measure(channels, solution, self.physical, conditions)
+        return channels

@@ -1,0 +1,81 @@
+"""Every user error of the command line is one line and a non-zero exit, found before the work starts."""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from cable_winch_monitor.bagio import records
+from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.paths import demo_bag
+from simbags import assert_clean, run_cli
+
+MISSING_FOLDER = Path("/nonexistent-folder/out")
+
+
+def one_error_line(result) -> str:
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def lengths_only_bag(tmp_path_factory) -> Path:
+    """Ten seconds of the four winches with no load pins, inclinometer or depth gauge: nothing to compare."""
+    path = tmp_path_factory.mktemp("bags") / "lengths_only"
+    with BagWriter(path) as writer:
+        for k in range(100):
+            ns = 1_700_000_000 * 10 ** 9 + k * 100_000_000
+            header = {"stamp": {"sec": ns // 10 ** 9, "nanosec": ns % 10 ** 9}, "frame_id": ""}
+            message = records.build("sensor_msgs/msg/JointState", {
+                "header": header, "name": ["cable_1", "cable_2", "cable_3", "cable_4"],
+                "position": [20.3 + 0.05 * k] * 4, "velocity": [0.5] * 4, "effort": []})
+            writer.write("/winch/joint_states", "sensor_msgs/msg/JointState", ns, message)
+    return path
+
+
+@pytest.mark.parametrize("args, words", [
+    (("diagnose", "{bag}", "--candidates", "rope_weight,no_such_effect"), "unknown effect 'no_such_effect'"),
+    (("fit", "{bag}", "--effects", "no_such_effect"), "unknown effect 'no_such_effect'"),
+    (("limits", "--length", "nan"), "--length nan: the payout must lie in"),
+    (("limits", "--length", "1e300"), "the payout must lie in (0, 3000] m"),
+])
+def test_unknown_names_and_absurd_numbers(args, words):
+    result = run_cli(*(str(demo_bag()) if a == "{bag}" else a for a in args))
+    assert_clean(result, 2)
+    assert words in one_error_line(result)
+
+
+@pytest.mark.parametrize("args, option", [
+    (("compare", "--json", MISSING_FOLDER / "x.json"), "--json"),
+    (("compare", "--html", MISSING_FOLDER / "x.html"), "--html"),
+    (("diagnose", "--json", MISSING_FOLDER / "x.json"), "--json"),
+    (("fit", "--effects", "rope_weight", "--write-config", MISSING_FOLDER / "x.yaml"), "--write-config"),
+    (("compare", "--html", "/tmp"), "--html"),
+])
+def test_unwritable_outputs_are_refused_before_the_bag_is_read(args, option):
+    """The bag does not exist either: the output path is checked first, so the error names the option."""
+    command, *rest = args
+    result = run_cli(command, "/nonexistent-bag", *rest)
+    assert_clean(result, 2)
+    line = one_error_line(result)
+    assert line.startswith(f"error: {option} ") and ("does not exist" in line or "is a directory" in line), line
+
+
+@pytest.mark.parametrize("command", [("compare",), ("diagnose",), ("fit", "--effects", "rope_weight")])
+def test_a_bag_without_measurements_says_so_and_exits_non_zero(lengths_only_bag, command):
+    result = run_cli(command[0], lengths_only_bag, *command[1:])
+    assert_clean(result, 2)
+    assert "no measurements to compare the model with" in one_error_line(result)
+    assert "score" not in result.stdout
+
+
+def test_a_binary_metadata_file_is_noted_and_the_mcap_read(tmp_path):
+    bag = tmp_path / "bag"
+    shutil.copytree(demo_bag(), bag)
+    (bag / "metadata.yaml").write_bytes(bytes(range(256)) * 16)
+    result = run_cli("replay", bag, "--out", tmp_path / "out", "--quiet")
+    assert_clean(result, 0)
+    assert "metadata.yaml is unreadable" in result.stdout and "not a text file" in result.stdout
+    assert "samples: 2049 (solved 2049" in result.stdout
