@@ -90,7 +90,8 @@ def same_message(got, want, path="", floor=0.0):
         for k, (g, w) in enumerate(zip(got, want)):
             same_message(g, w, f"{path}[{k}]", floor)
     elif isinstance(want, float):
-        assert (np.isnan(got) and np.isnan(want)) or abs(got - want) <= max(TOLERANCE * max(1.0, abs(want)), floor), path
+        allowed = max(TOLERANCE * max(1.0, abs(want)), floor)
+        assert (np.isnan(got) and np.isnan(want)) or abs(got - want) <= allowed, path
     else:
         assert got == want, path
 

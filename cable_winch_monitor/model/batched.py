@@ -110,8 +110,8 @@ def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: C
     seed = warm_start if warm_start is not None and warm_start.ok else None
     for start in range(0, count, CHUNK):
         rows = np.arange(start, min(start + CHUNK, count))
-        valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= out.plant.max_payout),
-                            axis=1)
+        usable = np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= out.plant.max_payout)
+        valid = rows[np.all(usable, axis=1)
                      & np.all(np.isfinite(out.loads[rows]), axis=1) & (out.loads[rows, 2] < 0.0)]
         if seed is None and valid.size:
             seed = _fallback(out, int(valid[0]), None, solve_one)

@@ -95,8 +95,9 @@ def _newton(plant: Plant, out: BatchSolution, rows: np.ndarray, ea: np.ndarray, 
             delta = np.linalg.solve(jacobian, -residual[..., None])[..., 0]
         except np.linalg.LinAlgError:
             return  # a singular system in the stack: these samples go to the per-sample solver
-        delta /= np.maximum.reduce([np.abs(delta[:, 3:6]).max(axis=1) / STEP_TURN,
-                                    np.abs(delta[:, 0:3]).max(axis=1) / (STEP_TURN * scale), np.ones(live.size)])[:, None]
+        largest = np.maximum.reduce([np.abs(delta[:, 3:6]).max(axis=1) / STEP_TURN,
+                                     np.abs(delta[:, 0:3]).max(axis=1) / (STEP_TURN * scale), np.ones(live.size)])
+        delta /= largest[:, None]
         delta[limp, 2] = -1e-3 * lengths[live[limp]].min(axis=1)
         moved = live[~limp]
         step_size[moved] = np.maximum(np.abs(delta[~limp, 0:3]).max(axis=1) / lengths[moved].max(axis=1),
@@ -121,8 +122,8 @@ def _jacobian(arms: np.ndarray, levers: np.ndarray, units: np.ndarray, norms: np
     moments, twists = np.cross(levers, units), np.cross(arms, units)   # q x u, r x u
     jacobian = np.swapaxes(np.concatenate([units, moments], axis=2) * along[..., None], 1, 2) \
         @ np.concatenate([units, twists], axis=2)             # sum (k - t) [u; q x u] [u; r x u]^T
-    jacobian[:, 3:6, 3:6] += np.swapaxes(np.concatenate([-turn[..., None] * arms, tensions[..., None] * levers], axis=1),
-                                         1, 2) @ np.concatenate([levers, units], axis=1)  # sum -t r q^T + tau q u^T
+    pulls = np.concatenate([-turn[..., None] * arms, tensions[..., None] * levers], axis=1)
+    jacobian[:, 3:6, 3:6] += np.swapaxes(pulls, 1, 2) @ np.concatenate([levers, units], axis=1)  # -t r q^T + tau q u^T
     jacobian[:, 0:3, 0:3] += turn.sum(axis=1)[:, None, None] * np.eye(3)
     jacobian[:, 0:3, 3:6] -= skew(np.einsum("nc,nci->ni", turn, arms))
     jacobian[:, 3:6, 0:3] += skew(np.einsum("nc,nci->ni", turn, levers))
