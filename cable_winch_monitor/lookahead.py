@@ -6,9 +6,11 @@ ahead. For each window of messages:
 1. every winch message is merged, in log order, by the pipeline's own merger (as the
    node would merge it, its log time standing for the node clock in the stamp window);
    each complete sample keeps what the merger knew at its message;
-2. the window's complete samples are solved together (`solve_batch`, warm-started from
-   the last solved sample), with their wall clearances; with another solver or with the
-   plant's physical effects each is solved in step 3 instead, as the node solves it;
+2. the window's complete samples get their conditions and are solved together
+   (`PlantModel.solve_batch`, warm-started from the last solved sample), with their wall
+   clearances; the plant's effects act as in the node's solve. Where they make the
+   geometry depend on the pose, or with another solver, each sample is solved in step 3
+   instead, as the node solves it;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
    solved pose -- the per-sample pipeline's own code, so the outputs are the node's.
@@ -26,7 +28,7 @@ from typing import Any, Iterable, Iterator, Union
 import numpy as np
 
 from .bagio import fields
-from .model.batched import solve_batch
+from .model.conditions import Conditions
 from .model.plant import Plant
 from .model.result import Solution
 from .monitor.clearance import Clearance, solution_clearances
@@ -37,6 +39,7 @@ from .monitor.residuals import Residuals
 WINDOW = 2000  # messages read ahead
 
 Result = Union[MonitorOutput, Residuals, None, Exception]
+Presolved = tuple[Solution, Union[Clearance, None], Conditions]
 
 
 class LookaheadPipeline(MonitorPipeline):
@@ -46,8 +49,7 @@ class LookaheadPipeline(MonitorPipeline):
                  window: int = WINDOW, stamp_window: StampWindow | None = None):
         super().__init__(plant, solver, staleness, stamp_window)
         self.window = window
-        # The batch solver is the rigid energy model: not for another solver, nor with physical effects.
-        self.batched = batched and solver == "energy" and self.model.plain
+        self.batched = batched and self.model.batchable  # else each sample is solved in step 3, as the node does
         self.input_specs = {spec.topic: spec for spec in self.model.inputs}
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
@@ -83,21 +85,22 @@ class LookaheadPipeline(MonitorPipeline):
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
 
-    def _presolve(self, samples: list[CompleteSample]) -> list[tuple[Solution, Clearance | None] | None]:
-        """Equilibrium and clearance of each sample, solved together (None each where not batched)."""
+    def _presolve(self, samples: list[CompleteSample]) -> list[Presolved | None]:
+        """Equilibrium, clearance and conditions of each sample, solved together (None each where not batched)."""
         if not self.batched or not samples:
             return [None] * len(samples)
-        batch = solve_batch(self.plant, np.array([s.lengths for s in samples]), warm_start=self._warm_start())
-        solutions = batch.solutions()
-        return list(zip(solutions, solution_clearances(self.model.physical, solutions)))
+        conditions = [self.conditions(sample) for sample in samples]
+        solutions = self.model.solve_batch(np.array([s.lengths for s in samples]), conditions, self._warm_start())
+        return list(zip(solutions, solution_clearances(self.model.physical, solutions), conditions))
 
-    def _result(self, item: Any, outcome: CompleteSample | Exception | None,
-                solved: tuple[Solution, Clearance | None] | None) -> Result:
+    def _result(self, item: Any, outcome: CompleteSample | Exception | None, solved: Presolved | None) -> Result:
         msg = item.message
         if item.msgtype == fields.JOINT_STATE:
             if isinstance(outcome, Exception):
                 raise outcome
-            return None if outcome is None else self._solve(outcome, solved)
+            if outcome is None:
+                return None
+            return self._solve(outcome) if solved is None else self._solve(outcome, solved[:2], solved[2])
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
         return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg)
