@@ -179,20 +179,13 @@ def _limits(args: argparse.Namespace) -> int:
 
 
 def _analysis_inputs(args: argparse.Namespace):
-    """The plant model (with its effects) and the bag's measurements for compare and fit."""
-    from .effects import load_module
+    """The plant model (with its effects, user modules loaded) and the bag's measurements for compare and
+    fit; UsageError if the bag holds none."""
+    from .analysis.data import read_bag
+    from .effects import PlantModel, load_module
 
     for path in args.effect_module:
         load_module(path)
-    return _model_and_measurements(args)
-
-
-def _model_and_measurements(args: argparse.Namespace):
-    """The plant model (with its effects, user modules loaded) and the bag's measurements; UsageError
-    if the bag holds none."""
-    from .analysis.data import read_bag
-    from .effects import PlantModel
-
     model = PlantModel.from_plant(load_plant(args.config))
     data = read_bag(args.bag, model.inputs)
     _require_measurements(data)
@@ -234,7 +227,8 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _diagnose(args: argparse.Namespace) -> int:
     from .analysis import report
-    from .analysis.diagnose import diagnose
+    from .analysis.bagfields import read_fields
+    from .analysis.diagnose import diagnose, diagnosis_inputs
     from .analysis.evaluate import noise
     from .effects import load_module
     from .fleet import diagnose_job, is_fleet
@@ -245,8 +239,9 @@ def _diagnose(args: argparse.Namespace) -> int:
     candidates = _effect_names(args.candidates, "--candidates")
     if is_fleet(args.bag):
         return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
-    model, data = _model_and_measurements(args)
-    result = diagnose(model, data, noise(model.plant, data)[0], candidates)
+    model, data = diagnosis_inputs(args.bag, load_plant(args.config), candidates)
+    _require_measurements(data)
+    result = diagnose(model, data, noise(model.plant, data)[0], candidates, read_fields(args.bag))
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0

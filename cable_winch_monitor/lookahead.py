@@ -9,9 +9,10 @@ ahead. For each window of messages:
    merger knew at its message, what the sensors read then, and its conditions;
 2. the window's complete samples are solved together, with their wall clearances: where
    the plant fuses its sensors (`noise.length`), estimated together from the sensors
-   trusted at the window's start (`estimate_recording`); else solved by `solve_batch`,
-   warm-started from the last solved sample (with another solver or with the plant's
-   physical effects each is solved in step 3 instead, as the node solves it);
+   trusted at the window's start (`estimate_recording`); else solved by
+   `PlantModel.solve_batch`, warm-started from the last solved sample. Where the effects
+   make the geometry depend on the pose, or with another solver, each sample is solved in
+   step 3 instead, as the node solves it;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
    solved pose -- the per-sample pipeline's own code, so the outputs are the node's. A sample
@@ -35,7 +36,6 @@ from .effects.estimate import estimate_recording
 from .model.conditions import Conditions
 from .model.estimation import Estimate
 from . import channels
-from .model.batched import solve_batch
 from .model.plant import Plant
 from .model.result import Solution
 from .monitor.clearance import Clearance, solution_clearances
@@ -64,9 +64,7 @@ class LookaheadPipeline(MonitorPipeline):
                  window: int = WINDOW, stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD):
         super().__init__(plant, solver, staleness, stamp_window, gate_hold)
         self.window = window
-        # The batch solver is the rigid energy model: not for another solver, nor with physical effects;
-        # the batched estimator takes the plant model's effects.
-        self.batched = batched and solver == "energy" and (self.model.plain or self.fusing)
+        self.batched = batched and (self.fusing or self.model.batchable)  # else solved in step 3, as the node does
         self.input_specs = {spec.topic: spec for spec in self.model.inputs}
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
@@ -129,7 +127,7 @@ class LookaheadPipeline(MonitorPipeline):
             estimates = estimate_recording(self.model, lengths, measured, [s.conditions for s in samples])
             solutions = [e.solution for e in estimates]
         else:
-            solutions = solve_batch(self.plant, lengths, warm_start=self._warm_start()).solutions()
+            solutions = self.model.solve_batch(lengths, [s.conditions for s in samples], self._warm_start())
             estimates = [None] * len(samples)
         return list(zip(solutions, solution_clearances(self.model.physical, solutions), estimates))
 

@@ -9,6 +9,7 @@ import pytest
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor import channels
 from cable_winch_monitor.bagio import fields
+from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.lookahead import LookaheadPipeline
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 
@@ -56,7 +57,10 @@ def one_at_a_time(pipeline: MonitorPipeline, item: SimpleNamespace):
 
 
 @pytest.mark.parametrize("batched", [True, False])
-def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batched):
+@pytest.mark.parametrize("kind", ["rigid", "realistic"])
+def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batched, kind):
+    """On the rigid plant and on elastic ropes with their weight and sheave friction (batched too)."""
+    plant = realistic(plant) if kind == "realistic" else plant
     # the lengths taken as exact: this stream's inclinometer does not agree with its lengths (the fused
     # paths are compared in test_monitor_fusion, on sensors that read a root-found truth)
     plant = plant.with_changes(noise={k: v for k, v in plant.noise.items() if k != "length"})
@@ -69,6 +73,7 @@ def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batch
         except Exception as error:  # noqa: BLE001 - the node counts it as a callback error
             expected.append(error)
     lookahead = LookaheadPipeline(plant, batched=batched, window=64)  # windows end between a sample's messages
+    assert lookahead.batched == batched
     results = list(lookahead.run(items))
     assert [item for item, _ in results] == items
     solved = 0

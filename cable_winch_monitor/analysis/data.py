@@ -65,9 +65,12 @@ class Dataset:
                        {k: v[rows] for k, v in self.inputs.items()})
 
 
-def read_bag(bag: str | Path, inputs: tuple[Input, ...] = ()) -> Dataset:
+def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[Input, ...] = ()) -> Dataset:
     """Every usable measurement of a bag as a Dataset, with the extra `inputs` the plant's effects read
-    (BagError if it is not a bag, or lacks an input's topic)."""
+    (BagError if it is not a bag, or lacks an input's topic) and the `optional` ones it has (candidate
+    effects of diagnose)."""
+    required = {spec.key for spec in inputs}
+    inputs = tuple(inputs) + tuple(optional)
     names = channels.names()
     column = {name: k for k, name in enumerate(names)}
     tension_columns = [column[name] for name in channels.TENSION_CHANNELS]
@@ -100,6 +103,8 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = ()) -> Dataset:
     data = _dataset(str(bag), joints, others, names, (WINCH, *sensor_topics))
     for spec in inputs:
         points = np.array([p for p in series[spec.key] if np.isfinite(p[1])]).reshape(-1, 2)
+        if not len(points) and spec.key not in required:
+            continue
         if not len(points):
             raise BagError(f"{bag}: the plant's effects read {spec.key} ({spec.msgtype}), which the bag does not "
                            "have: record that topic, or switch the effect off")

@@ -84,6 +84,7 @@ class Diagnosis:
     channels: dict[str, ChannelStats] = field(default_factory=dict)  # held-out rows under the given model
     follows: list[Finding] = field(default_factory=list)  # what the final model's held-out error follows
     follows_notes: list[str] = field(default_factory=list)
+    skipped: dict[str, str] = field(default_factory=dict)  # candidate -> why it could not be tried
 
     @property
     def selected(self) -> list[str]:
@@ -117,6 +118,9 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     held_rows = thin(held_rows, data.kinds, PER_KIND_SCORE)
     held = Evaluator(data.subset(held_rows))
     pool = [n for n in (candidates or available()) if base.get(n) is None and available()[n].fitted()]
+    skipped = {n: "the bag lacks " + ", ".join(i.key for i in available()[n].inputs if i.key not in data.inputs)
+               for n in pool if any(i.key not in data.inputs for i in available()[n].inputs)}
+    pool = [n for n in pool if n not in skipped]
     current, added, final = base, [], None
     chi2, count = chi_square(current, train, noise)
     score_now = held.score(current, noise)
@@ -148,13 +152,22 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     follows = what_follows(data, held.residuals(current), noise, held_rows, fields)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
                      screen.solves + train.solves + held.solves, channels, follows,
-                     fields.remarks() if fields else [])
+                     fields.remarks() if fields else [], skipped)
 
 
 def diagnose_bag(bag: str | Path, plant: Plant | None = None,
                  candidates: list[str] | None = None) -> tuple[Diagnosis, Dataset]:
     """Read a bag and diagnose it against a plant (the bundled one by default), its effects included;
     the diagnosis and the bag's measurements."""
-    model = PlantModel.from_plant(plant or load_plant())
-    data = read_bag(bag, model.inputs)
+    model, data = diagnosis_inputs(bag, plant, candidates)
     return diagnose(model, data, noise(model.plant, data)[0], candidates, read_fields(bag)), data
+
+
+def diagnosis_inputs(bag: str | Path, plant: Plant | None = None,
+                     candidates: list[str] | None = None) -> tuple[PlantModel, Dataset]:
+    """The plant model (the bundled plant by default) and the bag's measurements, with the extra inputs
+    the model's effects read and those of the candidates where the bag has them."""
+    model = PlantModel.from_plant(plant or load_plant())
+    own = {i.key for i in model.inputs}
+    wanted = {i.key: i for name in (candidates or available()) for i in available()[name].inputs if i.key not in own}
+    return model, read_bag(bag, model.inputs, tuple(wanted.values()))

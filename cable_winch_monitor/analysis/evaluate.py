@@ -1,9 +1,11 @@
 """The model at every row: predicted channels, residuals, noise levels and the noise-normalised score.
 
-Solving is the cost of the whole loop, so an `Evaluator` keeps each row's last solution
-as the warm start of its next solve (a fit changes parameters a little between calls:
-one or two Newton steps per row), and reuses the solutions outright when only
-measurement effects changed (`solutions` is keyed on everything that affects a solve).
+Solving is the cost of the whole loop. Where the model solves in batches (rope law, load
+and geometry before the solve), an `Evaluator` solves all rows at once along the bag;
+otherwise it keeps each row's last solution as the warm start of its next solve (a fit
+changes parameters a little between calls: one or two Newton steps per row). It reuses
+the solutions outright when only measurement effects changed (`solutions` is keyed on
+everything that affects a solve).
 
 Where the plant file gives the encoders a noise (`noise.length`), the lengths are
 measurements too (errors in variables): each row is the fused estimate of its lengths
@@ -79,6 +81,26 @@ class Evaluator:
         key = model.solve_key()
         if self._cached is not None and self._cached[0] == key:
             return self._cached[1]
+        out = self._batched(model) if model.batchable else self._row_by_row(model)
+        for k in range(len(out) - 2, -1, -1):  # a failed cold start may succeed from the next row's solution
+            if not out[k].ok and out[k + 1].ok:
+                out[k] = model.solve(self.data.lengths[k], out[k + 1], self.conditions[k])
+                self._warm[k] = out[k] if out[k].ok else None
+        self._cached = (key, out)
+        return out
+
+    def _batched(self, model: PlantModel) -> list[Solution]:
+        """All rows at once, along the bag (`PlantModel.solve_batch`); rows it cannot solve, again cold."""
+        out = model.solve_batch(self.data.lengths, self.conditions)
+        self.solves += len(out)
+        for k in [k for k, solution in enumerate(out) if not solution.ok]:
+            out[k] = model.solve(self.data.lengths[k], None, self.conditions[k])
+            self.solves += 1
+        self._warm = [solution if solution.ok else None for solution in out]
+        return out
+
+    def _row_by_row(self, model: PlantModel) -> list[Solution]:
+        """Each row from its own last solution (or the row before): pose-dependent geometry."""
         out: list[Solution] = []
         previous: Solution | None = None
         for k, lengths in enumerate(self.data.lengths):
@@ -90,11 +112,6 @@ class Evaluator:
             if solution.ok:
                 self._warm[k] = previous = solution
             out.append(solution)
-        for k in range(len(out) - 2, -1, -1):  # a failed cold start may succeed from the next row's solution
-            if not out[k].ok and out[k + 1].ok:
-                out[k] = model.solve(self.data.lengths[k], out[k + 1], self.conditions[k])
-                self._warm[k] = out[k] if out[k].ok else None
-        self._cached = (key, out)
         return out
 
     def predicted(self, model: PlantModel) -> np.ndarray:

@@ -66,7 +66,7 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
             "ladder": [{"added": s.added, "score_train": s.score_train, "score_heldout": s.score_heldout,
                         "bic": s.bic} for s in d.ladder],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
-            "effects": ranked, **_follows_json(d.follows, d.follows_notes)}
+            "effects": ranked, "skipped": d.skipped, **_follows_json(d.follows, d.follows_notes)}
 
 
 def diagnose_text(d: Diagnosis) -> str:
@@ -78,6 +78,7 @@ def diagnose_text(d: Diagnosis) -> str:
                            if v["sigma"] is not None)
         lines.append(f"{c.name:<24}{c.score_before:>7.3f}->{c.score_after:<7.3f}{c.delta_bic:>12.1f}  {values}"
                      + ("  <- selected" if c.selected else ""))
+    lines += [f"{name:<24}not tried: {reason}" for name, reason in d.skipped.items()]
     lines.append("ladder: " + " -> ".join(f"{s.added or 'model'} ({s.score_heldout:.3f})" for s in d.ladder))
     if d.final is not None:
         for name in d.selected:

@@ -9,6 +9,7 @@ and prints the latency percentiles and the node process's CPU share. Not a test:
 from __future__ import annotations
 
 import argparse
+import fcntl
 import os
 import signal
 import subprocess
@@ -16,7 +17,10 @@ import sys
 import tempfile
 import threading
 import time
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 import rclpy
@@ -45,16 +49,32 @@ def lowering(samples: int, rate: float, seed: int = 2) -> np.ndarray:
     return START_LENGTH + LOWERING_SPEED * t + drift + rng.normal(0.0, ENCODER_NOISE, (samples, 4))
 
 
+@contextmanager
+def leased_domain(pool: range = range(90, 100)) -> Iterator[int]:
+    """A ROS_DOMAIN_ID from `pool` that no test run holds: the lock files of the tests' DDS harness."""
+    for domain in pool:
+        with open(Path(tempfile.gettempdir()) / f"cable_winch_monitor.domain_{domain}.lock", "w") as handle:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                continue
+            yield domain
+            return
+    raise SystemExit(f"node_latency: every ROS domain id in {pool.start}..{pool.stop - 1} is taken")
+
+
 def cpu_seconds(pid: int) -> float:
     """utime + stime of a process from /proc/<pid>/stat."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def start_node(domain_id: int, solver: str, log: Path) -> subprocess.Popen:
-    """`winch_monitor` in its own process, output to `log`."""
+def start_node(domain_id: int, solver: str, log: Path, plant_file: Path | None = None) -> subprocess.Popen:
+    """`winch_monitor` in its own process (on `plant_file`, else the bundled plant), output to `log`."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     command = [str(Path(sys.executable).parent / "winch_monitor"), "--ros-args", "-p", f"solver:={solver}"]
+    if plant_file is not None:
+        command += ["-p", f"plant_file:={plant_file}"]
     with log.open("w") as output:
         return subprocess.Popen(command, env=env, stdout=output, stderr=subprocess.STDOUT)
 
@@ -137,10 +157,24 @@ def percentiles(values_ms: np.ndarray) -> str:
     return f"p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {values_ms.max():.2f} ms (n={values_ms.size})"
 
 
-def run(samples: int, rate: float, domain_id: int, solver: str) -> int:
+@dataclass
+class Latency:
+    """Publish-to-pose latencies [ms] of every sample, of those where the taut set held and where it
+    changed, and the node's CPU [s] over the wall time [s] of the run."""
+
+    all: np.ndarray
+    steady: np.ndarray
+    changed: np.ndarray
+    cpu: float
+    wall: float
+
+
+def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
+            plant_file: Path | None = None) -> Latency:
+    """Start the node, publish a lowering at `rate`, and time each pose coming back."""
     lengths = lowering(samples, rate)
     with tempfile.TemporaryDirectory() as scratch:
-        node = start_node(domain_id, solver, Path(scratch) / "node.log")
+        node = start_node(domain_id, solver, Path(scratch) / "node.log", plant_file)
         probe = Probe(domain_id)
         try:
             connect(probe, node)
@@ -156,15 +190,21 @@ def run(samples: int, rate: float, domain_id: int, solver: str) -> int:
     latency = {key: (probe.received[key] - at) / 1e6 for key, at in sent.items() if key in probe.received}
     keys = list(sent)
     switched = {b for a, b in zip(keys, keys[1:]) if probe.taut.get(a, ()) != probe.taut.get(b, ())}
-    steady = np.array([v for k, v in latency.items() if k not in switched])
-    changed = np.array([v for k, v in latency.items() if k in switched])
-    print(f"winch_monitor end-to-end latency ({solver} solver), {samples} samples at {rate:g} Hz, "
-          f"lowering {LOWERING_SPEED} m/s, sync drift {SYNC_AMPLITUDE * 1e3:g} mm, jitter {ENCODER_NOISE * 1e3:g} mm")
-    print(f"  poses received      {len(latency)} of {samples}")
-    print(f"  all samples         {percentiles(np.array(list(latency.values())))}")
-    print(f"  taut set unchanged  {percentiles(steady)}")
-    print(f"  taut set changed    {percentiles(changed)}")
-    print(f"  node CPU share      {100.0 * cpu / wall:.1f} % of one core ({cpu:.2f} s CPU in {wall:.2f} s)")
+    return Latency(np.array(list(latency.values())), np.array([v for k, v in latency.items() if k not in switched]),
+                   np.array([v for k, v in latency.items() if k in switched]), cpu, wall)
+
+
+def run(samples: int, rate: float, domain_id: int, solver: str, plant_file: Path | None = None) -> int:
+    result = measure(samples, rate, domain_id, solver, plant_file)
+    print(f"winch_monitor end-to-end latency ({solver} solver, {plant_file or 'bundled plant'}), {samples} samples "
+          f"at {rate:g} Hz, lowering {LOWERING_SPEED} m/s, sync drift {SYNC_AMPLITUDE * 1e3:g} mm, "
+          f"jitter {ENCODER_NOISE * 1e3:g} mm")
+    print(f"  poses received      {result.all.size} of {samples}")
+    print(f"  all samples         {percentiles(result.all)}")
+    print(f"  taut set unchanged  {percentiles(result.steady)}")
+    print(f"  taut set changed    {percentiles(result.changed)}")
+    print(f"  node CPU share      {100.0 * result.cpu / result.wall:.1f} % of one core ({result.cpu:.2f} s CPU in "
+          f"{result.wall:.2f} s)")
     return 0
 
 
@@ -172,11 +212,15 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=2000)
     parser.add_argument("--rate", type=float, default=50.0, help="samples per second")
-    parser.add_argument("--domain-id", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", "91")))
+    parser.add_argument("--domain-id", type=int, help="ROS domain (default: one no test run holds)")
     parser.add_argument("--solver", default="energy", choices=("energy", "traversal"))
+    parser.add_argument("--plant-file", type=Path, help="plant YAML for the node (default: the bundled plant)")
     args = parser.parse_args(argv)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    return run(args.samples, args.rate, args.domain_id, args.solver)
+    if args.domain_id is not None:
+        return run(args.samples, args.rate, args.domain_id, args.solver, args.plant_file)
+    with leased_domain() as domain:
+        return run(args.samples, args.rate, domain, args.solver, args.plant_file)
 
 
 if __name__ == "__main__":

@@ -20,12 +20,13 @@ from ..sim.simulate import simulate
 CLI = Path(sys.executable).parent / "cable-winch-monitor"
 
 
-def replay_child(bag: Path, out: Path) -> tuple[int, float, float, float]:
-    """Samples, wall time [s], peak RSS [MiB] of `cable-winch-monitor replay` in a child process, and
-    the replay's own wall time [s] (without interpreter start-up)."""
+def replay_child(bag: Path, out: Path, plant_file: Path | None = None) -> tuple[int, float, float, float]:
+    """Samples, wall time [s], peak RSS [MiB] of `cable-winch-monitor replay` (on `plant_file`, else the
+    bundled plant) in a child process, and the replay's own wall time [s] (without interpreter start-up)."""
     started = time.perf_counter()
-    child = subprocess.Popen([str(CLI), "replay", str(bag), "--out", str(out), "--quiet"], stdout=subprocess.PIPE,
-                             text=True)
+    config = ["--config", str(plant_file)] if plant_file else []
+    child = subprocess.Popen([str(CLI), "replay", str(bag), "--out", str(out), "--quiet", *config],
+                             stdout=subprocess.PIPE, text=True)
     stdout = child.stdout.read()
     _, status, usage = os.wait4(child.pid, 0)  # the rusage of this child alone
     wall = time.perf_counter() - started

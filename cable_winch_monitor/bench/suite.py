@@ -1,10 +1,14 @@
-"""`cable-winch-monitor bench`: every performance figure in one run, on the same samples, as ratios.
+"""`cable-winch-monitor bench`: every performance figure in one run, on two plants, as ratios.
 
-Solvers (seed 002's traversal, the monitor's warm-started per-sample solve, the batched
-solver) on one set of lowering samples; replay of a 10,000-sample bag end to end; peak
-memory replaying a large bag (copies of the 10,000-sample stream with shifted stamps,
-written in a temporary directory; 1 GiB is the acceptance run, smaller by default);
-fleet replay on 1 and 2 workers; diagnose of a 20-minute bag when a diagnose job is given.
+Each figure is measured twice in the same run: on the rigid default plant and on a
+realistic one (elastic ropes with their weight, sheave friction: bench/plants.py). The
+baseline of every ratio is seed 002's traversal, one solve per sample, timed in the same
+run on the same lowering samples. Figures: the per-sample solve warm-started along the
+lowering (the node's), the batched solver (replay's and the analysis'), replay of a
+10,000-sample bag end to end, peak memory replaying a large bag (copies of the
+10,000-sample stream with shifted stamps; 1 GiB is the acceptance run, smaller by
+default), fleet replay on 1 and 2 workers, diagnose of a 20-minute bag when a diagnose
+job is given, and the live node's latency at 50 Hz when ROS 2 is available.
 """
 from __future__ import annotations
 
@@ -20,18 +24,22 @@ import numpy as np
 
 from ..bagio.reader import BagReader
 from ..bagio.writer import BagWriter
+from ..effects import PlantModel
 from ..fleet import find_bags, replay_job, run_fleet
-from ..model.batched import solve_batch
 from ..model.plant import Plant, load_plant
 from ..model.solve import solve
 from ..bagio.fields import input_topics
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
+from .plants import realistic, realistic_plant_file
 from .replay_throughput import replay_child
 from .solvers import lowering_samples, timed
 
-Diagnose = Callable[[Path], Any]  # a 20-minute bag -> anything; timed
+Diagnose = Callable[[Path, Plant], Any]  # a 20-minute bag and the plant -> anything; timed
+Row = tuple[str, str, str, str]          # figure, value, detail, ratio to the baseline
 REPLAY_RUNS = 3
+NODE_SAMPLES = 1500                      # 30 s at 50 Hz per plant
+NODE_RATE = 50.0
 
 
 def write_copies(source: Path, out: Path, megabytes: float) -> int:
@@ -50,83 +58,113 @@ def write_copies(source: Path, out: Path, megabytes: float) -> int:
     return copies
 
 
-def solver_rows(plant: Plant, count: int) -> tuple[list[tuple[str, str, str, str]], float]:
-    """Traversal, warm-started per-sample and batched solves of the same lowering samples; the rows
-    and the traversal's time per sample [ms], the baseline of every ratio."""
+def solver_rows(plant: Plant, count: int) -> tuple[list[Row], float]:
+    """The baseline -- seed 002's traversal, per sample on the rigid plant -- and its time per sample [ms]."""
+    traversal = timed(lambda lengths, _: solve(plant, lengths, "traversal"), lowering_samples(count)).mean()
+    return [("traversal (seed 002), per sample", f"{traversal:.3f} ms", f"{1e3 / traversal:,.0f}/s",
+             "1.0x  (the baseline)")], traversal
+
+
+def model_rows(plant: Plant, label: str, count: int, traversal_ms: float) -> list[Row]:
+    """The node's per-sample solve warm-started along the lowering, and the batched solver on the same
+    samples (best of five runs), with their agreement: on `plant` with its effects."""
+    model = PlantModel.from_plant(plant)
     samples = lowering_samples(count)
-    traversal = timed(lambda lengths, _: solve(plant, lengths, "traversal"), samples).mean()
     warm_solutions: list[Any] = []
 
     def warm(lengths: np.ndarray, previous: Any) -> Any:
-        warm_solutions.append(solve(plant, lengths, "energy", warm_start=previous))
+        warm_solutions.append(model.solve(lengths, warm_start=previous))
         return warm_solutions[-1]
 
     warm_ms = timed(warm, samples).mean()
     runs = []
     for _ in range(5):
         started = time.perf_counter()
-        batch = solve_batch(plant, samples)
+        batch = model.solve_true_batch(samples)
         runs.append((time.perf_counter() - started) * 1e3 / count)
     batched = min(runs)
     same_taut = all(np.array_equal(s.taut, batch.taut[i]) for i, s in enumerate(warm_solutions))
     tension_gap = max(float(np.abs(s.tensions - batch.tensions[i]).max()) for i, s in enumerate(warm_solutions))
+    pose_gap = max(float(np.abs(s.position - batch.position[i]).max()) for i, s in enumerate(warm_solutions))
     return [
-        ("traversal (seed 002), per sample", f"{traversal:.3f} ms", f"{1e3 / traversal:,.0f}/s", "1.0x"),
-        ("energy warm-started, per sample", f"{warm_ms:.3f} ms", f"{1e3 / warm_ms:,.0f}/s", f"{traversal / warm_ms:.1f}x"),
-        ("batched solver", f"{batched:.4f} ms", f"{1e3 / batched:,.0f}/s",
-         f"{traversal / batched:.0f}x  (>= 20,000/s, >= 100x)"),
-        ("  batched vs warm: taut sets", "identical" if same_taut else "DIFFER", f"max |d tau| {tension_gap:.2e} N",
-         f"{len(batch.fallback)} per-sample fallbacks"),
-    ], traversal
+        (f"per-sample solve, warm-started [{label}]", f"{warm_ms:.3f} ms", f"{1e3 / warm_ms:,.0f}/s",
+         f"{traversal_ms / warm_ms:.1f}x"),
+        (f"batched solver [{label}]", f"{batched:.4f} ms", f"{1e3 / batched:,.0f}/s",
+         f"{traversal_ms / batched:.0f}x  (>= 20,000/s)"),
+        (f"  batched vs per-sample [{label}]", "identical taut sets" if same_taut else "taut sets DIFFER",
+         f"max |d tau| {tension_gap:.1e} N, |d p| {pose_gap:.1e} m", f"{len(batch.fallback)} per-sample fallbacks"),
+    ]
 
 
-def replay_rows(directory: Path, large_mb: float, fleet_bags: int, diagnose: Diagnose | None,
-                traversal_ms: float) -> list[tuple[str, str, str, str]]:
-    """Replay, large-bag memory, fleet and diagnose figures on bags simulated into `directory`.
-
-    The 10,000-sample replay runs three times (the best is the machine's speed without other
-    load, the median what to expect); its cost per sample is compared with one traversal solve.
-    """
-    bag = directory / "bench10k"
-    simulate(load_scenario(scenario_path("benchmark")), bag)
-    runs = sorted((replay_child(bag, directory / f"bench10k_out{k}") for k in range(REPLAY_RUNS)),
-                  key=lambda run: run[3])  # by the replay's own wall time
+def replay_rows(bag: Path, directory: Path, label: str, plant_file: Path | None, large_mb: float,
+                traversal_ms: float) -> list[Row]:
+    """Replay of `bag` end to end (best of three, the median beside it; the time with the process's
+    start-up as the target counts it) and peak memory on a large bag, on one plant."""
+    runs = sorted((replay_child(bag, directory / f"{label}_out{k}", plant_file) for k in range(REPLAY_RUNS)),
+                  key=lambda run: run[1])  # by the wall time with start-up
     samples, process_wall, rss, replay_wall = runs[0]
-    median = runs[len(runs) // 2][3]
-    per_sample = replay_wall * 1e3 / samples  # [ms]
-    rows = [("replay 10,000-sample bag", f"{samples / replay_wall:,.0f} samples/s",
-             f"best of {REPLAY_RUNS}: {replay_wall:.2f} s ({process_wall:.2f} s with start-up); median "
-             f"{samples / median:,.0f}/s", f"{traversal_ms / per_sample:.0f}x a traversal solve  (>= 5,000/s)"),
-            ("  peak RSS", f"{max(run[2] for run in runs):.0f} MiB", "", "")]
+    median = runs[len(runs) // 2][1]
+    rows = [(f"replay 10,000-sample bag [{label}]", f"{samples / process_wall:,.0f} samples/s",
+             f"best of {REPLAY_RUNS}: {process_wall:.2f} s with start-up ({replay_wall:.2f} s replaying); median "
+             f"{samples / median:,.0f}/s", f"{traversal_ms * samples / process_wall / 1e3:.0f}x  (>= 5,000/s)")]
     large = directory / "large"
     started = time.perf_counter()
     copies = write_copies(bag, large, large_mb)
     written = time.perf_counter() - started
     size = sum(f.stat().st_size for f in large.glob("*.mcap")) / 2 ** 20
-    samples, process_wall, rss, _ = replay_child(large, directory / "large_out")
-    rows.append((f"replay {size:,.0f} MiB bag ({copies} copies)", f"{rss:.0f} MiB peak RSS",
-                 f"{samples:,} samples in {process_wall:.1f} s (bag written in {written:.1f} s)", "1 GiB: < 400 MB"))
+    large_samples, large_wall, large_rss, _ = replay_child(large, directory / f"{label}_large_out", plant_file)
+    rows.append((f"  peak RSS: 10,000 samples / {size:,.0f} MiB bag [{label}]",
+                 f"{max(run[2] for run in runs):.0f} / {large_rss:.0f} MiB",
+                 f"{copies} copies, {large_samples:,} samples in {large_wall:.1f} s (bag written in {written:.1f} s)",
+                 f"{large_rss / max(run[2] for run in runs):.2f}x  (flat; 1 GiB: < 400 MB)"))
     shutil.rmtree(large)
-    shutil.rmtree(directory / "large_out")
-    rows += fleet_rows(bag, directory / "fleet", fleet_bags)
-    if diagnose is None:
-        rows.append(("diagnose 20-minute bag", "not available", "no diagnose job given", ""))
-    else:
-        twenty = directory / "twenty_minutes"
-        simulate(load_scenario(scenario_path("benchmark"), ["duration=1200.0"]), twenty)
-        started = time.perf_counter()
-        diagnose(twenty)
-        rows.append(("diagnose 20-minute bag", f"{time.perf_counter() - started:.2f} s", "", ""))
+    shutil.rmtree(directory / f"{label}_large_out")
     return rows
 
 
-def fleet_rows(bag: Path, folder: Path, count: int) -> list[tuple[str, str, str, str]]:
+def diagnose_rows(bag: Path, diagnose: Diagnose | None, plants: dict[str, Plant], traversal_ms: float) -> list[Row]:
+    """Wall time of diagnosing the same 20-minute bag on each plant."""
+    if diagnose is None:
+        return [("diagnose 20-minute bag", "not available", "no diagnose job given", "")]
+    rows = []
+    for label, plant in plants.items():
+        started = time.perf_counter()
+        diagnose(bag, plant)
+        wall = time.perf_counter() - started
+        rows.append((f"diagnose 20-minute 10 Hz bag [{label}]", f"{wall:.1f} s", "",
+                     f"{wall * 1e3 / traversal_ms:,.0f} traversal solves  (<= 60 s)"))
+    return rows
+
+
+def node_rows(files: dict[str, Path | None], traversal_ms: float) -> list[Row]:
+    """The live node's publish-to-pose latency at 50 Hz on each plant (needs ROS 2: rclpy)."""
+    try:
+        from .node_latency import leased_domain, measure
+    except ImportError as error:
+        return [("node latency at 50 Hz", "not available", f"ROS 2 not importable: {error}", "")]
+    rows = []
+    for label, plant_file in files.items():
+        try:
+            with leased_domain() as domain:
+                latency = measure(NODE_SAMPLES, NODE_RATE, domain, plant_file=plant_file)
+        except SystemExit as error:  # the node did not come up: the other figures still count
+            rows.append((f"node latency at {NODE_RATE:g} Hz [{label}]", "not measured", str(error), ""))
+            continue
+        p50, p99 = np.percentile(latency.all, [50, 99])
+        rows.append((f"node latency at {NODE_RATE:g} Hz [{label}]", f"p99 {p99:.2f} ms",
+                     f"p50 {p50:.2f} ms, {latency.all.size} of {NODE_SAMPLES} poses, node CPU "
+                     f"{100.0 * latency.cpu / latency.wall:.0f} % of a core", f"{p99 / traversal_ms:.2f}x a traversal "
+                     "solve  (p99 < 10 ms)"))
+    return rows
+
+
+def fleet_rows(bag: Path, folder: Path, count: int, plant: Plant, label: str, traversal_ms: float) -> list[Row]:
     """Throughput of fleet replay over `count` copies of `bag` on 1 and on 2 worker processes,
     alternated for REPLAY_RUNS rounds: the best of each (and the median) as for the single replay."""
     bags = folder / "bags"
     for k in range(count):
         shutil.copytree(bag, bags / f"shaft_{k + 1}")
-    job = replay_job(load_plant())
+    job = replay_job(plant)
     rates: dict[int, list[float]] = {1: [], 2: []}
     for round_ in range(REPLAY_RUNS):
         for workers in (1, 2):
@@ -135,23 +173,49 @@ def fleet_rows(bag: Path, folder: Path, count: int) -> list[tuple[str, str, str,
             shutil.rmtree(folder / f"out_{workers}_{round_}")
     best = {workers: max(values) for workers, values in rates.items()}
     median = {workers: sorted(values)[len(values) // 2] for workers, values in rates.items()}
-    return [(f"fleet replay, {count} bags, 1 worker", f"{best[1]:,.0f} samples/s",
-             f"best of {REPLAY_RUNS}; median {median[1]:,.0f}/s", "1.0x"),
-            (f"fleet replay, {count} bags, 2 workers", f"{best[2]:,.0f} samples/s",
-             f"best of {REPLAY_RUNS}; median {median[2]:,.0f}/s",
-             f"{best[2] / best[1]:.2f}x, medians {median[2] / median[1]:.2f}x  (>= 1.7x)")]
+    shutil.rmtree(folder)
+    return [(f"fleet replay, {count} bags, 1 worker [{label}]", f"{best[1]:,.0f} samples/s",
+             f"best of {REPLAY_RUNS}; median {median[1]:,.0f}/s", f"{traversal_ms * best[1] / 1e3:.0f}x"),
+            (f"fleet replay, {count} bags, 2 workers [{label}]", f"{best[2]:,.0f} samples/s",
+             f"best of {REPLAY_RUNS}; median {median[2]:,.0f}/s; {best[2] / best[1]:.2f}x one worker, medians "
+             f"{median[2] / median[1]:.2f}x (>= 1.7x)", f"{traversal_ms * best[2] / 1e3:.0f}x")]
 
 
 def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
-              diagnose: Diagnose | None = None) -> int:
-    """Measure and print every figure; 0."""
-    plant = load_plant()
-    rows, traversal_ms = solver_rows(plant, samples)
+              diagnose: Diagnose | None = None, node: bool = True) -> int:
+    """Measure every figure on both plants, printing each as it is measured (a long run on a busy
+    machine keeps what it has), then the table; 0."""
+    print(f"cable-winch-monitor bench: {samples} samples of a 50-550 m lowering (solvers, one core), energy solver; "
+          "rigid: the seed-002 plant; realistic: the same with elastic ropes (EA 7.5e7 N), their weight (60 N/m) and "
+          "sheave friction; ratios to the traversal's time per sample in this run", flush=True)
+    rigid = load_plant()
+    plants = {"rigid": rigid, "realistic": realistic(rigid)}
+    rows, traversal_ms = solver_rows(rigid, samples)
+    _progress(rows)
+    for label, plant in plants.items():
+        rows += _progress(model_rows(plant, label, samples, traversal_ms))
     with tempfile.TemporaryDirectory(prefix="cwm_bench_") as tmp:
-        rows += replay_rows(Path(tmp), large_mb, fleet_bags, diagnose, traversal_ms)
-    print(f"cable-winch-monitor bench: {samples} samples of a 50-550 m lowering (solvers, one core); "
-          "seed-002 plant, energy solver")
+        directory = Path(tmp)
+        files = {"rigid": None, "realistic": realistic_plant_file(directory)}
+        bag = directory / "bench10k"
+        simulate(load_scenario(scenario_path("benchmark")), bag)
+        for label, plant in plants.items():
+            rows += _progress(replay_rows(bag, directory, label, files[label], large_mb, traversal_ms))
+        if node:
+            rows += _progress(node_rows(files, traversal_ms))
+        twenty = directory / "twenty_minutes"
+        simulate(load_scenario(scenario_path("benchmark"), ["duration=1200.0"]), twenty)
+        rows += _progress(diagnose_rows(twenty, diagnose, plants, traversal_ms))
+        for label, plant in plants.items():
+            rows += _progress(fleet_rows(bag, directory / f"fleet_{label}", fleet_bags, plant, label, traversal_ms))
     widths = [max(len(row[k]) for row in rows) for k in range(3)]
+    print()
     for name, value, detail, ratio in rows:
         print(f"  {name:<{widths[0]}}  {value:>{widths[1]}}  {detail:<{widths[2]}}  {ratio}")
     return 0
+
+
+def _progress(rows: list[Row]) -> list[Row]:
+    for row in rows:
+        print("  ... " + " | ".join(row), flush=True)
+    return rows

@@ -5,6 +5,8 @@ load on the platform (gravity, then load effects) and the rope law (rope-law eff
 and solves with the matching solver -- the rigid one chosen (energy, or seed 002's
 traversal), or the elastic one with EA and the rope's own-weight stretch -- then refines
 pose-dependent geometry (sheave tangent points) by fixed-point iteration.
+`PlantModel.solve_batch` does the same for many samples along a trajectory at once
+(model/batched*.py), where no effect makes the geometry depend on the pose.
 `PlantModel.predict` gives every declared channel's reading for a solved state
 (channels.predicted, then measurement effects). The live node, replay, the analysis,
 `limits`, the command check and the wall clearance all go through this object; a model
@@ -15,12 +17,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from .. import channels
 from ..channels import Input
+from ..model.batched import BatchSolution, solve_batch
+from ..model.batched_elastic import solve_batch_elastic
 from ..model.conditions import Conditions
 from ..model.elastic import solve_elastic
 from ..model.plant import Plant, PlantConfigError
@@ -141,8 +145,17 @@ class PlantModel:
 
     @property
     def plain(self) -> bool:
-        """No effect at all: the rigid model, which the batched solver serves."""
+        """No effect at all: the rigid model."""
         return not self.effects
+
+    @property
+    def batchable(self) -> bool:
+        """`solve_batch` solves many samples at once: the energy solver, no pose-dependent geometry."""
+        return self.solver == "energy" and not self.refining
+
+    @cached_property
+    def _lengtheners(self) -> tuple[Effect, ...]:
+        return tuple(e for e in self.effects if _overrides(type(e), "lengths"))
 
     def solve_key(self) -> tuple:
         """Everything a solve depends on besides the sample: two models with equal keys have the same equilibria."""
@@ -169,8 +182,12 @@ class PlantModel:
         law = self.rope_law
         if law.EA is None:
             return solve(plant, lengths, self.solver, warm_start=warm_start, load=load)
-        own_weight_stretch = law.weight * lengths ** 2 / (2.0 * law.EA)
-        return solve_elastic(plant, lengths + own_weight_stretch, law.EA, warm_start=warm_start, load=load)
+        return solve_elastic(plant, self._elastic_lengths(lengths), law.EA, warm_start=warm_start, load=load)
+
+    def _elastic_lengths(self, lengths: np.ndarray) -> np.ndarray:
+        """What an elastic rope of these true lengths is as a weightless one: l + w l^2 / (2 EA)."""
+        law = self.rope_law
+        return lengths + law.weight * lengths ** 2 / (2.0 * law.EA)
 
     def solve(self, reported: object, warm_start: Solution | None = None,
               conditions: Conditions = NO_CONDITIONS) -> Solution:
@@ -195,6 +212,56 @@ class PlantModel:
             if solution.ok and np.abs(solution.points_b - previous.points_b).max() < REFINE_TOL:
                 break
         return solution
+
+    def solve_batch(self, reported: np.ndarray, conditions: Sequence[Conditions] | None = None,
+                    warm_start: Solution | None = None) -> list[Solution]:
+        """`solve` of each row of `reported` (N, 4), in order along a trajectory (each warm-started from
+        the last solved one), at its conditions (None: none); batched where `batchable`, the answers the same."""
+        reported = np.asarray(reported, dtype=float).reshape(-1, 4)
+        conditions = [NO_CONDITIONS] * len(reported) if conditions is None else list(conditions)
+        if not self.batchable:
+            return self._solve_each(reported, conditions, warm_start)
+        lengths, loads, hooked = self._batch_inputs(reported, conditions)
+        solutions = self.solve_true_batch(lengths, loads, warm_start).solutions()
+        for k in hooked:  # an effect's hook failed on this row: `solve` says why
+            solutions[k] = self.solve(reported[k], None, conditions[k])
+        return solutions
+
+    def solve_true_batch(self, lengths: np.ndarray, loads: np.ndarray | None = None,
+                         warm_start: Solution | None = None) -> BatchSolution:
+        """The batched solver of this rope law for true lengths (N, 4) under `loads` ((N, 6), (6,) or None:
+        gravity), as arrays; only for a `batchable` model."""
+        law = self.rope_law
+        if law.EA is None:
+            return solve_batch(self.physical, lengths, warm_start, loads)
+        return solve_batch_elastic(self.physical, self._elastic_lengths(np.asarray(lengths, dtype=float)), law.EA,
+                                   warm_start, loads)
+
+    def _solve_each(self, reported: np.ndarray, conditions: list[Conditions],
+                    warm_start: Solution | None) -> list[Solution]:
+        solutions, warm = [], warm_start
+        for lengths, at in zip(reported, conditions):
+            solutions.append(self.solve(lengths, warm, at))
+            warm = solutions[-1] if solutions[-1].ok else warm
+        return solutions
+
+    def _batch_inputs(self, reported: np.ndarray, conditions: list[Conditions]
+                      ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """True lengths (N, 4) and loads (N, 6) of every row by the effects' hooks, and the rows where a
+        hook raised (NaN there: the batch leaves them to `solve`)."""
+        lengths, loads = reported.copy(), np.tile(self.physical.wrench, (len(reported), 1))
+        hooked = []
+        if not (self._lengtheners or self._loaders):
+            return lengths, loads, hooked
+        for k, at in enumerate(conditions):
+            try:
+                for effect in self._lengtheners:
+                    lengths[k] = effect.lengths(lengths[k], at)
+                loads[k] = self.load(at)
+            except (TypeError, ValueError):
+                lengths[k], loads[k] = np.nan, self.physical.wrench
+                hooked.append(k)
+        return lengths, loads, hooked
 
     def predict(self, solution: Solution, conditions: Conditions = NO_CONDITIONS) -> dict[str, float]:
         """What every declared channel reads for a solved state: the plain model, then measurement effects."""

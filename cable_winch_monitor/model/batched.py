@@ -14,6 +14,7 @@ fails the physics check. The answers are the same.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -45,6 +46,8 @@ class BatchSolution:
     position: np.ndarray                # (N, 3) [m]
     iterations: np.ndarray              # (N,) Newton steps
     fallback: dict[int, Solution] = field(default_factory=dict)
+    method: str = METHOD                # the per-sample solver whose answers these are
+    stretch: np.ndarray | None = None   # (N, 4) [m] elastic ropes' stretch (the elastic solver's extra)
 
     def __len__(self) -> int:
         return len(self.lengths)
@@ -57,45 +60,73 @@ class BatchSolution:
         """Sample i as the per-sample solver's result type."""
         if i in self.fallback:
             return self.fallback[i]
-        return solved(self.plant, METHOD, self.lengths[i], self.rotation[i], self.position[i], self.tensions[i],
-                      self.taut[i], int(self.iterations[i]), load=self.loads[i])
+        return solved(self.plant, self.method, self.lengths[i], self.rotation[i], self.position[i], self.tensions[i],
+                      self.taut[i], int(self.iterations[i]), load=self.loads[i], **self._extras(i))
 
     def solutions(self) -> list[Solution]:
         """Every sample as a `Solution`; the solved rows are filled in together (`solved_rows`)."""
         rows = np.array([i for i in range(len(self)) if i not in self.fallback], dtype=int)
         out = dict(self.fallback)
-        out.update(zip(rows.tolist(), solved_rows(self.plant, METHOD, self.lengths[rows], self.rotation[rows],
-                                                  self.position[rows], self.tensions[rows], self.taut[rows],
-                                                  self.iterations[rows], loads=self.loads[rows])))
+        solutions = solved_rows(self.plant, self.method, self.lengths[rows], self.rotation[rows], self.position[rows],
+                                self.tensions[rows], self.taut[rows], self.iterations[rows], loads=self.loads[rows])
+        for i, solution in zip(rows.tolist(), solutions):
+            solution.extras.update(self._extras(i))
+            out[i] = solution
         return [out[i] for i in range(len(self))]
+
+    def _extras(self, i: int) -> dict[str, np.ndarray]:
+        return {} if self.stretch is None else {"stretch": self.stretch[i]}
 
 
 def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None = None,
                 loads: np.ndarray | None = None) -> BatchSolution:
     """Equilibria for the rows of `lengths` (N, 4), in order along a trajectory, under `loads` (one
     wrench per row (N, 6), one for all (6,), or None: gravity); never raises."""
+    out = empty_batch(plant, lengths, loads)
+    solve_chunks(out, warm_start, lambda rows, seed: _solve_checked_chunk(plant, out, rows, seed),
+                 lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]))
+    return out
+
+
+def empty_batch(plant: Plant, lengths: np.ndarray, loads: np.ndarray | None, method: str = METHOD) -> BatchSolution:
+    """A batch of the rows of `lengths` (N, 4) under `loads` (model.load.loads_for), nothing solved yet."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     count = len(lengths)
-    out = BatchSolution(plant, lengths, loads_.loads_for(plant, loads, count), np.full(count, SolveStatus.SOLVER_FAILED.value, dtype=object),
-                        np.zeros((count, 4), bool), np.full((count, 4), np.nan), np.full((count, 3, 3), np.nan),
-                        np.full((count, 3), np.nan), np.zeros(count, int))
+    return BatchSolution(plant, lengths, loads_.loads_for(plant, loads, count),
+                         np.full(count, SolveStatus.SOLVER_FAILED.value, dtype=object), np.zeros((count, 4), bool),
+                         np.full((count, 4), np.nan), np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan),
+                         np.zeros(count, int), method=method)
+
+
+ChunkSolver = Callable[[np.ndarray, Solution], None]   # (valid rows of a chunk, seed) -> rows solved in `out`
+SampleSolver = Callable[[int, "Solution | None"], Solution]  # (row, warm start) -> the per-sample solver's answer
+
+
+def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: ChunkSolver,
+                 solve_one: SampleSolver) -> None:
+    """Chunk by chunk along the trajectory: the valid rows batched from the previous chunk's last
+    solution, the rest (and the first row without a warm start) by the per-sample solver."""
+    lengths, count = out.lengths, len(out.lengths)
     seed = warm_start if warm_start is not None and warm_start.ok else None
     for start in range(0, count, CHUNK):
         rows = np.arange(start, min(start + CHUNK, count))
-        valid = rows[np.all(np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= plant.max_payout),
-                            axis=1)
+        usable = np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= out.plant.max_payout)
+        valid = rows[np.all(usable, axis=1)
                      & np.all(np.isfinite(out.loads[rows]), axis=1) & (out.loads[rows, 2] < 0.0)]
         if seed is None and valid.size:
-            seed = _fallback(plant, out, int(valid[0]), None)
+            seed = _fallback(out, int(valid[0]), None, solve_one)
         if seed is not None and seed.ok:
             with np.errstate(all="ignore"):
-                _solve_chunk(plant, out, valid, seed)
-                _unsolve_unphysical(plant, out, rows)
+                solve_chunk(valid, seed)
         for i in rows[out.status[rows] != SolveStatus.SOLVED.value]:
-            _fallback(plant, out, int(i), _previous(out, int(i), seed))
+            _fallback(out, int(i), _previous(out, int(i), seed), solve_one)
         last = rows[out.ok[rows]]
         seed = out.solution(int(last[-1])) if last.size else seed
-    return out
+
+
+def _solve_checked_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:
+    _solve_chunk(plant, out, rows, seed)
+    _unsolve_unphysical(plant, out, rows)
 
 
 def _unsolve_unphysical(plant: Plant, out: BatchSolution, rows: np.ndarray) -> None:
@@ -110,13 +141,15 @@ def _unsolve_unphysical(plant: Plant, out: BatchSolution, rows: np.ndarray) -> N
 
 
 def _previous(out: BatchSolution, i: int, seed: Solution | None) -> Solution | None:
-    """The solved predecessor of row i (warm start of the fallback), else the chunk's seed."""
-    return out.solution(i - 1) if i > 0 and out.ok[i - 1] else seed
+    """The last solved row before row i (warm start of the fallback, as a monitor's last solved
+    sample), else the chunk's seed."""
+    before = np.flatnonzero(out.ok[:i])
+    return out.solution(int(before[-1])) if before.size else seed
 
 
-def _fallback(plant: Plant, out: BatchSolution, i: int, warm: Solution | None) -> Solution:
+def _fallback(out: BatchSolution, i: int, warm: Solution | None, solve_one: SampleSolver) -> Solution:
     """Row i by the per-sample solver, recorded in `out`."""
-    solution = solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i])
+    solution = solve_one(i, warm)
     out.fallback[i] = solution
     out.status[i] = solution.status.value
     out.iterations[i] = solution.iterations
