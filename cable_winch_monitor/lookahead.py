@@ -32,7 +32,7 @@ from typing import Any, Iterable, Iterator, NamedTuple, Union
 import numpy as np
 
 from .bagio import fields
-from .effects.estimate import estimate_recording
+from .effects.estimate import estimate_recording, forward_estimate
 from .model.conditions import Conditions
 from .model.estimation import Estimate
 from . import channels
@@ -121,15 +121,32 @@ class LookaheadPipeline(MonitorPipeline):
             return [None] * len(samples)
         lengths = np.array([s.sample.lengths for s in samples])
         if self.fusing:
-            trusted = [self.gates.trusted(s.sample.sensors) for s in samples]
-            names = sorted({name for row in trusted for name in row})
-            measured = {name: np.array([row.get(name, np.nan) for row in trusted]) for name in names}
-            estimates = estimate_recording(self.model, lengths, measured, [s.conditions for s in samples])
+            estimates = self._estimates(samples, lengths)
             solutions = [e.solution for e in estimates]
         else:
             solutions = self.model.solve_batch(lengths, [s.conditions for s in samples], self._warm_start())
             estimates = [None] * len(samples)
         return list(zip(solutions, solution_clearances(self.model.physical, solutions), estimates))
+
+    def _estimates(self, samples: list[Merged], lengths: np.ndarray) -> list[Estimate]:
+        """The window's estimates from the sensors trusted now; a sample with none is solved from its
+        lengths alone (batched), as the node solves it."""
+        trusted = [self.gates.trusted(s.sample.sensors) for s in samples]
+        conditions = [s.conditions for s in samples]
+        fused = [i for i, row in enumerate(trusted) if row]
+        alone = [i for i, row in enumerate(trusted) if not row]
+        out: list[Estimate | None] = [None] * len(samples)
+        if fused:
+            names = sorted({name for i in fused for name in trusted[i]})
+            measured = {name: np.array([trusted[i].get(name, np.nan) for i in fused]) for name in names}
+            for i, estimate in zip(fused, estimate_recording(self.model, lengths[fused], measured,
+                                                             [conditions[i] for i in fused])):
+                out[i] = estimate
+        if alone:
+            solutions = self.model.solve_batch(lengths[alone], [conditions[i] for i in alone], self._warm_start())
+            for i, solution in zip(alone, solutions):
+                out[i] = forward_estimate(solution, lengths[i])
+        return out
 
     def _result(self, item: Any, outcome: Merged | Exception | None, solved: Solved | None) -> Result:
         msg = item.message

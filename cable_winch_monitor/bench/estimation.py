@@ -55,7 +55,8 @@ def bag_items(lengths: np.ndarray, readings: list[obs.Observation]) -> list[Simp
     for k, row in enumerate(lengths):
         t = 10.0 + period * k
         efforts = [float(values[name][k]) for name in channels.TENSION_CHANNELS]
-        winch = SimpleNamespace(header=_header(t), name=list(CABLE_NAMES), position=row.tolist(), velocity=[float(speeds[k])] * 4,
+        winch = SimpleNamespace(header=_header(t), name=list(CABLE_NAMES), position=row.tolist(),
+                                velocity=[float(speeds[k])] * 4,
                                 effort=efforts)
         items.append(SimpleNamespace(topic="/winch/joint_states", msgtype=channels.JOINT_STATE, message=winch,
                                      log_time=int(t * 1e9)))
@@ -66,7 +67,8 @@ def bag_items(lengths: np.ndarray, readings: list[obs.Observation]) -> list[Simp
         if np.isfinite(values["depth"][k]):
             late = float(values["depth"][k]) - speeds[k] * 0.035  # the platform went on down for 35 ms
             point = SimpleNamespace(x=float("nan"), y=float("nan"), z=late)
-            items.append(SimpleNamespace(topic="/platform/position", msgtype=channels.POINT, log_time=int((t + 0.035) * 1e9),
+            items.append(SimpleNamespace(topic="/platform/position", msgtype=channels.POINT,
+                                         log_time=int((t + 0.035) * 1e9),
                                          message=SimpleNamespace(header=_header(t + 0.035), point=point)))
     return items
 

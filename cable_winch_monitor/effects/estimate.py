@@ -75,25 +75,25 @@ def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarra
 
 
 def fuses(model: PlantModel) -> bool:
-    """Whether the model's samples are estimated (lengths with a noise, the energy solver, no pose-dependent geometry)."""
+    """Whether the model's samples are estimated (lengths with a noise, the energy solver, no
+    pose-dependent geometry)."""
     return length_noise(model) is not None and model.solver == "energy" and not model.refining
 
 
 def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapping[str, float],
                     conditions: Conditions = NO_CONDITIONS, warm_start: Estimate | None = None) -> Estimate:
     """The fused state of one sample (never raises); the model's forward kinematics where it cannot fuse."""
+    warm = None if warm_start is None else warm_start.solution
     if not fuses(model):
-        return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
-                        reported)
+        return forward_estimate(model.solve(reported, warm, conditions), reported)
     law = model.rope_law
     try:
         lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
     except (TypeError, ValueError):  # not four numbers: the solver's input check says what is wrong
-        return _forward(model.solve(reported, None, conditions), np.full(4, np.nan))
+        return forward_estimate(model.solve(reported, None, conditions), np.full(4, np.nan))
     observations = observations_for(model, measured, [conditions])
     if not observations:  # lengths alone: the forward kinematics, warm-started as the solver is
-        return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
-                        reported)
+        return forward_estimate(model.solve(reported, warm, conditions), reported)
     return estimate(model.physical, lengths, observations, length_noise(model),
                     law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
 
@@ -109,7 +109,7 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
         previous: Solution | None = None
         out = []
         for row, at in zip(reported, conditions):
-            out.append(_forward(model.solve(row, previous, at), row))
+            out.append(forward_estimate(model.solve(row, previous, at), row))
             previous = out[-1].solution if out[-1].ok else previous
         return out
     law = model.rope_law
@@ -120,5 +120,6 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
                           loads=loads).estimates()
 
 
-def _forward(solution: Solution, reported: Sequence[float]) -> Estimate:
+def forward_estimate(solution: Solution, reported: Sequence[float]) -> Estimate:
+    """A solve of the reported lengths as an estimate that fused nothing."""
     return Estimate(solution, np.asarray(reported, dtype=float), np.zeros(4), float("nan"))

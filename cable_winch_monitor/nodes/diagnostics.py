@@ -178,7 +178,8 @@ class DiagnosticsReporter:
         gates = pipeline.gates
         refused = gates.refused
         values: dict[str, object] = {"gate hold [s]": gates.hold, "refused": ", ".join(refused)}
-        values.update({f"{sensor} gate chi-square": f"{d2:.3g}" for sensor, d2 in sorted(gates.last_chi_square.items())})
+        values.update({f"{sensor} gate chi-square": f"{d2:.3g}"
+                       for sensor, d2 in sorted(gates.last_chi_square.items())})
         last = pipeline.last
         estimate = last.estimate if last is not None else None
         if estimate is None or not estimate.fused:
