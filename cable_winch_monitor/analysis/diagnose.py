@@ -13,8 +13,9 @@ this keeps a 20-minute bag within minutes.
 Forward stepwise: screen every candidate not in the model (others held at their
 values), rank by held-out score and Delta BIC, add the best while its Delta BIC is below
 MAX_DELTA_BIC both on the training rows and on the held-out rows (chi-square change plus
-k ln n there: the error must fall on data the fit never saw, by more than chance), refit the added
-effects jointly. Every candidate is screened at least once (the ranking is the report);
+k ln n there: the error must fall on data the fit never saw, by more than chance), its held-out
+score falls by at least MIN_GAIN and its fit is honest (no parameter stopped by a bound, no
+physically implausible value: analysis.fit), then refit the added effects jointly. Every candidate is screened at least once (the ranking is the report);
 further rounds only while the held-out score is above the sensor-noise floor.
 """
 from __future__ import annotations
@@ -35,6 +36,7 @@ PER_KIND_SCREEN = 50   # training rows per sensor kind to screen candidates on
 PER_KIND_FIT = 150     # training rows per sensor kind to fit the selected effects on
 PER_KIND_SCORE = 150   # held-out rows per sensor kind
 MAX_DELTA_BIC = -10.0  # "very strong" evidence (Kass and Raftery)
+MIN_GAIN = 0.02        # relative fall of the held-out score an effect must bring to be selected
 
 NOISE_FLOOR = 1.1      # held-out score at which nothing is left to explain
 MAX_STEPS = 4
@@ -58,7 +60,9 @@ class Candidate:
                 "uncertainties": {k: v["sigma"] for k, v in self.fit.params(self.name).items()},
                 "units": {k: v["unit"] for k, v in self.fit.params(self.name).items()},
                 "score_before": self.score_before, "score_after": self.score_after, "delta_bic": self.delta_bic, "heldout_delta_bic": self.heldout_delta_bic,
-                "selected": self.selected, "correlations": self.fit.correlations(), "warnings": self.fit.warnings}
+                "selected": self.selected, "honest": self.fit.honest(self.name), "at_bound": self.fit.at_bound,
+                "implausible": self.fit.implausible, "correlations": self.fit.correlations(),
+                "warnings": self.fit.warnings}
 
 
 @dataclass
@@ -99,7 +103,11 @@ def _screen(current: PlantModel, names: Iterable[str], train: Evaluator, held: E
 
 
 def _significant(candidate: Candidate) -> bool:
-    return candidate.delta_bic < MAX_DELTA_BIC and candidate.heldout_delta_bic < MAX_DELTA_BIC
+    """A real, honest gain: strong BIC evidence on both parts, a held-out score falling by MIN_GAIN, values
+    that are estimates (not stopped by a bound, physically plausible)."""
+    return (candidate.delta_bic < MAX_DELTA_BIC and candidate.heldout_delta_bic < MAX_DELTA_BIC
+            and candidate.score_after <= (1.0 - MIN_GAIN) * candidate.score_before
+            and candidate.fit.honest(candidate.name))
 
 
 def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: list[str] | None = None) -> Diagnosis:

@@ -7,6 +7,12 @@ model is not perfect); correlations from the same matrix. A parameter whose 1-si
 uncertainty exceeds a quarter of its bounds' range, or that is correlated beyond 0.98
 with another, is reported as not identified by the data, as are the effect's own
 reasons (e.g. sheave friction without motion in both directions).
+
+A parameter that ends at its bound (or within AT_BOUND of the bounds' width from it) was
+stopped by the bound, not by the data: its value is not an estimate and its Jacobian
+uncertainty means nothing, so it is listed in `at_bound` and warned about, and the
+effect is never reported as found. Values outside an effect's physical plausibility
+(`Effect.implausible`, e.g. a mass change beyond 30 %) are listed and warned about too.
 """
 from __future__ import annotations
 
@@ -22,6 +28,7 @@ from .evaluate import Evaluator, normalised
 MAX_EVALUATIONS = 60
 UNIDENTIFIED_SPREAD = 0.25  # 1-sigma uncertainty / width of the bounds
 UNIDENTIFIED_CORRELATION = 0.98
+AT_BOUND = 0.01  # a value this close to a bound (share of the bounds' width) ended on it
 
 
 @dataclass
@@ -37,6 +44,13 @@ class FitResult:
     count: int
     evaluations: int
     warnings: list[str] = field(default_factory=list)
+    at_bound: list[str] = field(default_factory=list)      # "effect.parameter" stopped by a bound
+    implausible: list[str] = field(default_factory=list)   # why a fitted value is physically implausible
+
+    def honest(self, effect: str) -> bool:
+        """The fitted values of `effect` are estimates: none ended on a bound, none is implausible."""
+        return not any(label.split(".")[0] == effect for label in self.at_bound) and \
+            not any(reason.startswith(f"{effect}.") for reason in self.implausible)
 
     @property
     def bic(self) -> float:
@@ -44,12 +58,13 @@ class FitResult:
         return self.chi2 + len(self.free) * np.log(max(self.count, 1))
 
     def params(self, effect: str) -> dict[str, dict[str, Any]]:
-        """{parameter: {value, sigma, unit}} of one effect (all its parameters; fixed ones without sigma)."""
+        """{parameter: {value, sigma, unit, at_bound}} of one effect (all its parameters; fixed ones without sigma)."""
         out = {}
         for name, value in self.model.get(effect).values.items():
             index = next((k for k, (e, p) in enumerate(self.free) if e == effect and p.name == name), None)
             unit = next(p.unit for p in type(self.model.get(effect)).parameters if p.name == name)
-            out[name] = {"value": value, "sigma": None if index is None else float(self.sigmas[index]), "unit": unit}
+            out[name] = {"value": value, "sigma": None if index is None else float(self.sigmas[index]), "unit": unit,
+                         "at_bound": f"{effect}.{name}" in self.at_bound}
         return out
 
     def correlations(self) -> dict[str, float]:
@@ -96,8 +111,33 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
         correlation = np.nan_to_num(covariance / np.outer(sigmas_z, sigmas_z))
     fit = FitResult(model_at(result.x), free, start + result.x * scale, sigmas_z * scale, correlation, chi2, count,
                     int(result.nfev))
-    fit.warnings = _identifiability(fit, effects, evaluator)
+    fit.at_bound = _at_bound(fit)
+    fit.implausible = [reason for e in fit.model.effects if e.name in {name for name, _ in free}
+                       for reason in e.implausible(base.plant)]
+    fit.warnings = _bound_warnings(fit) + [f"implausible: {reason}" for reason in fit.implausible] \
+        + _identifiability(fit, effects, evaluator)
     return fit
+
+
+def _at_bound(fit: FitResult) -> list[str]:
+    """The free parameters whose value ended at, or within AT_BOUND of the width from, a bound."""
+    out = []
+    for (name, p), value in zip(fit.free, fit.values):
+        margin = AT_BOUND * (p.bounds[1] - p.bounds[0])
+        if value <= p.bounds[0] + margin or value >= p.bounds[1] - margin:
+            out.append(f"{name}.{p.name}")
+    return out
+
+
+def _bound_warnings(fit: FitResult) -> list[str]:
+    warnings = []
+    for (name, p), value in zip(fit.free, fit.values):
+        if f"{name}.{p.name}" in fit.at_bound:
+            side = "lower" if value - p.bounds[0] <= p.bounds[1] - value else "upper"
+            warnings.append(f"{name}.{p.name} = {value:.4g} {p.unit} ended at its {side} bound "
+                            f"[{p.bounds[0]:.4g}, {p.bounds[1]:.4g}]: the bound, not the data, set it "
+                            f"(not an estimate; widen plant.effect_bounds.{name}.{p.name} if the plant needs it)")
+    return warnings
 
 
 def _identifiability(fit: FitResult, effects: Sequence[Effect], evaluator: Evaluator) -> list[str]:
@@ -105,6 +145,8 @@ def _identifiability(fit: FitResult, effects: Sequence[Effect], evaluator: Evalu
     for effect in effects:
         warnings += effect.warnings(evaluator.conditions)
     for k, (name, p) in enumerate(fit.free):
+        if f"{name}.{p.name}" in fit.at_bound:
+            continue
         width = p.bounds[1] - p.bounds[0]
         if not np.isfinite(fit.sigmas[k]) or fit.sigmas[k] > UNIDENTIFIED_SPREAD * width:
             warnings.append(f"{name}.{p.name}: not identified by this bag (uncertainty {fit.sigmas[k]:.3g} {p.unit} "

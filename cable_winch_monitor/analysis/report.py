@@ -46,7 +46,9 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
         if final is not None and final.model.get(entry["name"]) is not None and entry["selected"]:
             params = final.params(entry["name"])
             entry["params"] = {k: v["value"] for k, v in params.items()}
-            entry["uncertainties"] = {k: v["sigma"] for k, v in params.items()}
+            entry["uncertainties"] = {k: None if v["at_bound"] else v["sigma"] for k, v in params.items()}
+            entry["honest"] = final.honest(entry["name"])
+        entry["found"] = entry["selected"] and entry["honest"]
     return {"bag": bag, "samples": samples, "channels": _channels(d.channels), "score": d.ladder[0].score_heldout,
             "score_after": d.ladder[-1].score_heldout, "selected": d.selected,
             "split": {"method": "interleaved blocks in time (30 % held out)", "training_rows": d.train_rows,
@@ -57,22 +59,28 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
             "effects": ranked}
 
 
+def _value(name: str, v: dict[str, Any], short: bool = False) -> str:
+    """A fitted value with its uncertainty, or marked as stopped by a bound (then it has none)."""
+    if short:
+        return f"{name}={v['value']:.4g}" + (" (at bound)" if v["at_bound"] else f"+-{v['sigma']:.2g}")
+    return f"{name} = {v['value']:.5g} " + (f"{v['unit']} (at bound)" if v["at_bound"] else f"+- {v['sigma']:.2g} {v['unit']}")
+
+
 def diagnose_text(d: Diagnosis) -> str:
     lines = [f"candidates, best first (fitted on {d.train_rows} training rows, scored on {d.heldout_rows} "
              "held-out rows from interleaved blocks):",
              f"{'effect':<24}{'held-out score':>15}{'delta BIC':>12}  fitted"]
     for c in d.ranking:
-        values = ", ".join(f"{k}={v['value']:.4g}+-{v['sigma']:.2g}" for k, v in c.fit.params(c.name).items()
-                           if v["sigma"] is not None)
+        values = ", ".join(_value(k, v, short=True) for k, v in c.fit.params(c.name).items() if v["sigma"] is not None)
         lines.append(f"{c.name:<24}{c.score_before:>7.3f}->{c.score_after:<7.3f}{c.delta_bic:>12.1f}  {values}"
                      + ("  <- selected" if c.selected else ""))
     lines.append("ladder: " + " -> ".join(f"{s.added or 'model'} ({s.score_heldout:.3f})" for s in d.ladder))
     if d.final is not None:
         for name in d.selected:
             effect = d.final.model.get(name)
-            values = ", ".join(f"{k} = {v['value']:.5g} +- {v['sigma']:.2g} {v['unit']}"
-                               for k, v in d.final.params(name).items() if v["sigma"] is not None)
-            lines.append(f"found: {type(effect).title} [{name}: {values}]")
+            values = ", ".join(_value(k, v) for k, v in d.final.params(name).items() if v["sigma"] is not None)
+            verdict = "found" if d.final.honest(name) else "not determined (see warnings)"
+            lines.append(f"{verdict}: {type(effect).title} [{name}: {values}]")
         lines += [f"correlation {k}: {v:+.3f}" for k, v in d.final.correlations().items()]
         lines += [f"warning: {w}" for w in d.final.warnings]
     else:
@@ -88,7 +96,8 @@ def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
             "before": {part: {"score": s.score, "channels": _channels(s.channels)} for part, s in r.before.items()},
             "after": {part: {"score": s.score, "channels": _channels(s.channels)} for part, s in r.after.items()},
             "effects": [{"name": n, "params": {k: v["value"] for k, v in fit.params(n).items()},
-                         "uncertainties": {k: v["sigma"] for k, v in fit.params(n).items()},
+                         "uncertainties": {k: None if v["at_bound"] else v["sigma"] for k, v in fit.params(n).items()},
+                         "honest": fit.honest(n), "at_bound": fit.at_bound, "implausible": fit.implausible,
                          "score_before": r.before["held_out"].score, "score_after": r.after["held_out"].score,
                          "delta_bic": None, "selected": True} for n in r.effects],
             "correlations": fit.correlations(), "warnings": fit.warnings, "noise_source": r.noise_source}
@@ -97,8 +106,8 @@ def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
 def fit_text(r: FitReport) -> str:
     lines = []
     for name in r.effects:
-        values = ", ".join(f"{k} = {v['value']:.5g}" + (f" +- {v['sigma']:.2g}" if v["sigma"] is not None else "")
-                           + f" {v['unit']}" for k, v in r.fit.params(name).items())
+        values = ", ".join(_value(k, v) if v["sigma"] is not None else f"{k} = {v['value']:.5g} {v['unit']}"
+                           for k, v in r.fit.params(name).items())
         lines.append(f"fitted {name}: {values}")
     lines.append(f"{'channel':<17}{'train before':>14}{'train after':>13}{'held before':>13}{'held after':>12}")
     for name in r.after["held_out"].channels:

@@ -134,6 +134,10 @@ class Effect:
     def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
         """measurement: edit the predicted sensor readings in place."""
 
+    def implausible(self, plant: Plant) -> list[str]:
+        """Why the values are physically implausible for this plant, each "name.parameter: reason" (empty: none)."""
+        return []
+
     def warnings(self, conditions: list[Conditions]) -> list[str]:
         """Why a bag with these conditions cannot identify the parameters (empty: no reason known)."""
         return []

@@ -6,6 +6,8 @@ import numpy as np
 from ..model.plant import Plant
 from .base import Effect, Parameter
 
+PLAUSIBLE_MASS_CHANGE = 0.3  # a payload beyond +-30 % of the platform's mass is a wrong plant file, not a load
+
 
 class CogOffset(Effect):
     """The centre of gravity sits (dx, dy) away from the plant file's C (platform frame).
@@ -43,3 +45,10 @@ class PayloadMass(Effect):
 
     def plant(self, plant: Plant) -> Plant:
         return plant.with_changes(mass=plant.mass + self["dm"])
+
+    def implausible(self, plant: Plant) -> list[str]:
+        share = self["dm"] / plant.mass
+        if abs(share) > PLAUSIBLE_MASS_CHANGE:
+            return [f"{self.name}.dm: a mass change of {share:+.0%} of the plant's {plant.mass:g} kg is beyond "
+                    f"+-{PLAUSIBLE_MASS_CHANGE:.0%}: check the plant file's mass or another effect (tension scale)"]
+        return []
