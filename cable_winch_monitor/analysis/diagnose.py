@@ -95,7 +95,7 @@ def _screen(current: PlantModel, names: Iterable[str], train: Evaluator, held: E
     chi2_before, count = chi_square(current, held, noise)
     trials = []
     for name in names:
-        fit = fit_effects(current, [known[name]()], train, noise)
+        fit = fit_effects(current, [known[name](plant=current.plant)], train, noise)
         after = score(held.residuals(fit.model), held.data.measured, noise)
         held_bic = chi_square(fit.model, held, noise)[0] - chi2_before + len(fit.free) * np.log(max(count, 1))
         trials.append(Candidate(name, fit, score_now, after, fit.bic - bic_now, float(held_bic)))
@@ -116,7 +116,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     screen = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)))
     train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)))
     held = Evaluator(data.subset(thin(held_rows, data.kinds, PER_KIND_SCORE)))
-    pool = [n for n in (candidates or available()) if base.get(n) is None and available()[n].fitted()]
+    pool = [n for n in (candidates or available()) if base.get(n) is None and available()[n].fittable()]
     current, added, final = base, [], None
     chi2, count = chi_square(current, train, noise)
     score_now = score(held.residuals(current), held.data.measured, noise)

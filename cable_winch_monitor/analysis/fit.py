@@ -81,6 +81,7 @@ def chi_square(model: PlantModel, evaluator: Evaluator, noise: np.ndarray) -> tu
 
 def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray) -> FitResult:
     """Fit the fittable parameters of `effects` (added to `base`, others held) from their current values."""
+    effects = [e if e.for_plant is not None else type(e)(e.values, base.plant) for e in effects]  # bounds of this plant
     free = [(e.name, p) for e in effects for p in e.fitted()]
     start = np.array([next(e for e in effects if e.name == name)[p.name] for name, p in free])
     scale = np.array([p.scale for _, p in free])

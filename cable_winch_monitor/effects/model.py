@@ -38,8 +38,9 @@ def _overrides(cls: type[Effect], hook: str) -> bool:
     return getattr(cls, hook) is not getattr(Effect, hook)
 
 
-def effects_from_mapping(section: Any, where: str) -> list[Effect]:
-    """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}}."""
+def effects_from_mapping(section: Any, where: str, plant: Plant | None = None) -> list[Effect]:
+    """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}},
+    their parameters resolved for `plant` (Effect)."""
     if section is None:
         return []
     if not isinstance(section, Mapping):
@@ -51,12 +52,22 @@ def effects_from_mapping(section: Any, where: str) -> list[Effect]:
         if not isinstance(enabled, bool):
             raise EffectError(f"key '{where}.{name}.enabled' must be true or false, got {enabled!r}")
         try:
-            effect = effect_class(str(name))(spec)
+            effect = effect_class(str(name))(spec, plant)
         except EffectError as error:
             raise EffectError(f"key '{where}.{name}': {error}") from None
         if enabled:
             effects.append(effect)
     return effects
+
+
+def _check_effect_bounds(plant: Plant) -> None:
+    """Every effect and parameter the plant file's effect_bounds names exists."""
+    for name, params in plant.effect_bounds.items():
+        known = {p.name for p in effect_class(name).parameters}
+        unknown = sorted(set(params) - known)
+        if unknown:
+            raise EffectError(f"key 'plant.effect_bounds.{name}.{unknown[0]}': effect '{name}' has no such parameter "
+                              f"(known: {', '.join(sorted(known))})")
 
 
 @dataclass(frozen=True)
@@ -81,7 +92,8 @@ class PlantModel:
         try:
             for path in plant.effect_modules:
                 load_module(path)
-            return cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects")), solver)
+            _check_effect_bounds(plant)
+            return cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant)), solver)
         except EffectError as error:
             raise PlantConfigError(f"plant file: {error}") from None
 

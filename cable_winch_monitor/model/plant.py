@@ -58,6 +58,7 @@ class Plant:
     alarm: Mapping[str, float] = field(default_factory=dict)  # alarm margins given (monitor.alarm)
     effects: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # effect name -> its parameters
     effect_modules: tuple[str, ...] = ()  # user files defining effects (and channels)
+    effect_bounds: Mapping[str, Mapping[str, tuple[float, float]]] = field(default_factory=dict)  # effect -> param -> (lo, hi)
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -172,6 +173,32 @@ def _effects(section: Any) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _effect_bounds(section: Any) -> dict[str, dict[str, tuple[float, float]]]:
+    """`plant.effect_bounds`: {effect name: {parameter: [low, high]}}, bounds this plant needs instead of an
+    effect's own (the effect layer checks the names)."""
+    if section is None:
+        return {}
+    if not isinstance(section, Mapping):
+        raise PlantConfigError("plant file: key 'plant.effect_bounds' must be a mapping of effect names to "
+                               "{parameter: [low, high]}")
+    out: dict[str, dict[str, tuple[float, float]]] = {}
+    for name, params in section.items():
+        where = f"plant.effect_bounds.{name}"
+        if not isinstance(params, Mapping):
+            raise PlantConfigError(f"plant file: key '{where}' must be a mapping of parameters to [low, high]")
+        out[str(name)] = {}
+        for param, pair in params.items():
+            try:
+                low, high = (float(v) for v in pair)
+            except (TypeError, ValueError):
+                raise PlantConfigError(f"plant file: key '{where}.{param}' must be [low, high], got {pair!r}") from None
+            if not (np.isfinite(low) and np.isfinite(high) and low < high):
+                raise PlantConfigError(f"plant file: key '{where}.{param}' must be finite with low < high, "
+                                       f"got [{low}, {high}]")
+            out[str(name)][str(param)] = (low, high)
+    return out
+
+
 def _modules(value: Any) -> tuple[str, ...]:
     if value is None:
         return ()
@@ -235,6 +262,7 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         alarm=_numbers(section.get("alarm"), "plant.alarm", ALARM_KEYS),
         effects=_effects(section.get("effects")),
         effect_modules=_modules(section.get("effect_modules")),
+        effect_bounds=_effect_bounds(section.get("effect_bounds")),
         raw=config,
     )
 
