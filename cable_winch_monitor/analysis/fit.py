@@ -8,7 +8,7 @@ uncertainty exceeds a quarter of its bounds' range, or that is correlated beyond
 with another, is reported as not identified by the data, as are the effect's own
 reasons (e.g. sheave friction without motion in both directions).
 
-A parameter that ends at its bound (or within AT_BOUND of the bounds' width from it) was
+A parameter that ends at its bound (or within AT_BOUND, 1 %, of it) was
 stopped by the bound, not by the data: its value is not an estimate and its Jacobian
 uncertainty means nothing, so it is listed in `at_bound` and warned about, and the
 effect is never reported as found. Values outside an effect's physical plausibility
@@ -28,7 +28,8 @@ from .evaluate import Evaluator, normalised
 MAX_EVALUATIONS = 60
 UNIDENTIFIED_SPREAD = 0.25  # 1-sigma uncertainty / width of the bounds
 UNIDENTIFIED_CORRELATION = 0.98
-AT_BOUND = 0.01  # a value this close to a bound (share of the bounds' width) ended on it
+AT_BOUND = 0.01     # a value within 1 % of a bound ended on it (bounds span decades: relative to the bound) ...
+ZERO_BOUND = 1e-4   # ... or, for a bound at zero, within 1 % of this share of the bounds' width
 
 
 @dataclass
@@ -121,11 +122,11 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
 
 
 def _at_bound(fit: FitResult) -> list[str]:
-    """The free parameters whose value ended at, or within AT_BOUND of the width from, a bound."""
+    """The free parameters whose value ended at, or within AT_BOUND of, a bound."""
     out = []
     for (name, p), value in zip(fit.free, fit.values):
-        margin = AT_BOUND * (p.bounds[1] - p.bounds[0])
-        if value <= p.bounds[0] + margin or value >= p.bounds[1] - margin:
+        low, high = (AT_BOUND * max(abs(b), ZERO_BOUND * (p.bounds[1] - p.bounds[0])) for b in p.bounds)
+        if value <= p.bounds[0] + low or value >= p.bounds[1] - high:
             out.append(f"{name}.{p.name}")
     return out
 
