@@ -4,7 +4,7 @@
 load on the platform (gravity, then load effects) and the rope law (rope-law effects),
 and solves with the matching solver -- the rigid one chosen (energy, or seed 002's
 traversal), or the elastic one with EA and the rope's own-weight stretch -- then refines
-pose-dependent geometry (sheave tangent points) by fixed-point iteration.
+pose-dependent geometry (the plant's pulleys, sheave tangent points) by fixed-point iteration.
 `PlantModel.predict` gives every declared channel's reading for a solved state
 (channels.predicted, then measurement effects). The live node, replay, the analysis,
 `limits`, the command check and the wall clearance all go through this object; a model
@@ -27,6 +27,7 @@ from ..model.plant import Plant, PlantConfigError
 from ..model.result import Solution, SolveStatus, failed
 from ..model.solve import METHODS, solve
 from .base import Effect, EffectError, RopeLaw
+from .pulley import wrap
 from .registry import effect_class, load_module
 
 REFINE_STEPS = 6
@@ -143,8 +144,8 @@ class PlantModel:
 
     @property
     def plain(self) -> bool:
-        """No effect at all: the rigid model, which the batched solver serves."""
-        return not self.effects
+        """No effect and no pulleys: the rigid model, which the batched solver serves."""
+        return not self.effects and not self.plant.sheaves
 
     def solve_key(self) -> tuple:
         """Everything a solve depends on besides the sample: two models with equal keys have the same equilibria."""
@@ -187,10 +188,12 @@ class PlantModel:
                 return failed(SolveStatus.INVALID_INPUT, f"cannot apply the plant's effects: {error}",
                               self.solver, np.full(4, np.nan))
         solution = self._solve_once(self.physical, lengths, warm_start, load)
-        for _ in range(REFINE_STEPS if self._refiners else 0):
+        for _ in range(REFINE_STEPS if self._refiners or self.physical.sheaves else 0):
             if not solution.ok:
                 break
             plant, refined = self.physical, lengths
+            if plant.sheaves:
+                plant, refined, _ = wrap(plant, refined, solution.points_b)
             for effect in self._refiners:
                 plant, refined = effect.refine(plant, refined, solution)
             previous, solution = solution, self._solve_once(plant, refined, solution, load)
