@@ -3,7 +3,9 @@
 A failure region is a stretch of time where some channel's error exceeds 3 sigma in most
 samples (isolated 3-sigma samples are noise: 0.3 % of them exceed it by chance),
 described by what the plant was doing: payout, speed and direction, tension state, and
-which channels and cables miss in which direction.
+which channels and cables miss in which direction. Where a channel's prediction is
+ill-conditioned on the lengths (analysis.conditioning), that is said too: an error there
+blames the encoders' millimetres as much as the model.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..model.result import Solution
+from .conditioning import IllConditioned, ill_conditioned
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
 
@@ -38,6 +41,7 @@ class Comparison:
     channels: dict[str, ChannelStats] = field(default_factory=dict)
     score: float = float("nan")
     regions: list[dict[str, Any]] = field(default_factory=list)
+    ill_conditioned: list[IllConditioned] = field(default_factory=list)  # where the lengths do not determine a channel
 
     @property
     def residuals(self) -> np.ndarray:
@@ -53,6 +57,7 @@ def compare(model: PlantModel, data: Dataset) -> Comparison:
     result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
     result.score = score(result.residuals, data.measured, sigma)
     result.regions = failure_regions(result)
+    result.ill_conditioned = ill_conditioned(model, data, sigma)
     return result
 
 
