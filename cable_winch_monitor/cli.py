@@ -14,6 +14,7 @@ from .model.solve import METHODS
 from .paths import config_dir
 from .sim.scenario import ScenarioError
 
+DIAGNOSE_BUDGET = 180.0  # [s] default wall time of `diagnose`: a 20-minute recording in three minutes
 
 def _length(text: str) -> float:
     """A command-line length: any float, so that nan, inf and negatives reach the solver's checks."""
@@ -161,7 +162,8 @@ def _diagnose(args: argparse.Namespace) -> int:
         return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
     for path in args.effect_module:
         load_module(path)
-    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates)
+    budget = args.budget if args.budget > 0 else None
+    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates, budget, progress=True)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0
@@ -209,6 +211,9 @@ def _add_analysis(sub: argparse._SubParsersAction) -> None:
             p.add_argument("--html", metavar="PATH", help="write a standalone HTML report with plots")
         if name == "diagnose":
             p.add_argument("--candidates", help="comma-separated effects to consider (default: every known one)")
+            p.add_argument("--budget", type=float, default=DIAGNOSE_BUDGET, metavar="SECONDS",
+                           help=f"wall time to spend (default {DIAGNOSE_BUDGET:g} s; 0: no limit); what did not fit "
+                           "in it is reported as skipped")
             p.add_argument("--out", metavar="FOLDER", help="fleet diagnose (bag is a folder of bags): a new folder "
                            "for one JSON result per bag; --json then writes the summary table")
             _add_fleet_options(p, "diagnose")

@@ -16,6 +16,7 @@ effect is never reported as found. Values outside an effect's physical plausibil
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -47,10 +48,11 @@ class FitResult:
     warnings: list[str] = field(default_factory=list)
     at_bound: list[str] = field(default_factory=list)      # "effect.parameter" stopped by a bound
     implausible: list[str] = field(default_factory=list)   # why a fitted value is physically implausible
+    truncated: bool = False  # stopped at its deadline: the best values met so far, not converged
 
     def honest(self, effect: str) -> bool:
         """The fitted values of `effect` are estimates: none ended on a bound, none is implausible."""
-        return not any(label.split(".")[0] == effect for label in self.at_bound) and \
+        return not self.truncated and not any(label.split(".")[0] == effect for label in self.at_bound) and \
             not any(reason.startswith(f"{effect}.") for reason in self.implausible)
 
     @property
@@ -80,8 +82,14 @@ def chi_square(model: PlantModel, evaluator: Evaluator, noise: np.ndarray) -> tu
     return float(np.sum(z ** 2)), int(z.size)
 
 
-def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray) -> FitResult:
-    """Fit the fittable parameters of `effects` (added to `base`, others held) from their current values."""
+class _OutOfTime(Exception):
+    """The fit's deadline passed."""
+
+
+def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray,
+                deadline: float | None = None) -> FitResult:
+    """Fit the fittable parameters of `effects` (added to `base`, others held) from their current values;
+    at `deadline` (time.monotonic) the fit stops with the best values met so far (`truncated`)."""
     effects = [e if e.for_plant is not None else type(e)(e.values, base.plant) for e in effects]  # bounds of this plant
     free = [(e.name, p) for e in effects for p in e.fitted()]
     start = np.array([next(e for e in effects if e.name == name)[p.name] for name, p in free])
@@ -95,15 +103,25 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
                    for e in effects]
         return base.with_effects(updated)
 
+    best: list[tuple[float, np.ndarray, np.ndarray]] = []
+
     def residual(z: np.ndarray) -> np.ndarray:
-        return normalised(evaluator.residuals(model_at(z)), evaluator.data.measured, noise)
+        if deadline is not None and best and time.monotonic() > deadline:
+            raise _OutOfTime
+        fun = normalised(evaluator.residuals(model_at(z)), evaluator.data.measured, noise)
+        if not best or float(fun @ fun) < best[0][0]:
+            best[:] = [(float(fun @ fun), z.copy(), fun)]
+        return fun
 
     if not free:
         chi2, count = chi_square(base.with_effects(effects), evaluator, noise)
         return FitResult(base.with_effects(effects), [], np.zeros(0), np.zeros(0), np.zeros((0, 0)), chi2, count, 1)
-    result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
-                           method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
-                           max_nfev=MAX_EVALUATIONS)
+    try:
+        result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
+                               method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
+                               max_nfev=MAX_EVALUATIONS)
+    except _OutOfTime:
+        return _truncated(model_at(best[0][1]), free, start + best[0][1] * scale, best[0][0], best[0][2].size)
     count = result.fun.size
     chi2 = float(np.sum(result.fun ** 2))
     information = result.jac.T @ result.jac
@@ -118,6 +136,16 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
                        for reason in e.implausible(base.plant)]
     fit.warnings = _bound_warnings(fit) + [f"implausible: {reason}" for reason in fit.implausible] \
         + _identifiability(fit, effects, evaluator)
+    return fit
+
+
+def _truncated(model: PlantModel, free: list[tuple[str, Parameter]], values: np.ndarray, chi2: float,
+               count: int) -> FitResult:
+    """A fit stopped at its deadline: the best values met, no uncertainties."""
+    fit = FitResult(model, free, values, np.full(len(free), np.nan), np.zeros((len(free), len(free))), chi2, count, 0,
+                    truncated=True)
+    fit.warnings = [f"{', '.join(sorted({name for name, _ in free}))}: the fit stopped at the time budget before it "
+                    "converged; its values are the best met so far, not estimates"]
     return fit
 
 

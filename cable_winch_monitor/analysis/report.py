@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from .compare import Comparison
 from .diagnose import Diagnosis
 from .evaluate import ChannelStats
@@ -24,9 +26,14 @@ def _effect_values(model: Any) -> list[dict[str, Any]]:
     return [{"name": e.name, "params": dict(e.values), "enabled": True} for e in model.effects]
 
 
+def _ill_conditioned(spans: list[Any]) -> list[str]:
+    return [f"ill-conditioned: {s.describe()}" for s in spans]
+
+
 def compare_json(c: Comparison) -> dict[str, Any]:
     return {"bag": c.bag, "samples": len(c.data), "channels": _channels(c.channels), "score": c.score,
-            "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model)}
+            "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model),
+            "ill_conditioned": [s.to_dict() for s in c.ill_conditioned]}
 
 
 def compare_text(c: Comparison) -> str:
@@ -36,7 +43,7 @@ def compare_text(c: Comparison) -> str:
              *_table(c.channels), f"score {c.score:.3f} (1.0 = down to the sensor noise; noise: {', '.join(sources)})",
              f"failure regions (|error| > 3 sigma): {len(c.regions) or 'none'}"]
     lines += [f"  {r['description']}" for r in c.regions[:10]]
-    return "\n".join(lines)
+    return "\n".join(lines + _ill_conditioned(c.ill_conditioned))
 
 
 def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
@@ -56,14 +63,16 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
             "ladder": [{"added": s.added, "score_train": s.score_train, "score_heldout": s.score_heldout,
                         "bic": s.bic} for s in d.ladder],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
+            "ill_conditioned": [s.to_dict() for s in d.ill_conditioned], "budget": d.budget, "skipped": d.skipped,
             "effects": ranked}
 
 
 def _value(name: str, v: dict[str, Any], short: bool = False) -> str:
-    """A fitted value with its uncertainty, or marked as stopped by a bound (then it has none)."""
-    if short:
-        return f"{name}={v['value']:.4g}" + (" (at bound)" if v["at_bound"] else f"+-{v['sigma']:.2g}")
-    return f"{name} = {v['value']:.5g} " + (f"{v['unit']} (at bound)" if v["at_bound"] else f"+- {v['sigma']:.2g} {v['unit']}")
+    """A fitted value with its uncertainty, or marked as stopped by a bound or the time budget (none then)."""
+    if v["at_bound"] or not np.isfinite(v["sigma"]):
+        why = "at bound" if v["at_bound"] else "not converged"
+        return f"{name}={v['value']:.4g} ({why})" if short else f"{name} = {v['value']:.5g} {v['unit']} ({why})"
+    return f"{name}={v['value']:.4g}+-{v['sigma']:.2g}" if short else f"{name} = {v['value']:.5g} +- {v['sigma']:.2g} {v['unit']}"
 
 
 def diagnose_text(d: Diagnosis) -> str:
@@ -86,7 +95,9 @@ def diagnose_text(d: Diagnosis) -> str:
     else:
         lines.append("found: nothing -- no candidate effect explains the data significantly better "
                      "(held-out error and BIC)")
-    return "\n".join(lines)
+    if d.skipped:
+        lines.append(f"skipped (the time budget of {d.budget:g} s was spent): {'; '.join(d.skipped)}")
+    return "\n".join(lines + _ill_conditioned(d.ill_conditioned))
 
 
 def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
