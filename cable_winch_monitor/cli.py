@@ -138,11 +138,12 @@ def _write_json(path: str | None, content: dict) -> None:
 
 def _compare(args: argparse.Namespace) -> int:
     from .analysis import report
+    from .analysis.bagfields import read_fields
     from .analysis.compare import compare
     from .analysis.html import write_report
 
     model, data = _analysis_inputs(args)
-    result = compare(model, data)
+    result = compare(model, data, read_fields(args.bag))
     print(report.compare_text(result))
     _write_json(args.json, report.compare_json(result))
     if args.html:

@@ -62,7 +62,7 @@ class LookaheadPipeline(MonitorPipeline):
         for item in window:
             spec = self.input_specs.get(item.topic)
             if spec is not None:
-                self.on_input(spec, fields.seconds(item.message.header.stamp), item.message)
+                self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
         merged = [self._merge_item(item) if item.msgtype == fields.JOINT_STATE else None for item in window]
         samples = [outcome for outcome in merged if isinstance(outcome, CompleteSample)]
         presolved = iter(self._presolve(samples))
@@ -97,4 +97,4 @@ class LookaheadPipeline(MonitorPipeline):
             return None if outcome is None else self._solve(outcome, solved)
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
-        return self.on_measurement(item.topic, fields.seconds(msg.header.stamp), msg)
+        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg)

@@ -155,7 +155,8 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 try:
                     if isinstance(result, Exception):
                         raise result
-                    stamp = fields.stamp_of(item.message)
+                    stamp = fields.stamp_of(item.message) if hasattr(item.message, "header") else \
+                        divmod(item.log_time, 1_000_000_000)
                     outputs = _records(item, stamp, result)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1

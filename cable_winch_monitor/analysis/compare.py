@@ -18,8 +18,10 @@ import numpy as np
 from ..effects import PlantModel
 from ..model.result import Solution
 from .conditioning import IllConditioned, ill_conditioned
+from .bagfields import BagFields
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
+from .follows import Finding, what_follows
 
 THRESHOLD = 3.0    # [sigma]
 MERGE_GAP = 1.0    # [s] exceedances closer than this belong to one region
@@ -42,14 +44,17 @@ class Comparison:
     score: float = float("nan")
     regions: list[dict[str, Any]] = field(default_factory=list)
     ill_conditioned: list[IllConditioned] = field(default_factory=list)  # where the lengths do not determine a channel
+    follows: list[Finding] = field(default_factory=list)
+    follows_notes: list[str] = field(default_factory=list)
 
     @property
     def residuals(self) -> np.ndarray:
         return self.data.measured - self.predicted
 
 
-def compare(model: PlantModel, data: Dataset) -> Comparison:
-    """Solve the model at every row and compare with what was measured."""
+def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -> Comparison:
+    """Solve the model at every row and compare with what was measured; rank what the error follows
+    (among the bag's other topics' `fields` too, where given)."""
     sigma, source = noise(model.plant, data)
     evaluator = Evaluator(data)
     predicted = evaluator.predicted(model)
@@ -58,6 +63,8 @@ def compare(model: PlantModel, data: Dataset) -> Comparison:
     result.score = score(result.residuals, data.measured, sigma)
     result.regions = failure_regions(result)
     result.ill_conditioned = ill_conditioned(model, data, sigma)
+    result.follows = what_follows(data, result.residuals, sigma, fields=fields)
+    result.follows_notes = fields.remarks() if fields else []
     return result
 
 

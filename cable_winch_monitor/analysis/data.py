@@ -79,7 +79,7 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = ()) -> Dataset:
     by_topic = {spec.topic: [s for s in inputs if s.topic == spec.topic] for spec in inputs}
     for item in BagReader(bag, fields.input_topics(inputs)):
         msg = item.message
-        stamp = fields.seconds(msg.header.stamp)
+        stamp = fields.message_seconds(msg, item.log_time)
         for spec in by_topic.get(item.topic, ()):
             series[spec.key].append((stamp, spec.read(msg)))
         if item.msgtype == JOINT_STATE:

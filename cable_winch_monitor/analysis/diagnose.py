@@ -37,9 +37,11 @@ from ..effects import Effect, PlantModel, available
 from ..model.plant import Plant, load_plant
 from ..progress import Progress
 from .conditioning import IllConditioned, ill_conditioned
+from .bagfields import BagFields, read_fields
 from .data import Dataset, read_bag
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score, split, thin
 from .fit import FitResult, chi_square, fit_effects
+from .follows import Finding, what_follows
 
 PER_KIND_SCREEN = 50   # training rows per sensor kind to screen candidates on
 PER_KIND_FIT = 150     # training rows per sensor kind to fit the selected effects on
@@ -95,6 +97,8 @@ class Diagnosis:
     heldout_rows: int
     solves: int = 0
     channels: dict[str, ChannelStats] = field(default_factory=dict)  # held-out rows under the given model
+    follows: list[Finding] = field(default_factory=list)  # what the final model's held-out error follows
+    follows_notes: list[str] = field(default_factory=list)
     ill_conditioned: list[IllConditioned] = field(default_factory=list)  # where the lengths do not determine a channel
     skipped: list[str] = field(default_factory=list)  # what the time budget left out
     budget: float | None = None  # [s]
@@ -162,15 +166,17 @@ def _significant(candidate: Candidate) -> bool:
 
 
 def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: list[str] | None = None,
-             budget: float | None = None, progress: bool = False) -> Diagnosis:
-    """Rank the candidate effects (default: every known effect not in `base`) and select forward-stepwise,
-    within `budget` seconds (None: no limit; what did not fit in it is listed in `skipped`), with a
-    progress line on a terminal if `progress`."""
+             fields: BagFields | None = None, budget: float | None = None, progress: bool = False) -> Diagnosis:
+    """Rank the candidate effects (default: every known effect not in `base`) and select forward-stepwise;
+    then rank what the final model's held-out error follows (among the bag's other `fields` too). Within
+    `budget` seconds (None: no limit; what did not fit in it is listed in `skipped`), with a progress
+    line on a terminal if `progress`."""
     clock = Budget(budget)
     train_rows, held_rows = split(data)
     screen = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)))
     train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)))
-    held = Evaluator(data.subset(thin(held_rows, data.kinds, PER_KIND_SCORE)))
+    held_rows = thin(held_rows, data.kinds, PER_KIND_SCORE)
+    held = Evaluator(data.subset(held_rows))
     pool = sorted((n for n in (candidates or available()) if base.get(n) is None and available()[n].fittable()),
                   key=_cost)
     bar = Progress("diagnose", len(pool), enabled=progress, only_tty=True)
@@ -211,8 +217,10 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
         bar.update(bar.done, "checking identifiability")
         conditioning = ill_conditioned(current, data, noise)
     bar.finish()
+    follows = what_follows(data, held.residuals(current), noise, held_rows, fields)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
-                     screen.solves + train.solves + held.solves, channels, conditioning, clock.skipped, budget)
+                     screen.solves + train.solves + held.solves, channels, follows,
+                     fields.remarks() if fields else [], conditioning, clock.skipped, budget)
 
 
 def diagnose_bag(bag: str | Path, plant: Plant | None = None, candidates: list[str] | None = None,
@@ -222,5 +230,6 @@ def diagnose_bag(bag: str | Path, plant: Plant | None = None, candidates: list[s
     started = time.monotonic()
     model = PlantModel.from_plant(plant or load_plant())
     data = read_bag(bag, model.inputs)
+    fields = read_fields(bag)
     left = None if budget is None else budget - (time.monotonic() - started)  # reading counts too
-    return diagnose(model, data, noise(model.plant, data)[0], candidates, left, progress), data
+    return diagnose(model, data, noise(model.plant, data)[0], candidates, fields, left, progress), data

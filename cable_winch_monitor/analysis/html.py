@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .compare import THRESHOLD, Comparison
+from .follows import NOTHING
 from .svg import scatter
 
 STYLE = ("body{font-family:sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse;margin:.5em 0}"
@@ -35,6 +36,17 @@ def _channel_plots(c: Comparison, index: int, name: str) -> str:
     return f"<h3>{escape(name)}</h3><div class='plots'>{''.join(plots)}</div>"
 
 
+def _follows(c: Comparison) -> str:
+    """What the remaining error follows: one row per finding."""
+    rows = "".join(f"<tr><th>{escape(f.target)}</th><td>{escape(f.regressor)}</td><td>{f.measure} = {f.r:.2f}</td>"
+                   f"<td>{f.n}</td><td>{f.n_eff:.0f}</td><td style='text-align:left'>{escape(f.sentence)}</td></tr>"
+                   for f in c.follows)
+    table = (f"<table><tr><th>residual</th><th>follows</th><th>r</th><th>n</th><th>independent</th><th>in words"
+             f"</th></tr>{rows}</table>" if rows else f"<p>{escape(NOTHING)}</p>")
+    notes = "".join(f"<li>{escape(note)}</li>" for note in c.follows_notes)
+    return f"<h2>What the remaining error follows</h2>{table}" + (f"<ul>{notes}</ul>" if notes else "")
+
+
 def render(c: Comparison) -> str:
     """The report as an HTML document (no scripts, no external resources)."""
     rows = "".join(f"<tr><th>{escape(n)}</th><td>{s.count}</td><td>{s.rms:.4g}</td><td>{s.max_abs:.4g}</td>"
@@ -49,7 +61,7 @@ def render(c: Comparison) -> str:
             f"model effects: {effects}</p><p><b>score {c.score:.3f}</b> (noise-normalised RMS error; 1.0 = down to "
             "the sensor noise)</p><table><tr><th>channel</th><th>samples</th><th>RMS</th><th>max |error|</th>"
             f"<th>noise (source)</th><th>score</th></tr>{rows}</table>"
-            f"<h2>Failure regions (|error| &gt; {THRESHOLD:g} sigma)</h2><ol>{regions}</ol>"
+            f"<h2>Failure regions (|error| &gt; {THRESHOLD:g} sigma)</h2><ol>{regions}</ol>{_follows(c)}"
             f"<h2>Plots</h2>{plots}</body></html>")
 
 

@@ -8,6 +8,7 @@ import numpy as np
 from .compare import Comparison
 from .diagnose import Diagnosis
 from .evaluate import ChannelStats
+from .follows import NOTHING, Finding
 from .refit import FitReport
 
 
@@ -22,6 +23,16 @@ def _table(stats: dict[str, ChannelStats]) -> list[str]:
     return lines
 
 
+def _follows_lines(findings: list[Finding], notes: list[str]) -> list[str]:
+    lines = ["what the remaining error follows:"]
+    lines += [f"  {f.sentence}" for f in findings] or [f"  {NOTHING}"]
+    return lines + [f"  {note}" for note in notes]
+
+
+def _follows_json(findings: list[Finding], notes: list[str]) -> dict[str, Any]:
+    return {"follows": [f.to_dict() for f in findings], "follows_notes": notes}
+
+
 def _effect_values(model: Any) -> list[dict[str, Any]]:
     return [{"name": e.name, "params": dict(e.values), "enabled": True} for e in model.effects]
 
@@ -33,7 +44,7 @@ def _ill_conditioned(spans: list[Any]) -> list[str]:
 def compare_json(c: Comparison) -> dict[str, Any]:
     return {"bag": c.bag, "samples": len(c.data), "channels": _channels(c.channels), "score": c.score,
             "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model),
-            "ill_conditioned": [s.to_dict() for s in c.ill_conditioned]}
+            "ill_conditioned": [s.to_dict() for s in c.ill_conditioned], **_follows_json(c.follows, c.follows_notes)}
 
 
 def compare_text(c: Comparison) -> str:
@@ -43,7 +54,7 @@ def compare_text(c: Comparison) -> str:
              *_table(c.channels), f"score {c.score:.3f} (1.0 = down to the sensor noise; noise: {', '.join(sources)})",
              f"failure regions (|error| > 3 sigma): {len(c.regions) or 'none'}"]
     lines += [f"  {r['description']}" for r in c.regions[:10]]
-    return "\n".join(lines + _ill_conditioned(c.ill_conditioned))
+    return "\n".join(lines + _ill_conditioned(c.ill_conditioned) + _follows_lines(c.follows, c.follows_notes))
 
 
 def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
@@ -64,7 +75,7 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
                         "bic": s.bic} for s in d.ladder],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
             "ill_conditioned": [s.to_dict() for s in d.ill_conditioned], "budget": d.budget, "skipped": d.skipped,
-            "effects": ranked}
+            "effects": ranked, **_follows_json(d.follows, d.follows_notes)}
 
 
 def _value(name: str, v: dict[str, Any], short: bool = False) -> str:
@@ -97,7 +108,7 @@ def diagnose_text(d: Diagnosis) -> str:
                      "(held-out error and BIC)")
     if d.skipped:
         lines.append(f"skipped (the time budget of {d.budget:g} s was spent): {'; '.join(d.skipped)}")
-    return "\n".join(lines + _ill_conditioned(d.ill_conditioned))
+    return "\n".join(lines + _ill_conditioned(d.ill_conditioned) + _follows_lines(d.follows, d.follows_notes))
 
 
 def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:

@@ -42,6 +42,13 @@ def seconds(stamp: Any) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
+def message_seconds(msg: Any, receive_ns: int) -> float:
+    """A message's time [s]: its header stamp, or when it has no header (std_msgs/Float64, ...) the time
+    it was received (a bag's log time) [ns]."""
+    header = getattr(msg, "header", None)
+    return seconds(header.stamp) if header is not None else receive_ns * 1e-9
+
+
 def stamp_of(msg: Any) -> Stamp:
     """(sec, nanosec) of a message's header stamp."""
     return int(msg.header.stamp.sec), int(msg.header.stamp.nanosec)

@@ -143,6 +143,16 @@ class PlantModel:
         return tuple({i.key: i for e in self.effects for i in e.inputs}.values())
 
     @property
+    def measuring(self) -> bool:
+        """Some effect changes what a sensor reads (the plain channel predictions do not hold)."""
+        return bool(self._measurers)
+
+    @property
+    def refining(self) -> bool:
+        """Some effect's geometry depends on the pose (solved by fixed-point refinement)."""
+        return bool(self._refiners)
+
+    @property
     def plain(self) -> bool:
         """No effect and no pulleys: the rigid model, which the batched solver serves."""
         return not self.effects and not self.plant.sheaves

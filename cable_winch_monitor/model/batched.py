@@ -19,7 +19,7 @@ import numpy as np
 from . import load as loads_
 from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTON_TOL, SLACK_TOL, TENSION_TOL, \
     solve_energy
-from .geometry import skew
+from .geometry import rotations_from_vectors, skew
 from .plant import Plant
 from .result import Solution, SolveStatus, solved, solved_rows
 
@@ -170,17 +170,6 @@ def _geometry(plant: Plant, rotation: np.ndarray, position: np.ndarray):
     return arms, levers, spans / norms[..., None], norms
 
 
-def _rotations(omega: np.ndarray) -> np.ndarray:
-    """exp([omega]x) for stacked rotation vectors (Rodrigues)."""
-    angle = np.linalg.norm(omega, axis=1)
-    small = angle < 1e-12
-    axis = omega / np.where(small, 1.0, angle)[:, None]
-    k = skew(axis)
-    sin, cos = np.sin(angle)[:, None, None], (1.0 - np.cos(angle))[:, None, None]
-    exact = np.eye(3) + sin * k + cos * (k @ k)
-    return np.where(small[:, None, None], np.eye(3) + skew(omega), exact)
-
-
 def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
     """Newton steps on the group's taut set until every sample converges; True where converged.
 
@@ -226,7 +215,7 @@ def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
                                      np.abs(step[:, 0:3]).max(axis=1) / (0.2 * scale), np.ones(live.size)])
         step /= largest[:, None]
         group.position[live] += step[:, 0:3]
-        group.rotation[live] = _rotations(step[:, 3:6]) @ group.rotation[live]
+        group.rotation[live] = rotations_from_vectors(step[:, 3:6]) @ group.rotation[live]
         group.mu[live[:, None], idx] += step[:, 6:]
         group.steps[live] += 1
     return converged

@@ -72,7 +72,8 @@ def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.n
 def _windows(times: np.ndarray, window: float, centred: bool) -> tuple[np.ndarray, np.ndarray]:
     before = window / 2.0 if centred else window
     after = window / 2.0 if centred else 0.0
-    return np.searchsorted(times, times - before, "left"), np.searchsorted(times, times + after, "right")
+    slack = 1e-9 * max(window, 1.0)  # stamps exactly half a window away belong to it on both sides
+    return np.searchsorted(times, times - before - slack, "left"), np.searchsorted(times, times + after + slack, "right")
 
 
 def derivatives(times: np.ndarray, lengths: np.ndarray, speeds: np.ndarray, window: float = ACCELERATION_WINDOW,
@@ -88,11 +89,12 @@ def derivatives(times: np.ndarray, lengths: np.ndarray, speeds: np.ndarray, wind
 
 
 def directions(speeds: np.ndarray) -> np.ndarray:
-    """`motion_direction` along a series of speeds (n, 4), held through stops."""
-    out, current = np.zeros_like(speeds), np.zeros(4)
-    for k, row in enumerate(speeds):
-        current = out[k] = motion_direction(row, current)
-    return out
+    """`motion_direction` along a series of speeds (n, 4) from standing (0), held through stops, in one
+    pass: each sample takes the sign of the last sample moving faster than the dead band."""
+    speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
+    moving = np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, 0.0))
+    last = np.maximum.accumulate(np.where(moving != 0.0, np.arange(len(moving))[:, None], -1), axis=0)
+    return np.where(last >= 0, np.take_along_axis(moving, np.maximum(last, 0), axis=0), 0.0)
 
 
 class ConditionsTracker:

@@ -36,6 +36,15 @@ def rotation_from_vector(omega: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
 
 
+def rotations_from_vectors(omega: np.ndarray) -> np.ndarray:
+    """exp([omega]x) for stacked rotation vectors (n, 3): `rotation_from_vector` of each row, together."""
+    angle = np.linalg.norm(omega, axis=1)
+    small = angle < 1e-12
+    k = skew(omega / np.where(small, 1.0, angle)[:, None])
+    exact = np.eye(3) + np.sin(angle)[:, None, None] * k + (1.0 - np.cos(angle))[:, None, None] * (k @ k)
+    return np.where(small[:, None, None], np.eye(3) + skew(omega), exact)
+
+
 def rotation_about_z(angle: float) -> np.ndarray:
     """Rotation by angle [rad] about the shaft's vertical axis."""
     c, s = np.cos(angle), np.sin(angle)

@@ -87,11 +87,13 @@ def _first_failure(model: PlantModel, policy: AlarmPolicy, base: float, change: 
     return float("inf"), ""
 
 
-def synchronisation_limits(model: PlantModel, length: float) -> list[Limit]:
-    """The envelope for every cable and every adjacent pair, both directions, at payout `length`."""
+def synchronisation_limits(model: PlantModel, length: float,
+                           groups: list[tuple[int, ...]] | None = None) -> list[Limit]:
+    """The envelope for every cable and every adjacent pair (or the cable `groups` given, 0-based), both
+    directions, at payout `length`."""
     policy = AlarmPolicy.from_plant(model.plant)
     limits = []
-    for cables in [(c,) for c in range(4)] + list(ADJACENT_PAIRS):
+    for cables in groups or [(c,) for c in range(4)] + list(ADJACENT_PAIRS):
         for direction in (1, -1):
             change = np.zeros(4)
             change[list(cables)] = direction

@@ -147,11 +147,13 @@ class WinchMonitorNode(Node):
             self.residuals_pub.publish(build(ModelResiduals, fields.model_residuals(stamp, residuals)))
 
     def _on_measurement(self, msg: Any, topic: str) -> None:
-        residuals = self.pipeline.on_measurement(topic, fields.seconds(msg.header.stamp), msg)
-        self._publish_residuals(fields.stamp_of(msg), residuals)
+        now = self.get_clock().now().nanoseconds
+        residuals = self.pipeline.on_measurement(topic, fields.message_seconds(msg, now), msg)
+        stamp = fields.stamp_of(msg) if hasattr(msg, "header") else divmod(now, 1_000_000_000)
+        self._publish_residuals(stamp, residuals)
 
     def _on_input(self, msg: Any, spec: Input) -> None:
-        self.pipeline.on_input(spec, fields.seconds(msg.header.stamp), msg)
+        self.pipeline.on_input(spec, fields.message_seconds(msg, self.get_clock().now().nanoseconds), msg)
 
     def _publish_diagnostics(self) -> None:
         now = self.get_clock().now()

@@ -1,0 +1,119 @@
+"""The fused estimate of a sample under a plant model: every declared channel measured at it, weighted by
+its noise from the plant file, with the model's rope law, load and measurement effects.
+
+The encoders' noise is the plant file's `noise.length` [m]; a plant without it has its
+lengths taken as exact, and the estimate is the model's forward kinematics (`PlantModel.solve`).
+A channel is fused where it was measured (finite) and has a finite noise. Without
+measurement effects the built-in channels are read off the state directly (load pins,
+depth, x, y) or by their analytic prediction (roll, pitch); a user's channel, or any
+channel when measurement effects act (a load pin reading the rope's weight too), is
+predicted by `PlantModel.predict` for each candidate state, differentiated numerically.
+Pose-dependent geometry (sheave tangent points) is not estimated: such a model gives its
+forward kinematics.
+"""
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .. import channels
+from ..model import observations as obs
+from ..model.conditions import Conditions
+from ..model.estimation import Estimate, estimate, estimate_batch
+from ..model.observations import Observation, States
+from ..model.result import Solution, solved_rows
+from .model import NO_CONDITIONS, PlantModel
+
+BUILT_IN = {
+    **{name: (lambda i: lambda value, sigma: obs.load_pin(i, value, sigma))(i)
+       for i, name in enumerate(channels.TENSION_CHANNELS)},
+    "roll": obs.roll, "pitch": obs.pitch,
+    "x": lambda value, sigma: obs.position_component(0, value, sigma),
+    "y": lambda value, sigma: obs.position_component(1, value, sigma),
+    "depth": lambda value, sigma: obs.position_component(2, value, sigma),
+}
+
+
+def length_noise(model: PlantModel) -> float | None:
+    """The encoders' 1-sigma noise [m] (`noise.length` in the plant file), None where not given."""
+    value = model.plant.noise.get("length")
+    return float(value) if value is not None and math.isfinite(value) and value > 0.0 else None
+
+
+def _modelled(model: PlantModel, name: str, value: float | np.ndarray, sigma: float,
+              conditions: Sequence[Conditions]) -> Observation:
+    """A channel predicted by the plant model for each state, at its sample's conditions (numerical gradient)."""
+    plant = model.physical
+
+    def predict(states: States) -> np.ndarray:
+        rows = solved_rows(plant, "estimate", states.spans, states.rotation, states.position, states.tensions,
+                           states.tensions > 0.0, [0] * len(states))
+        samples = states.sample if states.sample is not None else np.zeros(len(states), int)
+        return np.array([model.predict(solution, conditions[k])[name] for solution, k in zip(rows, samples.tolist())])
+
+    return Observation(name, value, sigma, predict)
+
+
+def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarray],
+                     conditions: Sequence[Conditions] = (NO_CONDITIONS,)) -> list[Observation]:
+    """The observations of the measured channels with a noise in the plant file: values a number, or
+    arrays over a batch (NaN where a channel was not measured) with each sample's conditions."""
+    noise = model.plant.noise
+    direct = not model.measuring
+    out = []
+    for name, value in measured.items():
+        sigma = noise.get(channels.get(name).noise_key) if name in channels.names() else None
+        if sigma is None or not math.isfinite(sigma) or sigma <= 0.0 or not np.any(np.isfinite(value)):
+            continue
+        if direct and name in BUILT_IN:
+            out.append(BUILT_IN[name](value, sigma))
+        else:
+            out.append(_modelled(model, name, value, sigma, conditions))
+    return out
+
+
+def _supported(model: PlantModel) -> bool:
+    return length_noise(model) is not None and model.solver == "energy" and not model.refining
+
+
+def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapping[str, float],
+                    conditions: Conditions = NO_CONDITIONS, warm_start: Estimate | None = None) -> Estimate:
+    """The fused state of one sample (never raises); the model's forward kinematics where it cannot fuse."""
+    if not _supported(model):
+        return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
+                        reported)
+    law = model.rope_law
+    try:
+        lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
+    except (TypeError, ValueError):  # not four numbers: the solver's input check says what is wrong
+        return _forward(model.solve(reported, None, conditions), np.full(4, np.nan))
+    return estimate(model.physical, lengths, observations_for(model, measured, [conditions]), length_noise(model),
+                    law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
+
+
+def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
+                       conditions: Sequence[Conditions]) -> list[Estimate]:
+    """`estimate_sample` for N samples at once: reported (N, 4), each channel (N,) (NaN where not
+    measured), each sample's conditions (its load, its lengths, what its sensors read depend on them)."""
+    reported = np.asarray(reported, dtype=float).reshape(-1, 4)
+    if len(conditions) != len(reported):
+        raise ValueError(f"{len(conditions)} conditions for {len(reported)} samples")
+    if not _supported(model):
+        previous: Solution | None = None
+        out = []
+        for row, at in zip(reported, conditions):
+            out.append(_forward(model.solve(row, previous, at), row))
+            previous = out[-1].solution if out[-1].ok else previous
+        return out
+    law = model.rope_law
+    lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
+    loads = np.array([model.load(at) for at in conditions])
+    return estimate_batch(model.physical, lengths, observations_for(model, measured, conditions),
+                          length_noise(model), law.EA, law.weight if law.EA is not None else 0.0,
+                          loads=loads).estimates()
+
+
+def _forward(solution: Solution, reported: Sequence[float]) -> Estimate:
+    return Estimate(solution, np.asarray(reported, dtype=float), np.zeros(4), float("nan"))

@@ -1,0 +1,375 @@
+"""The equilibrium state that best explains every measurement: the cable lengths are measurements too.
+
+Drum encoders report the paid-out lengths with noise (sigma_l, 1 mm at best). Near the
+weak load-sharing mode of four taut rigid ropes (l1 + l3 = l2 + l4) a millimetre moves
+tens of kilonewtons, so forward kinematics of the reported lengths cannot give the
+tensions; load pins, inclinometer and depth gauge can. The estimator finds, for each
+sample, the pose, taut set and tensions, and the length corrections delta, that minimise
+
+    sum_i (delta_i / sigma_l)^2 + sum_k ((predicted_k(state) - value_k) / sigma_k)^2
+
+with the state in static equilibrium J^T(x) tau = F exactly, tau >= 0 on the taut ropes,
+a taut rope's corrected length equal to its span through the rope law (`ropes.Ropes`),
+and a slack rope no longer than its corrected length (delta > 0 only where its span needs it).
+
+Why this form: with the equilibrium as a hard constraint the state has as many degrees of
+freedom as there are taut ropes, and with the lengths alone every taut rope can meet its
+reported length exactly, so the optimum is today's forward kinematics (zero cost). The
+taut set is chosen by an active-set search: the start's set (the previous sample's live,
+the forward kinematics of the reported lengths cold) is solved by `fusion.solve_rows`;
+where the result is doubtful -- a tension below zero, a slack rope overstretched, a
+residual beyond SEARCH_SIGMA -- its neighbouring sets (one rope added, released or
+exchanged) are solved from it, all stacked (together with the start where an observation
+contradicts the start already); where the best of these is still doubtful, every other
+set of two or more ropes. The admissible row of least cost is kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .batched import solve_batch
+from .elastic import solve_elastic
+from .energy import TENSION_TOL, solve_energy
+from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
+from .gate import DEFAULT_PROBABILITY, GateResult, gate_sensors
+from .observations import Observation, States
+from .plant import Plant
+from .result import Solution, SolveStatus, failed, solved_rows, validate_lengths
+from .ropes import Ropes
+
+METHOD = "estimate"
+SEARCH_SIGMA = 3.0        # a residual beyond this many sigma makes the taut set doubtful
+SLACK_SEARCH = 1e-3       # [sigma] a slack rope overstretched by more makes the taut set doubtful
+
+
+def _neighbour_table() -> list[list[int]]:
+    """For each taut set (bit i = rope i), the sets with one rope added, released or exchanged (>= 2 ropes)."""
+    table = []
+    for code in range(16):
+        near = {code ^ (1 << i) for i in range(4)} | {code ^ (1 << i) ^ (1 << j) for i in range(4) for j in range(4)
+                                                     if (code >> i & 1) != (code >> j & 1)}
+        table.append(sorted(c for c in near if bin(c).count("1") >= 2))
+    return table
+
+
+NEIGHBOURS = _neighbour_table()
+ALL_SETS = [[c for c in range(16) if bin(c).count("1") >= 2]] * 16
+BITS = 1 << np.arange(4)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The fused state of one sample.
+
+    solution     the equilibrium (the package's Solution) for the corrected lengths; for
+                 rigid ropes it passes `check_physics` as it is, for elastic ones with
+                 `loaded_lengths` in place of its lengths
+    reported     the lengths the encoders reported [m]
+    corrections  corrected minus reported lengths [m]
+    residuals    (measured - predicted) / sigma of each observation used, by name
+    used         names of the observations measured at this sample (the lengths always are)
+    """
+
+    solution: Solution
+    reported: np.ndarray
+    corrections: np.ndarray
+    sigma_length: float
+    residuals: dict[str, float] = field(default_factory=dict)
+    used: tuple[str, ...] = ()
+    loaded_lengths: np.ndarray | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.solution.ok
+
+    @property
+    def fused(self) -> bool:
+        """True where the state was estimated (False: forward kinematics of the reported lengths only)."""
+        return self.solution.method == METHOD
+
+    @property
+    def corrections_sigma(self) -> np.ndarray:
+        return self.corrections / self.sigma_length
+
+    @property
+    def loaded_solution(self) -> Solution:
+        """The solution with the lengths the corrected ropes have at their tension (for `check_physics`:
+        a taut rope as long as its span, a slack one at least as long)."""
+        if self.loaded_lengths is None:
+            return self.solution
+        return replace(self.solution, lengths=self.loaded_lengths)
+
+    @property
+    def chi_square(self) -> float:
+        """The minimised cost: squared corrections and residuals in sigma."""
+        return float(np.sum(self.corrections_sigma ** 2) + sum(r * r for r in self.residuals.values()))
+
+
+@dataclass
+class BatchEstimate:
+    """Estimates of N samples as arrays; `estimate(i)` gives sample i as an `Estimate`.
+
+    Samples the estimator did not solve (bad input, a single-cable state, no admissible
+    taut set) keep their forward-kinematics `Estimate` in `fallback`.
+    """
+
+    plant: Plant
+    reported: np.ndarray          # (N, 4) [m]
+    corrected: np.ndarray         # (N, 4) [m]
+    loaded: np.ndarray            # (N, 4) [m] spans the corrected ropes make at their tension
+    status: np.ndarray            # (N,) SolveStatus values
+    taut: np.ndarray              # (N, 4) bool
+    tensions: np.ndarray          # (N, 4) [N]
+    rotation: np.ndarray          # (N, 3, 3)
+    position: np.ndarray          # (N, 3) [m]
+    residuals: np.ndarray         # (N, m) (measured - predicted) / sigma, NaN where not measured
+    names: tuple[str, ...]
+    sigma_length: float
+    iterations: np.ndarray
+    loads: np.ndarray             # (N, 6) the external wrench of each sample (model.load)
+    fallback: dict[int, Estimate] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.reported)
+
+    @property
+    def corrections(self) -> np.ndarray:
+        return self.corrected - self.reported
+
+    def estimate(self, i: int) -> Estimate:
+        return self.estimates([i])[0]
+
+    def estimates(self, indices: Sequence[int] | None = None) -> list[Estimate]:
+        """The samples (all by default) as `Estimate`s; the solved ones are built together."""
+        indices = list(range(len(self))) if indices is None else list(indices)
+        rows = np.array([i for i in indices if i not in self.fallback], dtype=int)
+        out = {i: self.fallback[i] for i in indices if i in self.fallback}
+        solutions = solved_rows(self.plant, METHOD, self.corrected[rows], self.rotation[rows], self.position[rows],
+                                self.tensions[rows], self.taut[rows], self.iterations[rows],
+                                loads=self.loads[rows]) if rows.size else []
+        for i, solution in zip(rows.tolist(), solutions):
+            measured = np.isfinite(self.residuals[i])
+            out[i] = Estimate(solution, self.reported[i], self.corrected[i] - self.reported[i], self.sigma_length,
+                              {n: float(r) for n, r, m in zip(self.names, self.residuals[i], measured) if m},
+                              tuple(n for n, m in zip(self.names, measured) if m), self.loaded[i])
+        return [out[i] for i in indices]
+
+
+def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] = (), sigma_length: float = 1e-3,
+             axial_stiffness: object = None, rope_weight: float = 0.0, load: np.ndarray | None = None,
+             warm_start: Estimate | None = None) -> Estimate:
+    """The fused state of one sample: reported lengths (4) [m] with noise sigma_length [m] and the
+    observations (scalar values; NaN = not measured), for rigid ropes (axial_stiffness None) or
+    elastic ones (EA [N], scalar or per rope; rope_weight [N/m]) under the wrench `load`
+    (None: gravity). Live, pass the previous sample's estimate as warm_start. Never raises."""
+    array, reason = validate_lengths(lengths)
+    if array is None:
+        return _unfused(failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan)), np.full(4, np.nan),
+                        sigma_length)
+    try:
+        problem = Problem.build(plant, array[None], sigma_length, observations, Ropes.of(axial_stiffness, rope_weight),
+                                load)
+    except ValueError as error:
+        return _unfused(failed(SolveStatus.INVALID_INPUT, str(error), METHOD, array), array, sigma_length)
+    try:
+        with np.errstate(all="ignore"):
+            return _estimate(problem, _warm_rows(problem, warm_start)).estimate(0)
+    except (ValueError, np.linalg.LinAlgError) as error:
+        return _unfused(failed(SolveStatus.SOLVER_FAILED, f"estimator failed: {error}", METHOD, array), array,
+                        sigma_length)
+
+
+def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Observation] = (),
+                   sigma_length: float = 1e-3, axial_stiffness: object = None, rope_weight: float = 0.0,
+                   loads: np.ndarray | None = None) -> BatchEstimate:
+    """`estimate` for the rows of lengths (N, 4), observation values (N,) each, under `loads` (one
+    wrench (6,) for all, one per sample (N, 6), None: gravity): every sample starts from the batched
+    forward kinematics of its reported lengths, the search runs on all together. ValueError names a
+    bad argument."""
+    lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
+    ropes = Ropes.of(axial_stiffness, rope_weight)
+    with np.errstate(all="ignore"):
+        return _estimate(Problem.build(plant, lengths, sigma_length, observations, ropes, loads), None)
+
+
+def estimate_gated(plant: Plant, lengths: object, observations: Sequence[Observation],
+                   sensors: Mapping[str, Sequence[str]], probability: float = DEFAULT_PROBABILITY,
+                   **options: Any) -> tuple[Estimate, dict[str, GateResult]]:
+    """`estimate` leaving out the sensors that disagree beyond reason: while a sensor (a name and its
+    channels) fails its Mahalanobis gate, the worst one (largest d^2 against its threshold) is left
+    out and the rest estimated again; a sensor left out is gated by its innovation against the
+    estimate without it. Returns the estimate of the trusted sensors and every sensor's gate.
+    `options` are `estimate`'s (sigma_length, axial_stiffness, rope_weight, load, warm_start)."""
+    left_out: set[str] = set()
+    while True:
+        kept = [o for o in observations if not any(o.name in sensors[s] for s in left_out)]
+        fused = estimate(plant, lengths, kept, **options)
+        if not fused.fused:
+            return fused, {}
+        gates = gate_sensors(fused.residuals, {s: c for s, c in sensors.items() if s not in left_out}, probability)
+        failing = {s: g.chi_square / g.threshold for s, g in gates.items() if not g.passed}
+        if not failing or len(gates) - len(failing) < 1:
+            innovations = _innovations(plant, fused, [o for o in observations if o not in kept])
+            gates.update(gate_sensors(innovations, {s: sensors[s] for s in left_out}, probability))
+            return fused, gates
+        left_out.add(max(failing, key=failing.get))
+
+
+def _innovations(plant: Plant, fused: Estimate, observations: Sequence[Observation]) -> dict[str, float]:
+    """(measured - predicted) / sigma of observations the estimate did not use, at its state."""
+    solution = fused.solution
+    states = States(plant, solution.rotation[None], solution.position[None], solution.tensions[None])
+    return {o.name: (float(np.asarray(o.value, dtype=float).reshape(-1)[0]) - float(o.evaluate(states)[0])) / o.sigma
+            for o in observations if np.isfinite(np.asarray(o.value, dtype=float)).all()}
+
+
+def _warm_rows(problem: Problem, warm_start: Estimate | None) -> Rows | None:
+    """The previous state as start, lowered by the change of the mean length."""
+    if warm_start is None or not warm_start.ok:
+        return None
+    previous = warm_start.solution
+    shift = float(previous.lengths.mean() - problem.lengths[0].mean())
+    return Rows(np.zeros(1, int), previous.taut[None].copy(), previous.rotation[None].copy(),
+                (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / problem.scales[0])
+
+
+def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solution]]:
+    """Cold starts: the rigid forward kinematics of the reported lengths (batched for many samples) of
+    the samples it solves, and today's forward kinematics of any sample i (for those the estimator
+    leaves: a single-cable state, bad input, no admissible set)."""
+    plant, ropes = problem.plant, problem.ropes
+    effective = ropes.effective(problem.lengths)
+    if len(effective) == 1:
+        solution = solve_energy(plant, effective[0], load=problem.loads[0])  # one sample: the per-sample solver is the faster
+        picked = [solution] if solution.ok else []
+        start = Rows(np.arange(len(picked)), np.array([s.taut for s in picked], bool).reshape(-1, 4),
+                     np.array([s.rotation for s in picked]).reshape(-1, 3, 3),
+                     np.array([s.position for s in picked]).reshape(-1, 3),
+                     np.array([s.tensions for s in picked]).reshape(-1, 4))
+        rigid = (lambda i: solution)
+    else:
+        batch = solve_batch(plant, effective, loads=problem.loads)
+        ok = np.flatnonzero(batch.ok)
+        start = Rows(ok, batch.taut[ok], batch.rotation[ok], batch.position[ok], batch.tensions[ok])
+        rigid = batch.solution
+    start.mu = start.mu / problem.scales[start.sample, None]
+    if ropes.rigid:
+        return start, rigid
+    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness, load=problem.loads[i])
+
+
+def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
+    count = len(problem.lengths)
+    if warm is not None:
+        best = _search(problem, warm, probe=False)
+        if _admissible(best).all():
+            return _assemble(problem, best, {})
+    cold, forward = _forward_kinematics(problem)
+    cold = _search(problem, cold, probe=True)
+    best = cold.take(np.flatnonzero(_admissible(cold)))
+    missing = sorted(set(range(count)) - set(best.sample.tolist()))
+    return _assemble(problem, best, {i: forward(i) for i in missing})
+
+
+def _admissible(rows: Rows) -> np.ndarray:
+    """Converged, and no taut rope pushing."""
+    return rows.converged & np.all(~rows.taut | (rows.mu >= -TENSION_TOL), axis=1)
+
+
+def _doubtful(rows: Rows) -> np.ndarray:
+    """Rows whose taut set may not be the best: inadmissible, a slack rope overstretched, or a residual
+    beyond SEARCH_SIGMA."""
+    overstretched = np.any(~rows.taut & (rows.residuals[:, :4] > SLACK_SEARCH), axis=1)
+    return ~_admissible(rows) | overstretched | (np.abs(rows.residuals).max(axis=1) > SEARCH_SIGMA)
+
+
+def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
+    """The best admissible row per sample (one start row per sample in, one row per sample out).
+
+    The start's set is solved, with its neighbours where `probe` and an observation already
+    disagrees at the start (from forward kinematics: a load pin reading kilonewtons on a rope
+    the lengths have slack; a warm start is not probed, its pose is a sample old); where the best
+    is doubtful, its neighbours; where the best of these is still doubtful, every other set
+    of two or more ropes is solved from it.
+    """
+    count = len(start.sample)
+    best = Rows(start.sample, start.taut, start.rotation, start.position, start.mu)
+    visited = np.zeros((count, 16), bool)
+    visited[np.arange(count), best.taut @ BITS] = True
+    best.residuals = np.zeros((count, 4 + len(problem.observations)))
+    pending = np.zeros(0, int)
+    if probe and problem.observations:
+        observed = residuals(problem, best, np.arange(count))[:, 4:]
+        pending = np.flatnonzero(np.abs(observed).max(axis=1) > SEARCH_SIGMA)
+    solved = np.zeros(count, bool)
+    for search in (NEIGHBOURS, NEIGHBOURS, ALL_SETS):
+        owner, codes = _candidates(best, pending, visited, search)
+        fresh = np.flatnonzero(~solved)
+        if not fresh.size and not owner.size:
+            break
+        owner = np.concatenate([fresh, owner])
+        taut = np.concatenate([best.taut[fresh], (codes[:, None] & BITS) > 0])
+        candidates = solve_rows(problem, best.take(owner, taut))
+        key = np.where(_admissible(candidates), candidates.cost, np.inf)
+        current = np.where(solved & _admissible(best), best.cost, np.inf)
+        order = np.lexsort((key, owner))
+        first = order[np.r_[True, owner[order][1:] != owner[order][:-1]]]   # cheapest candidate per row
+        better = first[(key[first] < current[owner[first]]) | ~solved[owner[first]]]
+        replaced = owner[better]
+        for name in ("taut", "rotation", "position", "mu", "converged", "cost", "residuals", "steps"):
+            getattr(best, name)[replaced] = getattr(candidates, name)[better]
+        solved[:] = True
+        searched = np.unique(owner)
+        pending = searched[_doubtful(best.take(searched))]
+        if not pending.size:
+            break
+    return best
+
+
+def _candidates(best: Rows, pending: np.ndarray, visited: np.ndarray, search: list[list[int]]) \
+        -> tuple[np.ndarray, np.ndarray]:
+    """Rows and taut-set codes of the unvisited sets `search` lists for the pending rows' sets (marked visited)."""
+    owner, codes = [], []
+    for row in pending.tolist():
+        for code in search[int(best.taut[row] @ BITS)]:
+            if not visited[row, code]:
+                owner.append(row)
+                codes.append(code)
+    owner, codes = np.array(owner, dtype=int), np.array(codes, dtype=int)
+    visited[owner, codes] = True
+    return owner, codes
+
+
+def _assemble(problem: Problem, best: Rows, unsolved: dict[int, Solution]) -> BatchEstimate:
+    """Arrays of every sample: the estimated rows, and forward kinematics where none was admissible."""
+    plant, count = problem.plant, len(problem.lengths)
+    m = len(problem.observations)
+    scales = problem.scales[best.sample, None]
+    tensions = np.where(best.taut, np.maximum(best.mu, 0.0), 0.0) * scales
+    taut = tensions > TENSION_TOL * scales
+    corrected = implied_lengths(problem, best)
+    out = BatchEstimate(plant, problem.lengths, problem.lengths.copy(), problem.lengths.copy(),
+                        np.full(count, SolveStatus.SOLVED.value, dtype=object), np.zeros((count, 4), bool),
+                        np.zeros((count, 4)), np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan),
+                        np.full((count, m), np.nan), tuple(o.name for o in problem.observations),
+                        problem.sigma_length, np.zeros(count, int), problem.loads)
+    rows = best.sample
+    out.corrected[rows] = corrected
+    out.loaded[rows] = problem.ropes.loaded(corrected, tensions)
+    out.taut[rows], out.tensions[rows] = taut, np.where(taut, tensions, 0.0)
+    out.rotation[rows], out.position[rows], out.iterations[rows] = best.rotation, best.position, best.steps
+    measured = np.isfinite(problem.values[rows])
+    out.residuals[rows] = np.where(measured, -best.residuals[:, 4:], np.nan)
+    for i, solution in unsolved.items():
+        out.status[i] = solution.status.value
+        out.fallback[i] = _unfused(solution, problem.lengths[i], problem.sigma_length)
+    return out
+
+
+def _unfused(solution: Solution, reported: np.ndarray, sigma_length: float) -> Estimate:
+    """A forward-kinematics result as an estimate that used nothing but the lengths."""
+    return Estimate(solution, reported, np.zeros(4), sigma_length, {}, (), None)
+

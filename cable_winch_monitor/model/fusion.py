@@ -1,0 +1,260 @@
+"""Gauss-Newton on the equilibrium manifold: the state of one taut set that best explains the measurements.
+
+For stacked rows (sample, taut set, start state) this finds the pose and tensions that
+minimise the sum of squared normalised residuals -- unstretched lengths implied by span
+and tension against the reported lengths (sigma_l), slack ropes longer than their
+reported length, and every observation -- subject to the static equilibrium
+J^T(x) tau = F as a hard constraint. Each step solves the KKT system of the Gauss-Newton
+model with the constraint linearised (an SQP step),
+
+    [A^T A + eps I   C^T] [dz]   [-A^T r]
+    [C               0  ] [nu] = [-c    ],
+
+with dz = (dp, dw, dmu) (position [m], rotation vector [rad] on the left, tensions in
+units of the load's force |f|, m g under gravity). Every row has the same 16 x 16 system: a slack rope's tension is held at
+zero by an identity row, so all rows of all taut sets go to one `np.linalg.solve`.
+eps is a small Levenberg term: along a direction no measurement sees (the weak
+load-sharing mode of four rigid taut ropes without load pins) it keeps the start.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Sequence
+
+import numpy as np
+
+from . import load as loads
+from .geometry import cross, rotations_from_vectors, skew
+from .observations import Observation, States
+from .plant import Plant
+from .ropes import Ropes
+
+MAX_STEPS = 12
+EPS = 1e-6                # Levenberg term (residuals are in sigma, dz in m, rad, m g)
+BALANCE_TOL = 1e-9        # relative force and moment balance at convergence (per 100 m of rope)
+STEP_TOL = 1e-6           # last step [m per 100 m of rope, rad, |f|] at convergence: Newton's next is ~1e-12
+MAX_TURN_STEP = 0.2       # [rad] largest rotation of one step
+MAX_SHIFT_STEP = 0.2      # largest translation of one step, in units of the plant's size
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The measurements of N samples: reported lengths (N, 4), their noise, observation values (N, m).
+
+    Observations that read a state coordinate (load pins, depth) are read off the state
+    together, with a constant Jacobian; the others call their prediction functions.
+    """
+
+    plant: Plant
+    lengths: np.ndarray
+    sigma_length: float
+    observations: tuple[Observation, ...]
+    values: np.ndarray
+    ropes: Ropes
+    loads: np.ndarray         # external wrench of each sample (N, 6) [N, N m about C]
+
+    @classmethod
+    def build(cls, plant: Plant, lengths: np.ndarray, sigma_length: float, observations: Sequence[Observation],
+              ropes: Ropes, load: np.ndarray | None) -> "Problem":
+        """The problem of N samples under `load`: one wrench (6,) for all, one per sample (N, 6), or None
+        for gravity; ValueError names what is wrong."""
+        if not (np.isfinite(sigma_length) and sigma_length > 0.0):
+            raise ValueError(f"length noise sigma must be finite and positive, got {sigma_length!r}")
+        count = len(lengths)
+        values = np.zeros((count, len(observations)))
+        for k, observation in enumerate(observations):
+            value = np.asarray(observation.value, dtype=float)
+            if value.size not in (1, count):
+                raise ValueError(f"observation {observation.name!r}: {value.size} values for {count} samples")
+            values[:, k] = value.reshape(-1)
+        wrenches = np.array(loads.loads_for(plant, load, count), dtype=float)
+        reason = next((r for r in map(loads.check, wrenches) if r), "")
+        if reason:
+            raise ValueError(reason)
+        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrenches)
+
+    @cached_property
+    def scales(self) -> np.ndarray:
+        """|f| of each sample's load [N]: its tensions are solved for in this unit (m g under gravity)."""
+        return np.linalg.norm(self.loads[:, :3], axis=1)
+
+    @cached_property
+    def sigmas(self) -> np.ndarray:
+        return np.array([o.sigma for o in self.observations])
+
+    @cached_property
+    def read_off(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Indices of the coordinate observations, their coordinates, and their Jacobian rows per unit of
+        the state coordinates, divided by their sigma (a tension row is still to be scaled by |f|)."""
+        index = np.array([k for k, o in enumerate(self.observations) if o.coordinate is not None], dtype=int)
+        columns = np.array([self.observations[k].coordinate for k in index], dtype=int)
+        jacobian = np.zeros((index.size, 10))
+        jacobian[np.arange(index.size), columns] = 1.0
+        return index, columns, jacobian / self.sigmas[index, None] if index.size else jacobian
+
+    @cached_property
+    def predicted_by_function(self) -> np.ndarray:
+        return np.array([k for k, o in enumerate(self.observations) if o.coordinate is None], dtype=int)
+
+
+@dataclass
+class Rows:
+    """Stacked candidates: the sample each row explains, its taut set and its state (mu = tau / |f|)."""
+
+    sample: np.ndarray        # (n,) int
+    taut: np.ndarray          # (n, 4) bool
+    rotation: np.ndarray      # (n, 3, 3)
+    position: np.ndarray      # (n, 3)
+    mu: np.ndarray            # (n, 4), zero on slack ropes
+    converged: np.ndarray = field(init=False)   # (n,) bool
+    cost: np.ndarray = field(init=False)        # (n,) sum of squared normalised residuals
+    residuals: np.ndarray = field(init=False)   # (n, 4 + m) normalised residuals (lengths first)
+    steps: np.ndarray = field(init=False)       # (n,) int
+
+    def __post_init__(self) -> None:
+        n = len(self.sample)
+        self.mu = np.where(self.taut, self.mu, 0.0)
+        self.converged = np.zeros(n, bool)
+        self.cost = np.full(n, np.inf)
+        self.residuals = np.zeros((n, 0))
+        self.steps = np.zeros(n, int)
+
+    def take(self, index: np.ndarray, taut: np.ndarray | None = None) -> "Rows":
+        """The rows `index` (copies), with another taut set where given (its slack ropes' tensions zeroed)."""
+        out = Rows(self.sample[index], self.taut[index] if taut is None else taut, self.rotation[index],
+                   self.position[index], self.mu[index])
+        out.converged, out.cost, out.residuals, out.steps = (self.converged[index], self.cost[index],
+                                                              self.residuals[index], self.steps[index])
+        return out
+
+
+def implied_lengths(problem: Problem, rows: Rows) -> np.ndarray:
+    """The corrected lengths of each row (n, 4): a taut rope's unstretched length through the rope law;
+    a slack rope's reported length, or longer where its span needs it."""
+    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scales[rows.sample, None])
+    taut_length = problem.ropes.unstretched(states.spans, states.tensions)[0]
+    slack_length = problem.ropes.unstretched(states.spans, np.zeros_like(states.spans))[0]
+    return np.where(rows.taut, taut_length, np.maximum(slack_length, problem.lengths[rows.sample]))
+
+
+def residuals(problem: Problem, rows: Rows, live: np.ndarray) -> np.ndarray:
+    """Normalised residuals (n, 4 + m) of the rows `live` at their current state: lengths, then observations."""
+    return _residuals(problem, rows, live, False)[0]
+
+
+def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bool):
+    """Normalised residuals r (n, 4+m), their Jacobian A (n, 4+m, 10), constraint c (n, 6) and C (n, 6, 10)."""
+    plant = problem.plant
+    scale = plant.moment_scale
+    weight = problem.scales[rows.sample[live], None]   # |f| of each row's load, (n, 1)
+    rotation, position, mu, taut = rows.rotation[live], rows.position[live], rows.mu[live], rows.taut[live]
+    sample = rows.sample[live]
+    n, m = live.size, len(problem.observations)
+    arms = np.matmul(plant.attachments, np.swapaxes(rotation, 1, 2))           # R b_i: (n, 4, 3)
+    levers = arms - np.matmul(rotation, plant.cog)[:, None, :]
+    spans = position[:, None, :] + arms - plant.anchors
+    norms = np.sqrt(np.einsum("nci,nci->nc", spans, spans))
+    units = spans / norms[..., None]
+    moments = cross(levers, units)
+    lengths = problem.lengths[sample]
+    sigma = problem.sigma_length
+    tensions = mu * weight
+
+    taut_length, d_span, d_tension = problem.ropes.unstretched(norms, tensions)
+    slack_length, d_slack_span, _ = problem.ropes.unstretched(norms, np.zeros_like(norms))
+    excess = slack_length - lengths
+    overstretched = ~taut & (excess > 0.0)
+    residual = np.empty((n, 4 + m))
+    residual[:, :4] = np.where(taut, taut_length - lengths, np.maximum(excess, 0.0)) / sigma
+
+    values = problem.values[sample]
+    measured = ~np.isnan(values)
+    index, columns, read_jacobian = problem.read_off
+    functional = problem.predicted_by_function
+    predicted = np.empty((n, m))
+    if index.size:
+        predicted[:, index] = np.concatenate([position, np.zeros((n, 3)), tensions], axis=1)[:, columns]
+    states = States(plant, rotation, position, tensions, sample) if functional.size else None
+    for k in functional.tolist():
+        predicted[:, k] = problem.observations[k].evaluate(states)
+    residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
+
+    load = problem.loads[sample] / weight
+    constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - load[:, :3],
+                                 (np.einsum("nc,nci->ni", mu, moments) - load[:, 3:]) / scale], axis=1)
+    if not with_jacobian:
+        return residual, None, constraint, None
+
+    jacobian = np.zeros((n, 4 + m, 10))
+    d_pose = np.where(taut, d_span, np.where(overstretched, d_slack_span, 0.0)) / sigma
+    jacobian[:, :4, :3] = d_pose[..., None] * units
+    jacobian[:, :4, 3:6] = d_pose[..., None] * cross(arms, units)
+    jacobian[:, np.arange(4), 6 + np.arange(4)] = np.where(taut, d_tension * weight / sigma, 0.0)
+    if index.size:
+        jacobian[:, 4 + index] = read_jacobian
+    for k in functional.tolist():
+        jacobian[:, 4 + k] = problem.observations[k].jacobian(states) / problem.sigmas[k]
+    jacobian[:, 4:, 6:] *= weight[:, :, None]   # per newton -> per unit of |f|
+    jacobian[:, 4:] *= measured[..., None]
+    jacobian[:, :, 6:] *= taut[:, None, :]
+
+    projector = (np.eye(3) - units[..., :, None] * units[..., None, :]) / norms[..., None, None]
+    weighted = (mu * taut)[..., None, None] * projector
+    sr, sq = skew(arms), skew(levers)
+    balance = np.empty((n, 6, 10))
+    balance[:, 0:3, 0:3] = weighted.sum(axis=1)
+    balance[:, 0:3, 3:6] = -np.matmul(weighted, sr).sum(axis=1)
+    balance[:, 3:6, 0:3] = np.matmul(sq, weighted).sum(axis=1) / scale
+    balance[:, 3:6, 3:6] = ((mu * taut)[..., None, None] * np.matmul(skew(units), sq)
+                            - np.matmul(np.matmul(sq, weighted), sr)).sum(axis=1) / scale
+    balance[:, 0:3, 6:] = np.swapaxes(units * taut[..., None], 1, 2)
+    balance[:, 3:6, 6:] = np.swapaxes(moments * taut[..., None], 1, 2) / scale
+    return residual, jacobian, constraint, balance
+
+
+def solve_rows(problem: Problem, rows: Rows) -> Rows:
+    """Gauss-Newton SQP on every row from its start; sets converged, cost, residuals and steps."""
+    plant = problem.plant
+    reach = np.maximum(1.0, problem.lengths[rows.sample].max(axis=1) * 1e-2)
+    live = np.arange(len(rows.sample))
+    settled = np.zeros(len(rows.sample), bool)
+    for _ in range(MAX_STEPS):
+        residual, jacobian, constraint, balance = _residuals(problem, rows, live, True)
+        n = live.size
+        system = np.zeros((n, 16, 16))
+        hessian = np.swapaxes(jacobian, 1, 2) @ jacobian + EPS * np.eye(10)
+        gradient = np.einsum("nki,nk->ni", jacobian, residual)
+        slack = ~rows.taut[live]
+        held = np.concatenate([np.zeros((n, 6), bool), slack], axis=1)
+        hessian = np.where(held[:, :, None] | held[:, None, :], 0.0, hessian)
+        hessian[:, np.arange(6, 10), np.arange(6, 10)] += slack
+        gradient = np.where(held, np.concatenate([np.zeros((n, 6)), rows.mu[live]], axis=1), gradient)
+        system[:, :10, :10] = hessian
+        system[:, :10, 10:] = np.swapaxes(balance, 1, 2)
+        system[:, 10:, :10] = balance
+        rhs = -np.concatenate([gradient, constraint], axis=1)
+        try:
+            step = np.linalg.solve(system, rhs[..., None])[..., 0][:, :10]
+        except np.linalg.LinAlgError:
+            step = np.stack([np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(system, rhs)])[:, :10]
+        size = np.maximum.reduce([np.abs(step[:, 0:3]).max(axis=1) / reach[live], np.abs(step[:, 3:6]).max(axis=1),
+                                  np.abs(step[:, 6:]).max(axis=1)])
+        largest = np.maximum.reduce([np.abs(step[:, 3:6]).max(axis=1) / MAX_TURN_STEP,
+                                     np.abs(step[:, 0:3]).max(axis=1) / (MAX_SHIFT_STEP * plant.moment_scale),
+                                     np.ones(n)])
+        step /= largest[:, None]
+        rows.position[live] += step[:, 0:3]
+        rows.rotation[live] = rotations_from_vectors(step[:, 3:6]) @ rows.rotation[live]
+        rows.mu[live] += step[:, 6:]
+        rows.steps[live] += 1
+        settled[live[size < STEP_TOL]] = True
+        live = live[size >= STEP_TOL]
+        if not live.size:
+            break
+    everything = np.arange(len(rows.sample))  # residuals and balance where the last steps left the rows
+    residual, _, constraint, _ = _residuals(problem, rows, everything, False)
+    rows.residuals, rows.cost = residual, np.sum(residual ** 2, axis=1)
+    rows.converged = settled & (np.abs(constraint).max(axis=1) < BALANCE_TOL * reach)
+    return rows
+

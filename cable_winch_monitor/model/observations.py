@@ -1,0 +1,162 @@
+"""Measurements the estimator fuses with the cable lengths: a value, its noise and a prediction from the state.
+
+A prediction is a function of stacked equilibrium states (`States`: n rows of pose and
+tensions) returning n predicted readings, with an optional analytic gradient with respect
+to the state coordinates (position [m], a rotation vector [rad] applied on the left,
+tensions [N]); where none is given the estimator differentiates numerically. The built-in
+observations are the plant's sensors as the monitor's rigid model reads them: load pin i
+reads tau_i, the inclinometer roll and pitch of `platform` (REP-103, as
+geometry.roll_pitch_yaw), the depth gauge the platform origin's z (and x, y where measured).
+A user declares any other channel the same way, with its own prediction function.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+
+from .geometry import rotations_from_vectors
+from .plant import CABLE_NAMES, Plant
+
+STATE_SIZE = 10          # position (3), rotation vector (3), tensions (4)
+FD_STEPS = np.array([1e-6] * 3 + [1e-8] * 3 + [1e-3] * 4)  # finite-difference steps [m, rad, N]
+
+
+@dataclass(frozen=True)
+class States:
+    """n equilibrium states: rotation (n, 3, 3), position (n, 3) [m], tensions (n, 4) [N] of `plant`, and
+    the sample each explains (its index in a batch: a prediction may depend on the sample's conditions)."""
+
+    plant: Plant
+    rotation: np.ndarray
+    position: np.ndarray
+    tensions: np.ndarray
+    sample: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.position)
+
+    @cached_property
+    def points_b(self) -> np.ndarray:
+        """Attachment points B_i in `shaft`, (n, 4, 3)."""
+        return self.position[:, None, :] + np.einsum("nij,cj->nci", self.rotation, self.plant.attachments)
+
+    @cached_property
+    def spans(self) -> np.ndarray:
+        """|A_i B_i|, (n, 4) [m]."""
+        return np.linalg.norm(self.points_b - self.plant.anchors, axis=2)
+
+    def moved(self, step: np.ndarray) -> "States":
+        """The states moved by `step` (n, 10) in the state coordinates."""
+        rotation = rotations_from_vectors(step[:, 3:6]) @ self.rotation
+        return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10], self.sample)
+
+
+Predict = Callable[[States], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One measured channel: value (scalar, or (N,) over a batch of samples; NaN = not measured at
+    that sample), 1-sigma noise, and the prediction of its reading from the state.
+
+    `gradient(states)` returns (n, 10): the derivative of the prediction with respect to
+    position [m], rotation vector [rad] (applied on the left: R -> exp([w]x) R) and tensions [N].
+    `coordinate` marks a reading that is one of those coordinates itself (a load pin, the
+    depth gauge): the estimator then reads it off the state without calling `predict`.
+    """
+
+    name: str
+    value: float | np.ndarray
+    sigma: float
+    predict: Predict
+    gradient: Callable[[States], np.ndarray] | None = None
+    coordinate: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.sigma) and self.sigma > 0.0):
+            raise ValueError(f"observation {self.name!r}: noise sigma must be finite and positive, got {self.sigma!r}")
+
+    def evaluate(self, states: States) -> np.ndarray:
+        """The predictions (n,) for n states; ValueError naming the channel where the function gives
+        another shape."""
+        values = np.asarray(self.predict(states), dtype=float)
+        if values.shape != (len(states),):
+            raise ValueError(f"observation {self.name!r}: prediction must give one value per state, "
+                             f"got shape {values.shape} for {len(states)} states")
+        return values
+
+    def jacobian(self, states: States) -> np.ndarray:
+        """(n, 10) derivative of the prediction; central differences where no gradient is declared."""
+        if self.gradient is not None:
+            return np.asarray(self.gradient(states), dtype=float).reshape(len(states), STATE_SIZE)
+        out = np.empty((len(states), STATE_SIZE))
+        for k, h in enumerate(FD_STEPS):
+            step = np.zeros((len(states), STATE_SIZE))
+            step[:, k] = h
+            out[:, k] = (self.evaluate(states.moved(step)) - self.evaluate(states.moved(-step))) / (2.0 * h)
+        return out
+
+    def with_value(self, value: float | np.ndarray) -> "Observation":
+        """The same channel with another reading."""
+        return replace(self, value=value)
+
+
+def _unit_gradient(n: int, column: int) -> np.ndarray:
+    out = np.zeros((n, STATE_SIZE))
+    out[:, column] = 1.0
+    return out
+
+
+def load_pin(cable: int, value: float | np.ndarray, sigma: float) -> Observation:
+    """Load pin of cable `cable` (0-based): reads the rope tension tau_i [N]."""
+    return Observation(f"tension_{CABLE_NAMES[cable]}", value, sigma, lambda s: s.tensions[:, cable],
+                       lambda s: _unit_gradient(len(s), 6 + cable), coordinate=6 + cable)
+
+
+def position_component(axis: int, value: float | np.ndarray, sigma: float) -> Observation:
+    """Depth gauge (axis 2, named 'depth') or a horizontal position sensor (0: 'x', 1: 'y') [m]."""
+    return Observation(("x", "y", "depth")[axis], value, sigma, lambda s: s.position[:, axis],
+                       lambda s: _unit_gradient(len(s), axis), coordinate=axis)
+
+
+def _roll(states: States) -> np.ndarray:
+    r = states.rotation
+    return np.arctan2(r[:, 2, 1], r[:, 2, 2])
+
+
+def _roll_gradient(states: States) -> np.ndarray:
+    """d roll / d omega: with dR = [w]x R, d r_2j = w_0 r_1j - w_1 r_0j."""
+    r = states.rotation
+    r21, r22 = r[:, 2, 1], r[:, 2, 2]
+    norm = r21 ** 2 + r22 ** 2
+    out = np.zeros((len(states), STATE_SIZE))
+    # d atan2(r21, r22) = (r22 d r21 - r21 d r22) / (r21^2 + r22^2)
+    out[:, 3] = (r22 * r[:, 1, 1] - r21 * r[:, 1, 2]) / norm
+    out[:, 4] = -(r22 * r[:, 0, 1] - r21 * r[:, 0, 2]) / norm
+    return out
+
+
+def _pitch(states: States) -> np.ndarray:
+    return np.arcsin(np.clip(-states.rotation[:, 2, 0], -1.0, 1.0))
+
+
+def _pitch_gradient(states: States) -> np.ndarray:
+    r = states.rotation
+    scale = -1.0 / np.sqrt(np.maximum(1.0 - r[:, 2, 0] ** 2, 1e-30))
+    out = np.zeros((len(states), STATE_SIZE))
+    out[:, 3] = scale * r[:, 1, 0]
+    out[:, 4] = -scale * r[:, 0, 0]
+    return out
+
+
+def roll(value: float | np.ndarray, sigma: float) -> Observation:
+    """Inclinometer roll of `platform` [rad] (REP-103)."""
+    return Observation("roll", value, sigma, _roll, _roll_gradient)
+
+
+def pitch(value: float | np.ndarray, sigma: float) -> Observation:
+    """Inclinometer pitch of `platform` [rad] (REP-103)."""
+    return Observation("pitch", value, sigma, _pitch, _pitch_gradient)
