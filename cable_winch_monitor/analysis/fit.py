@@ -103,11 +103,13 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
                    for e in effects]
         return base.with_effects(updated)
 
-    best: list[tuple[float, np.ndarray, np.ndarray]] = []
+    best: list[tuple[float, np.ndarray, np.ndarray]] = []  # (chi-square, z, residuals) of the best call yet
+    calls = [0]
 
     def residual(z: np.ndarray) -> np.ndarray:
         if deadline is not None and best and time.monotonic() > deadline:
             raise _OutOfTime
+        calls[0] += 1
         fun = normalised(evaluator.residuals(model_at(z)), evaluator.data.measured, noise)
         if not best or float(fun @ fun) < best[0][0]:
             best[:] = [(float(fun @ fun), z.copy(), fun)]
@@ -121,7 +123,8 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
                                method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
                                max_nfev=MAX_EVALUATIONS)
     except _OutOfTime:
-        return _truncated(model_at(best[0][1]), free, start + best[0][1] * scale, best[0][0], best[0][2].size)
+        return _truncated(model_at(best[0][1]), free, start + best[0][1] * scale, best[0][0], best[0][2].size,
+                          calls[0])
     count = result.fun.size
     chi2 = float(np.sum(result.fun ** 2))
     information = result.jac.T @ result.jac
@@ -140,12 +143,12 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
 
 
 def _truncated(model: PlantModel, free: list[tuple[str, Parameter]], values: np.ndarray, chi2: float,
-               count: int) -> FitResult:
+               count: int, evaluations: int) -> FitResult:
     """A fit stopped at its deadline: the best values met, no uncertainties."""
-    fit = FitResult(model, free, values, np.full(len(free), np.nan), np.zeros((len(free), len(free))), chi2, count, 0,
-                    truncated=True)
-    fit.warnings = [f"{', '.join(sorted({name for name, _ in free}))}: the fit stopped at the time budget before it "
-                    "converged; its values are the best met so far, not estimates"]
+    fit = FitResult(model, free, values, np.full(len(free), np.nan), np.zeros((len(free), len(free))), chi2, count,
+                    evaluations, truncated=True)
+    fit.warnings = [f"{', '.join(sorted({name for name, _ in free}))}: the fit stopped at the time budget after "
+                    f"{evaluations} evaluations, before it converged; its values are the best met, not estimates"]
     return fit
 
 
