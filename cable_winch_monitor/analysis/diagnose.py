@@ -50,7 +50,7 @@ MAX_DELTA_BIC = -10.0  # "very strong" evidence (Kass and Raftery)
 MIN_GAIN = 0.02        # relative fall of the held-out score an effect must bring to be selected
 SCREEN_SHARE = 0.6     # share of the time left a screening round may take (split among its candidates)
 REFIT_SHARE = 0.5      # share of the time left the joint refit of the selected effects may take
-RESERVE = 0.1          # share of the budget kept for scoring the last fit on the held-out rows
+RESERVE = 0.2          # share of the budget kept for scoring the last fits on the held-out rows and the report
 
 NOISE_FLOOR = 1.1      # held-out score at which nothing is left to explain
 MAX_STEPS = 4
