@@ -19,6 +19,7 @@ from scipy.optimize import root
 from scipy.spatial.transform import Rotation
 
 WEAK = np.array([-1.0, 1.0, -1.0, 1.0])
+BALANCE_TOL = 1e-8  # [m g, 10 m g m] force and moment left unbalanced: a millinewton
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ def weak_mode_truth(plant, payout: float, offsets3: np.ndarray, share: float) ->
     lengths3 = payout + np.asarray(offsets3, dtype=float)
     start = np.concatenate([[0.0, 0.0, -payout], np.zeros(3), np.full(4, 0.25)])
     result = root(_balance, start, args=(plant, lengths3, share), method="hybr", options={"xtol": 1e-13})
-    if not result.success or np.abs(_balance(result.x, plant, lengths3, share)).max() > 1e-9:
+    if np.abs(_balance(result.x, plant, lengths3, share)).max() > BALANCE_TOL:  # hybr may stop at round-off
         return None
     rotation = Rotation.from_rotvec(result.x[3:6]).as_matrix()
     position, tensions = result.x[0:3], result.x[6:10] * plant.weight
@@ -103,3 +104,36 @@ def elastic_truth(plant, lengths: np.ndarray, ea: float, weight: float) -> Truth
         return None
     roll, pitch, _ = Rotation.from_matrix(rotation).as_euler("xyz")
     return Truth(lengths, tensions, rotation, result.x[0:3].copy(), float(roll), float(pitch))
+
+
+def _three_balance(x: np.ndarray, plant, lengths: np.ndarray, taut: np.ndarray) -> np.ndarray:
+    rotation = Rotation.from_rotvec(x[3:6]).as_matrix()
+    position, tensions = x[0:3], np.zeros(4)
+    tensions[taut] = x[6:9] * plant.weight
+    points = position + plant.attachments @ rotation.T
+    pulls = plant.anchors - points
+    spans = np.linalg.norm(pulls, axis=1)
+    forces = tensions[:, None] * pulls / spans[:, None]
+    force = forces.sum(axis=0) + np.array([0.0, 0.0, -plant.weight])
+    moment = np.cross(points - (position + rotation @ plant.cog), forces).sum(axis=0)
+    return np.concatenate([force / plant.weight, moment / (plant.weight * 10.0), spans[taut] - lengths[taut]])
+
+
+def slack_truth(plant, lengths: np.ndarray, slack: int, excess: float) -> Truth | None:
+    """Rigid ropes with rope `slack` (0-based) slack: the other three at `lengths`, the slack one
+    `excess` [m] longer than its span; None where the root finder fails or a taut rope would push."""
+    lengths = np.asarray(lengths, dtype=float).copy()
+    taut = np.arange(4) != slack
+    start = np.concatenate([[0.0, 0.0, -lengths[taut].mean()], np.zeros(3), np.full(3, 1.0 / 3.0)])
+    result = root(_three_balance, start, args=(plant, lengths, taut), method="hybr", options={"xtol": 1e-13})
+    if np.abs(_three_balance(result.x, plant, lengths, taut)).max() > BALANCE_TOL:
+        return None
+    rotation = Rotation.from_rotvec(result.x[3:6]).as_matrix()
+    tensions = np.zeros(4)
+    tensions[taut] = result.x[6:9] * plant.weight
+    if tensions.min() < 0.0:
+        return None
+    position = result.x[0:3].copy()
+    lengths[slack] = np.linalg.norm(plant.anchors[slack] - position - rotation @ plant.attachments[slack]) + excess
+    roll, pitch, _ = Rotation.from_matrix(rotation).as_euler("xyz")
+    return Truth(lengths, tensions, rotation, position, float(roll), float(pitch))

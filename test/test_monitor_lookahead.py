@@ -61,6 +61,9 @@ def one_at_a_time(pipeline: MonitorPipeline, item: SimpleNamespace):
 def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batched, kind):
     """On the rigid plant and on elastic ropes with their weight and sheave friction (batched too)."""
     plant = realistic(plant) if kind == "realistic" else plant
+    # the lengths taken as exact: this stream's inclinometer does not agree with its lengths (the fused
+    # paths are compared in test_monitor_fusion, on sensors that read a root-found truth)
+    plant = plant.with_changes(noise={k: v for k, v in plant.noise.items() if k != "length"})
     items = stream(300)
     reference = MonitorPipeline(plant)
     expected = []

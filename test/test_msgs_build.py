@@ -62,6 +62,8 @@ def tension_distribution():
         equilibrium_residual=1.5e-12,
         solver='energy',
         iterations=42,
+        sensors_used=['tension_cable_1', '/platform/imu'],
+        length_corrections_sigma=[0.5, -1.25, 0.0, 2.0],
     )
 
 
@@ -96,7 +98,8 @@ def test_field_types():
     assert TensionDistribution.get_fields_and_field_types() == {
         'header': 'std_msgs/Header', 'status': 'uint8', 'tension_state': 'string',
         'cables': 'sequence<cable_winch_monitor_msgs/CableTension>',
-        'equilibrium_residual': 'double', 'solver': 'string', 'iterations': 'uint32'}
+        'equilibrium_residual': 'double', 'solver': 'string', 'iterations': 'uint32',
+        'sensors_used': 'sequence<string>', 'length_corrections_sigma': 'sequence<double>'}
     assert CollisionAlarm.get_fields_and_field_types() == {
         'header': 'std_msgs/Header', 'level': 'uint8', 'clearance': 'double',
         'closest_point_name': 'string', 'closest_point_platform': 'geometry_msgs/Point',

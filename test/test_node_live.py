@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import yaml
 
-from cable_winch_monitor.model.geometry import quaternion_from_rotation, roll_pitch_yaw, rotation_from_vector
+from cable_winch_monitor.model.geometry import (quaternion_from_rotation, roll_pitch_of_quaternion, roll_pitch_yaw,
+                                                 rotation_from_vector)
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
@@ -192,14 +193,22 @@ def test_measurements_give_model_residuals(live, plant):
     lengths = TABLE_1[4]
     expected = solve(plant, lengths)
     offsets = np.array([100.0, -200.0, 50.0, 0.0])
-    stamp = live.client.publish(lengths, efforts=expected.tensions + offsets)
-    live.client.outputs(stamp, pose=True)
+    efforts = expected.tensions + offsets
+    stamp = live.client.publish(lengths, efforts=efforts)
+    out = live.client.outputs(stamp, pose=True)
     tensions = live.client.collectors["residuals"].wait_for(stamped(stamp), "/model/residuals of the load pins")
     assert list(tensions.channels) == [f"tension_{name}" for name in CABLE_NAMES]
-    np.testing.assert_allclose(tensions.residuals, offsets, atol=0.01)
+    # the published state is the estimate fusing the pins (the plant file gives the encoders 1 mm):
+    # the residuals are the pins against it, smaller than against the lengths taken as exact
+    assert list(out.tension.sensors_used) == [f"tension_{name}" for name in CABLE_NAMES]
+    published = np.array([c.tension for c in out.tension.cables])
+    np.testing.assert_allclose(tensions.predicted, published, atol=1e-6)
+    np.testing.assert_allclose(tensions.residuals, efforts - published, atol=0.01)
+    assert np.sum(np.square(tensions.residuals)) < np.sum(np.square(offsets))
     np.testing.assert_allclose(np.array(tensions.measured) - tensions.predicted, tensions.residuals)
 
-    roll, pitch, _ = roll_pitch_yaw(expected.rotation)
+    q = out.pose.pose.orientation
+    roll, pitch = roll_pitch_of_quaternion((q.x, q.y, q.z, q.w))
     imu_stamp = live.client.stamps.next()
     live.client.publish_imu(quaternion_rpy(roll + 0.002, pitch - 0.001, 0.3), imu_stamp)
     imu = live.client.collectors["residuals"].wait_for(stamped(imu_stamp), "/model/residuals of the inclinometer")
@@ -207,11 +216,11 @@ def test_measurements_give_model_residuals(live, plant):
     np.testing.assert_allclose(imu.residuals, [0.002, -0.001], atol=1e-7)
 
     depth_stamp = live.client.stamps.next()
-    live.client.publish_position((float("nan"), float("nan"), expected.position[2] - 0.05), depth_stamp)
+    live.client.publish_position((float("nan"), float("nan"), out.pose.pose.position.z - 0.05), depth_stamp)
     depth = live.client.collectors["residuals"].wait_for(stamped(depth_stamp), "/model/residuals of the depth gauge")
     assert list(depth.channels) == ["depth"]
     np.testing.assert_allclose(depth.residuals, [-0.05], atol=1e-6)
-    assert depth.noise[0] == pytest.approx(0.01)
+    assert depth.noise[0] == pytest.approx(plant.noise["depth"])
 
     statuses = live.client.diagnostics(lambda s: "depth rms" in s["winch_monitor: model vs measurement"][2],
                                        "model vs measurement with the depth channel")

@@ -91,7 +91,8 @@ EDGE_CASES = [
     ("cable_winch_monitor_msgs/msg/TensionDistribution",
      {"header": header(frame_id="abc"), "status": 4, "tension_state": "", "cables": [
          {"name": f"cable_{i}" * i, "length": 1.0 * i, "span": NAN, "tension": 0.0, "taut": i % 2 == 0}
-         for i in range(1, 4)], "equilibrium_residual": 1e-9, "solver": "energy", "iterations": 2 ** 32 - 1}),
+         for i in range(1, 4)], "equilibrium_residual": 1e-9, "solver": "energy", "iterations": 2 ** 32 - 1,
+      "sensors_used": ["tension_cable_1", "/platform/imu", "x"], "length_corrections_sigma": [0.5, -1.0, NAN, 3.0]}),
     ("geometry_msgs/msg/PoseStamped",
      {"header": header(frame_id="abcd"), "pose": {"position": xyz(NAN, 0.5, -7), "orientation": {
          "x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}),

@@ -21,7 +21,7 @@ from ..model.result import Solution
 from .conditioning import IllConditioned, ill_conditioned
 from .bagfields import BagFields
 from .data import Dataset
-from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise
 from .follows import Finding, what_follows
 from .motion import describe, motions, shares
 
@@ -61,7 +61,7 @@ def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -
     predicted = evaluator.predicted(model)
     result = Comparison(data.bag, model, data, predicted, sigma, source, evaluator.solutions(model))
     result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
-    result.score = score(result.residuals, data.measured, sigma)
+    result.score = evaluator.score(model, sigma)
     result.regions = failure_regions(result)
     result.ill_conditioned = ill_conditioned(model, data, sigma)
     result.follows = what_follows(data, result.residuals, sigma, fields=fields)

@@ -11,11 +11,13 @@ on a larger one. With per-row warm starts and reused solutions for measurement e
 this keeps a 20-minute bag within minutes.
 
 Forward stepwise: screen every candidate not in the model (others held at their
-values), rank by held-out score and Delta BIC, add the best while its Delta BIC is below
+values), rank by held-out score and Delta BIC, add the best while its held-out score falls and its Delta BIC is below
 MAX_DELTA_BIC both on the training rows and on the held-out rows (chi-square change plus
 k ln n there: the error must fall on data the fit never saw, by more than chance), its held-out
 score falls by at least MIN_GAIN and its fit is honest (no parameter stopped by a bound, no
-physically implausible value: analysis.fit), then refit the added effects jointly. Every candidate is screened at least once (the ranking is the report);
+physically implausible value: analysis.fit), then refit the added effects jointly from the
+previous step's optimum (the effect is not added if the refit ends with a higher training error
+than the step before). Every candidate is screened at least once (the ranking is the report);
 further rounds only while the held-out score is above the sensor-noise floor.
 
 Time budget: candidates are screened cheapest first (measurement effects reuse the
@@ -29,7 +31,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +41,7 @@ from ..progress import Progress
 from .conditioning import IllConditioned, ill_conditioned
 from .bagfields import BagFields, read_fields
 from .data import Dataset, read_bag, require_measurements
-from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score, split, thin
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise, split, thin
 from .fit import FitResult, chi_square, fit_effects
 from .follows import Finding, what_follows
 
@@ -151,7 +153,7 @@ def _screen(current: PlantModel, names: list[str], train: Evaluator, held: Evalu
             continue
         deadline = budget.part(SCREEN_SHARE / (len(names) - k))
         fit = fit_effects(current, [known[name](plant=current.plant)], train, noise, deadline)
-        after = score(held.residuals(fit.model), held.data.measured, noise)
+        after = held.score(fit.model, noise)
         held_bic = chi_square(fit.model, held, noise)[0] - chi2_before + len(fit.free) * np.log(max(count, 1))
         trials.append(Candidate(name, fit, score_now, after, fit.bic - bic_now, float(held_bic)))
         bar.update(bar.done + 1)
@@ -186,7 +188,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     bar = Progress("diagnose", len(pool), enabled=progress, only_tty=True)
     current, added, final = base, [], None
     chi2, count = chi_square(current, train, noise)
-    score_now = score(held.residuals(current), held.data.measured, noise)
+    score_now = held.score(current, noise)
     ladder = [Step(None, float(np.sqrt(chi2 / max(count, 1))), score_now, chi2)]
     bic_screen = chi_square(current, screen, noise)[0]
     ranking: list[Candidate] = []
@@ -198,18 +200,22 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
             break
         trials = _screen(current, pool, screen, held, noise, score_now, bic_screen, clock, bar)
         ranking = ranking or trials
-        if not trials or not _significant(trials[0]):
+        if not trials or not _significant(trials[0]) or trials[0].score_after >= score_now:
             break
         best = trials[0]
+        bar.update(bar.done, f"refitting {', '.join([e.name for e in added] + [best.name])}")
+        joint = fit_effects(base, [*added, best.fit.model.get(best.name)], train, noise,  # from the last optimum
+                            clock.part(REFIT_SHARE))
+        if joint.chi2 > chi2:  # the refit could not keep the training error: the effect does not help
+            break
+        final, chi2 = joint, joint.chi2
         added.append(best.fit.model.get(best.name))
-        bar.update(bar.done, f"refitting {', '.join(e.name for e in added)}")
-        final = fit_effects(base, added, train, noise, clock.part(REFIT_SHARE))
         current = final.model
         bic_screen = chi_square(current, screen, noise)[0] + final.bic - final.chi2
         added = [current.get(e.name) for e in added]
         pool.remove(best.name)
         bar.total += len(pool)
-        score_now = score(held.residuals(current), held.data.measured, noise)
+        score_now = held.score(current, noise)
         ladder.append(Step(best.name, float(np.sqrt(final.chi2 / max(final.count, 1))), score_now, final.bic))
     for candidate in ranking:
         candidate.selected = candidate.name in [step.added for step in ladder]

@@ -6,6 +6,13 @@ otherwise it keeps each row's last solution as the warm start of its next solve 
 changes parameters a little between calls: one or two Newton steps per row). It reuses
 the solutions outright when only measurement effects changed (`solutions` is keyed on
 everything that affects a solve).
+
+Where the plant file gives the encoders a noise (`noise.length`), the lengths are
+measurements too (errors in variables): each row is the fused estimate of its lengths
+and the channels measured at it (effects.estimate), and the length corrections count in
+the score in units of their sigma. A row's cost, its squared corrections and residuals,
+is spread over the channels it measured, so that a model explaining the data down to the
+noise scores 1 as before.
 """
 from __future__ import annotations
 
@@ -14,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import PlantModel
+from ..effects.estimate import estimate_recording, fuses
+from ..model.estimation import Estimate
 from ..model.plant import Plant
 from ..model.result import Solution
 from .. import channels
@@ -33,9 +42,42 @@ class Evaluator:
         self.conditions = data.conditions()
         self._warm: list[Solution | None] = [None] * len(data)
         self._cached: tuple[tuple, list[Solution]] | None = None
+        self._estimated: tuple[tuple, list[Estimate]] | None = None
         self.solves = 0
 
+    def estimates(self, model: PlantModel) -> list[Estimate] | None:
+        """The fused estimate of every row from its lengths and measured channels (None: the model takes
+        the lengths as exact). Measurement effects change an estimate too: keyed on every effect."""
+        if not fuses(model):
+            return None
+        key = (model.solve_key(), tuple((e.name, tuple(e.values.items())) for e in model.effects))
+        if self._estimated is not None and self._estimated[0] == key:
+            return self._estimated[1]
+        measured = {name: self.data.measured[:, c] for c, name in enumerate(self.data.channels)}
+        out = estimate_recording(model, self.data.lengths, measured, self.conditions) if len(self.data) else []
+        self.solves += len(out)
+        self._estimated = (key, out)
+        return out
+
+    def corrections(self, model: PlantModel) -> np.ndarray | None:
+        """(rows, 4) length corrections in sigma of the encoders (None: the lengths taken as exact)."""
+        estimates = self.estimates(model)
+        if estimates is None:
+            return None
+        return np.array([e.corrections_sigma if e.fused else np.zeros(4) for e in estimates]).reshape(-1, 4)
+
+    def normalised(self, model: PlantModel, noise: np.ndarray) -> np.ndarray:
+        """The model's residuals and length corrections in sigma (see `normalised`)."""
+        return normalised(self.residuals(model), self.data.measured, noise, self.corrections(model))
+
+    def score(self, model: PlantModel, noise: np.ndarray) -> float:
+        """The model's noise-normalised score on these rows (see `score`)."""
+        return score(self.residuals(model), self.data.measured, noise, self.corrections(model))
+
     def solutions(self, model: PlantModel) -> list[Solution]:
+        estimates = self.estimates(model)
+        if estimates is not None:
+            return [e.solution for e in estimates]
         key = model.solve_key()
         if self._cached is not None and self._cached[0] == key:
             return self._cached[1]
@@ -87,21 +129,32 @@ class Evaluator:
         return self.data.measured - self.predicted(model)
 
 
-def normalised(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray) -> np.ndarray:
-    """Residuals in units of sensor noise, flattened over measured values; unsolvable rows count as a
-    FAILED_PENALTY-sigma miss (so a fit cannot improve by making rows unsolvable)."""
+def _normalised(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray) -> np.ndarray:
     z = residuals / noise
-    z = np.where(np.isfinite(measured) & ~np.isfinite(z), FAILED_PENALTY, z)
-    return z[np.isfinite(measured)]
+    return np.where(np.isfinite(measured) & ~np.isfinite(z), FAILED_PENALTY, z)
 
 
-def score(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray) -> float:
+def normalised(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray,
+               corrections: np.ndarray | None = None) -> np.ndarray:
+    """Residuals in units of sensor noise, flattened over measured values, then the length corrections
+    [sigma] of the rows (errors in variables); unsolvable rows count as a FAILED_PENALTY-sigma miss (so
+    a fit cannot improve by making rows unsolvable)."""
+    z = _normalised(residuals, measured, noise)[np.isfinite(measured)]
+    return z if corrections is None else np.concatenate([z, corrections.reshape(-1)])
+
+
+def score(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray,
+          corrections: np.ndarray | None = None) -> float:
     """Noise-normalised RMS error: the root of the mean over measured channels of each channel's mean
-    squared normalised error (1.0: the model explains the data down to the sensor noise)."""
-    z = residuals / noise
-    z = np.where(np.isfinite(measured) & ~np.isfinite(z), FAILED_PENALTY, z)
-    per_channel = [np.mean(z[np.isfinite(measured[:, c]), c] ** 2) for c in range(measured.shape[1])
-                   if np.isfinite(measured[:, c]).any()]
+    squared normalised error (1.0: the model explains the data down to the sensor noise). With the
+    rows' length corrections [sigma], each row's squared corrections are shared among the channels it
+    measured (a row's cost is chi-square with as many degrees of freedom as it measured channels)."""
+    z2 = _normalised(residuals, measured, noise) ** 2
+    seen = np.isfinite(measured)
+    if corrections is not None:
+        per_row = np.sum(corrections ** 2, axis=1) / np.maximum(seen.sum(axis=1), 1)
+        z2 = z2 + per_row[:, None]
+    per_channel = [np.mean(z2[seen[:, c], c]) for c in range(measured.shape[1]) if seen[:, c].any()]
     return float(np.sqrt(np.mean(per_channel))) if per_channel else float("nan")
 
 

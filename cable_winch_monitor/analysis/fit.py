@@ -24,7 +24,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..effects import Effect, Parameter, PlantModel
-from .evaluate import Evaluator, normalised
+from .evaluate import Evaluator
 
 MAX_EVALUATIONS = 60
 UNIDENTIFIED_SPREAD = 0.25  # 1-sigma uncertainty / width of the bounds
@@ -78,8 +78,9 @@ class FitResult:
 
 
 def chi_square(model: PlantModel, evaluator: Evaluator, noise: np.ndarray) -> tuple[float, int]:
-    z = normalised(evaluator.residuals(model), evaluator.data.measured, noise)
-    return float(np.sum(z ** 2)), int(z.size)
+    """The squared residuals and length corrections [sigma], and the number of measured values."""
+    z = evaluator.normalised(model, noise)
+    return float(np.sum(z ** 2)), int(np.isfinite(evaluator.data.measured).sum())
 
 
 class _OutOfTime(Exception):
@@ -110,7 +111,7 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
         if deadline is not None and best and time.monotonic() > deadline:
             raise _OutOfTime
         calls[0] += 1
-        fun = normalised(evaluator.residuals(model_at(z)), evaluator.data.measured, noise)
+        fun = evaluator.normalised(model_at(z), noise)
         if not best or float(fun @ fun) < best[0][0]:
             best[:] = [(float(fun @ fun), z.copy(), fun)]
         return fun
@@ -125,7 +126,7 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
     except _OutOfTime:
         return _truncated(model_at(best[0][1]), free, start + best[0][1] * scale, best[0][0], best[0][2].size,
                           calls[0])
-    count = result.fun.size
+    count = int(np.isfinite(evaluator.data.measured).sum())  # the corrections are not more data
     chi2 = float(np.sum(result.fun ** 2))
     information = result.jac.T @ result.jac
     covariance = np.linalg.pinv(information) * max(1.0, chi2 / max(count - len(free), 1))

@@ -12,7 +12,7 @@ import yaml
 
 from ..effects import PlantModel, effect_class
 from .data import Dataset
-from .evaluate import ChannelStats, Evaluator, channel_stats, noise, score, split, thin
+from .evaluate import ChannelStats, Evaluator, channel_stats, noise, split, thin
 from .fit import FitResult, fit_effects
 
 PER_KIND = 300  # training rows per sensor kind the fit uses
@@ -38,7 +38,7 @@ class FitReport:
 def _scores(model: PlantModel, evaluator: Evaluator, sigma: np.ndarray) -> PartScores:
     residuals = evaluator.residuals(model)
     return PartScores(channel_stats(residuals, evaluator.data.measured, sigma, evaluator.data.channels),
-                      score(residuals, evaluator.data.measured, sigma))
+                      evaluator.score(model, sigma))
 
 
 def fit_command(base: PlantModel, data: Dataset, names: Sequence[str]) -> FitReport:

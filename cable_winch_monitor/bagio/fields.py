@@ -14,11 +14,13 @@ import numpy as np
 
 from .. import channels
 from ..channels import JOINT_STATE, WINCH_TOPICS, Input
+from ..model.estimation import Estimate
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution, SolveStatus
 from ..monitor.alarm import Alarm
 from ..monitor.inputs import JointSample
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import sensors_used
 
 FRAME = "shaft"
 NAN = float("nan")
@@ -90,8 +92,10 @@ def pose_stamped(stamp: Stamp, solution: Solution) -> Fields:
     return {"header": header(stamp), "pose": pose(solution)}
 
 
-def tension_distribution(stamp: Stamp, solution: Solution) -> Fields:
-    """Per-cable length, span, tension and taut flag, and the tension state as a whole."""
+def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | None = None) -> Fields:
+    """Per-cable length, span, tension and taut flag, the tension state as a whole, and, for a fused
+    `estimate`, the sensors it used and how far it moved the lengths (in sigma)."""
+    fused = estimate is not None and estimate.fused
     taut = solution.taut_set
     cables = [{"name": name, "length": length, "span": span, "tension": tension, "taut": (i + 1) in taut}
               for i, (name, length, span, tension) in enumerate(zip(
@@ -99,7 +103,9 @@ def tension_distribution(stamp: Stamp, solution: Solution) -> Fields:
     return {"header": header(stamp), "status": STATUS_NUMBERS[solution.status],
             "tension_state": solution.tension_state, "cables": cables,
             "equilibrium_residual": float(np.fmax(solution.force_residual, solution.moment_residual)),
-            "solver": solution.method, "iterations": int(solution.iterations)}
+            "solver": solution.method, "iterations": int(solution.iterations),
+            "sensors_used": sensors_used(estimate) if fused else [],
+            "length_corrections_sigma": _floats(estimate.corrections_sigma) if fused else []}
 
 
 def collision_alarm(stamp: Stamp, alarm: Alarm) -> Fields:

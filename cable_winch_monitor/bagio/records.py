@@ -72,7 +72,7 @@ def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
     tension distribution, collision alarm, residuals (if any)."""
     records = [_record(POSE, fields.pose_stamped(stamp, output.solution)),
                _record(TF, frames.platform_tf(stamp, output.solution))] if output.solution.ok else []
-    records += [_record(TENSION, fields.tension_distribution(stamp, output.solution)),
+    records += [_record(TENSION, fields.tension_distribution(stamp, output.solution, output.estimate)),
                 _record(ALARM, fields.collision_alarm(stamp, output.alarm))]
     return records + residual_records(stamp, output.residuals)
 

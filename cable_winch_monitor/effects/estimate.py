@@ -74,14 +74,15 @@ def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarra
     return out
 
 
-def _supported(model: PlantModel) -> bool:
+def fuses(model: PlantModel) -> bool:
+    """Whether the model's samples are estimated (lengths with a noise, the energy solver, no pose-dependent geometry)."""
     return length_noise(model) is not None and model.solver == "energy" and not model.refining
 
 
 def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapping[str, float],
                     conditions: Conditions = NO_CONDITIONS, warm_start: Estimate | None = None) -> Estimate:
     """The fused state of one sample (never raises); the model's forward kinematics where it cannot fuse."""
-    if not _supported(model):
+    if not fuses(model):
         return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
                         reported)
     law = model.rope_law
@@ -89,7 +90,11 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
         lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
     except (TypeError, ValueError):  # not four numbers: the solver's input check says what is wrong
         return _forward(model.solve(reported, None, conditions), np.full(4, np.nan))
-    return estimate(model.physical, lengths, observations_for(model, measured, [conditions]), length_noise(model),
+    observations = observations_for(model, measured, [conditions])
+    if not observations:  # lengths alone: the forward kinematics, warm-started as the solver is
+        return _forward(model.solve(reported, None if warm_start is None else warm_start.solution, conditions),
+                        reported)
+    return estimate(model.physical, lengths, observations, length_noise(model),
                     law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
 
 
@@ -100,7 +105,7 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
     reported = np.asarray(reported, dtype=float).reshape(-1, 4)
     if len(conditions) != len(reported):
         raise ValueError(f"{len(conditions)} conditions for {len(reported)} samples")
-    if not _supported(model):
+    if not fuses(model):
         previous: Solution | None = None
         out = []
         for row, at in zip(reported, conditions):

@@ -11,6 +11,7 @@ their sum of squares.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -31,6 +32,7 @@ class GateResult:
         return self.chi_square <= self.threshold
 
 
+@lru_cache(maxsize=64)  # every sample gates its sensors: the quantile is computed once per dof
 def chi_square_threshold(dof: int, probability: float = DEFAULT_PROBABILITY) -> float:
     """The chi-square quantile a consistent sensor of `dof` channels stays below with `probability`."""
     from scipy.stats import chi2  # imported on first use: scipy.stats is slow to load

@@ -6,6 +6,12 @@ other sensors as message objects read by their declared channels (channels.py), 
 inputs (a shaft temperature) by the effects' declared `Input`s. Every sample is solved
 through the plant's one model (effects.PlantModel: its effects, its load, its solver)
 at the sample's conditions (time, payout speeds and accelerations, direction, inputs).
+
+Where the plant file gives the encoders a noise (`noise.length`), a sample is not solved
+from its lengths alone but estimated (effects.estimate): its lengths, its load pins and
+the latest readings of the other sensors within the staleness limit, each weighted by
+its noise, warm-started from the previous estimate. A sensor that disagrees beyond its
+Mahalanobis gate for the hold time is left out (sensors.SensorGates).
 """
 from __future__ import annotations
 
@@ -19,13 +25,16 @@ import numpy as np
 from .. import channels
 from ..channels import Input
 from ..effects import PlantModel
+from ..effects.estimate import estimate_sample, fuses
 from ..model.conditions import Conditions, ConditionsTracker
+from ..model.estimation import Estimate
 from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
 from .inputs import CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason
 from .residuals import Residuals, noise_levels, residuals
+from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates
 
 
 @dataclass(frozen=True)
@@ -37,6 +46,8 @@ class MonitorOutput:
     clearance: Clearance | None
     alarm: Alarm
     residuals: Residuals | None
+    estimate: Estimate | None = None  # the fused estimate the solution is (None: the lengths taken as exact)
+    refused: tuple[str, ...] = ()     # sensors left out by their gate
 
 
 class CompleteSample(NamedTuple):
@@ -47,6 +58,7 @@ class CompleteSample(NamedTuple):
     accepted: list[int]  # the cables this message updated
     tensions: list[float]  # load pins of the four cables [N] (NaN: not measured)
     speeds: list[float]  # payout speeds [m/s] (NaN: not reported)
+    sensors: dict[str, float] = {}  # what every sensor read then: the load pins, the latest other readings
 
 
 @dataclass
@@ -73,7 +85,7 @@ class MonitorPipeline:
     """Merges inputs, solves each complete sample (warm-started), and derives alarm and residuals."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
-                 stamp_window: StampWindow | None = None):
+                 stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD):
         self.model = PlantModel.from_plant(plant, solver)  # the one solve path: effects, load, solver
         self.plant, self.solver = plant, solver
         self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
@@ -87,6 +99,11 @@ class MonitorPipeline:
         self.inputs = {spec.key: InputSeries() for spec in self.model.inputs}
         self.last_predicted: dict[str, float] | None = None
         self.noise = noise_levels(plant)
+        self.fusing = solver == "energy" and fuses(self.model)
+        self.readings = LatestReadings(staleness)
+        self.gates = SensorGates(gate_hold)
+        self.last_estimate: Estimate | None = None
+        self.payout: tuple[float, float, float] = (math.nan, math.nan, 0.0)  # stamp, mean length, mean speed
 
     def _reject(self, topic: str, reason: str) -> None:
         self.stats.rejected[f"{topic}: {reason.split(':')[0]}"] += 1
@@ -111,8 +128,26 @@ class MonitorPipeline:
         if lengths is None:
             return None
         readings = self.merger.readings
-        return CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings],
-                              [r.velocity for r in readings])
+        speed = float(np.mean([r.velocity for r in readings]))
+        self.payout = (sample.stamp, float(np.mean(lengths)), speed if math.isfinite(speed) else 0.0)
+        complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings],
+                                  [r.velocity for r in readings])
+        return complete._replace(sensors=self.measured(complete))
+
+    def measured(self, sample: CompleteSample) -> dict[str, float]:
+        """What the sensors read at a complete sample: its load pins and the latest other readings
+        within the staleness limit (every sensor: the gates pick the trusted ones when it is solved)."""
+        pins = {name: value for name, value in zip(channels.TENSION_CHANNELS, sample.tensions) if math.isfinite(value)}
+        return {**self.readings.at(sample.stamp, float(np.mean(sample.lengths))), **pins}
+
+    def payout_at(self, stamp: float) -> float:
+        """The mean payout [m] at `stamp`, carried from the latest complete sample by its payout speed."""
+        taken, length, speed = self.payout
+        return length + speed * (stamp - taken)
+
+    def keep_reading(self, stamp: float, values: dict[str, float]) -> None:
+        """A sensor's readings, kept for the samples to come."""
+        self.readings.add(stamp, values, self.payout_at(stamp))
 
     def inputs_at(self, stamp: float) -> dict[str, float]:
         """The extra inputs' values at `stamp` (interpolated where later values are known, else the latest)."""
@@ -132,20 +167,30 @@ class MonitorPipeline:
         """The conditions of a complete sample: its stamp, speeds, accelerations, direction and inputs."""
         return self.tracker.update(sample.stamp, sample.lengths, np.array(sample.speeds), self.inputs_at(sample.stamp))
 
-    def _solve(self, sample: CompleteSample, solved: tuple[Solution, Clearance | None] | None = None,
+    def estimate(self, sample: CompleteSample, measured: dict[str, float], conditions: Conditions) -> Estimate:
+        """The fused state of a sample from its trusted sensors, warm-started from the previous estimate."""
+        return estimate_sample(self.model, sample.lengths, self.gates.trusted(measured), conditions, self.last_estimate)
+
+    def _solve(self, sample: CompleteSample,
+               solved: tuple[Solution, Clearance | None, Estimate | None] | None = None,
                conditions: Conditions | None = None) -> MonitorOutput:
-        """Solve a complete sample (or take its equilibrium and clearance as `solved` ahead, with its
-        `conditions`), raise its alarm and compare its load pins with the model."""
+        """Solve (or estimate, from what the sensors read) a complete sample, or take its equilibrium,
+        clearance and estimate as `solved` ahead with its `conditions`; raise its alarm, gate its
+        sensors and compare its load pins with the model."""
         conditions = conditions or self.conditions(sample)
         if solved is None:
-            solution = self.model.solve(sample.lengths, self._warm_start(), conditions)
-            solved = solution, solution_clearance(self.model.physical, solution)
-        solution, clearance = solved
+            fused = self.estimate(sample, sample.sensors, conditions) if self.fusing else None
+            solution = fused.solution if fused is not None else \
+                self.model.solve(sample.lengths, self._warm_start(), conditions)
+            solved = solution, solution_clearance(self.model.physical, solution), fused
+        solution, clearance, fused = solved
         alarm = self.alarms.update(solution, clearance)
-        measured = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+        pins = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
         predicted = self.model.predict(solution, conditions) if solution.ok else None
-        resid = residuals(self.noise, sample.stamp, measured, predicted) if predicted is not None else None
-        output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid)
+        resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
+        if fused is not None and predicted is not None:
+            self._gate(sample.stamp, fused, sample.sensors, predicted)
+        output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, self.gates.refused)
         self.stats.solved += int(solution.ok)
         self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
         self.stats.states[solution.tension_state] += 1
@@ -153,11 +198,21 @@ class MonitorPipeline:
         self.last = output
         if solution.ok:
             self.last_solved, self.last_predicted = output, predicted
+            self.last_estimate = fused
         return output
 
-    def on_measurement(self, topic: str, stamp: float, message: Any) -> Residuals | None:
-        """A sensor message (inclinometer, depth gauge, a declared channel's topic): the residuals of
-        its channels against the latest solved pose."""
+    def _gate(self, stamp: float, fused: Estimate, measured: dict[str, float], predicted: dict[str, float]) -> None:
+        """Each sensor's verdict: a used channel by its residual in the estimate, one left out by its
+        innovation against the estimate's prediction."""
+        normalised = {name: fused.residuals[name] if name in fused.residuals
+                      else (value - predicted.get(name, math.nan)) / self.noise.get(name, math.nan)
+                      for name, value in measured.items()}
+        self.gates.update(stamp, normalised)
+
+    def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True) -> Residuals | None:
+        """A sensor message (inclinometer, depth gauge, a declared channel's topic): its readings kept
+        for the samples to come (unless `keep` is False: replay keeps them ahead), the residuals of its
+        channels against the latest solved pose."""
         self.stats.messages[topic] += 1
         reason = measurement_reason(message, self.limits)
         if reason:
@@ -167,6 +222,8 @@ class MonitorPipeline:
         if not any(math.isfinite(v) for v in values.values()):
             self._reject(topic, "bad measurement: no finite value in " + ", ".join(values))
             return None
+        if keep:
+            self.keep_reading(stamp, values)
         last = self.last_solved
         if last is None or abs(stamp - last.stamp) > self.staleness:
             self._reject(topic, "no solved pose within the staleness limit")

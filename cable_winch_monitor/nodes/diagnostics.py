@@ -1,8 +1,9 @@
 """/diagnostics from the monitor's counters and the node clock.
 
-Four statuses: the solver (with input and solve rates and the samples skipped because a
+Five statuses: the solver (with input and solve rates and the samples skipped because a
 newer one came first), the inputs (per cable stamp, age and rate; rejections), the
-collision alarm and model-versus-measurement residuals. Ages and rates are taken
+collision alarm, model-versus-measurement residuals and the sensor fusion (the sensors
+the estimate used, how far it moved the lengths, the sensors its gates left out). Ages and rates are taken
 against the node clock, so under `use_sim_time` they follow the bag's /clock.
 """
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ..model.result import SolveStatus
 from ..monitor.alarm import AlarmLevel
 from ..monitor.latest import LatestSamplePipeline
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import sensors_used
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 RATE_WINDOW = 2.0          # [s] of node time over which input rates are counted
@@ -77,8 +79,9 @@ class DiagnosticsReporter:
             arrivals.popleft()
 
     def build(self, pipeline: LatestSamplePipeline, now: float, stamp: Time) -> DiagnosticArray:
-        """All four statuses at node time `now` [s], stamped `stamp`."""
-        statuses = [self._solver(pipeline, now), self._inputs(pipeline, now), self._alarm(pipeline), self._model()]
+        """All five statuses at node time `now` [s], stamped `stamp`."""
+        statuses = [self._solver(pipeline, now), self._inputs(pipeline, now), self._alarm(pipeline), self._model(),
+                    self._fusion(pipeline)]
         return DiagnosticArray(header=Header(stamp=stamp), status=statuses)
 
     def throughput_rates(self, pipeline: LatestSamplePipeline, now: float) -> tuple[float, float]:
@@ -166,6 +169,30 @@ class DiagnosticsReporter:
                        for pair, error in zip(alarm.sync_error_pairs, alarm.sync_errors)})
         return _status("collision alarm", ALARM_DIAGNOSTIC[alarm.level], f"{alarm.level.name}: {alarm.reason}", values,
                        self.hardware_id)
+
+    def _fusion(self, pipeline: LatestSamplePipeline) -> DiagnosticStatus:
+        """The last sample's estimate: sensors used and length corrections [sigma]; sensors refused by their gate."""
+        if not pipeline.fusing:
+            return _status("sensor fusion", OK, "lengths taken as exact (no noise.length in the plant file)", {},
+                           self.hardware_id)
+        gates = pipeline.gates
+        refused = gates.refused
+        values: dict[str, object] = {"gate hold [s]": gates.hold, "refused": ", ".join(refused)}
+        values.update({f"{sensor} gate chi-square": f"{d2:.3g}" for sensor, d2 in sorted(gates.last_chi_square.items())})
+        last = pipeline.last
+        estimate = last.estimate if last is not None else None
+        if estimate is None or not estimate.fused:
+            message = "no estimate yet" if estimate is None else f"lengths only: {estimate.solution.tension_state}"
+        else:
+            used = sensors_used(estimate)
+            values["sensors used"] = ", ".join(used)
+            values.update({f"{name} length correction [sigma]": f"{c:.3g}"
+                           for name, c in zip(CABLE_NAMES, estimate.corrections_sigma)})
+            message = f"fused {len(used)} sensors, largest length correction " \
+                      f"{np.abs(estimate.corrections_sigma).max():.2f} sigma"
+        if refused:
+            message = "left out (gate): " + ", ".join(refused) + "; " + message
+        return _status("sensor fusion", WARN if refused else OK, message, values, self.hardware_id)
 
     def _model(self) -> DiagnosticStatus:
         if not self.residuals:

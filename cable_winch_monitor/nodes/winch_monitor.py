@@ -40,6 +40,7 @@ from ..monitor.inputs import StampWindow
 from ..monitor.latest import LatestSamplePipeline
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import DEFAULT_HOLD
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
 from .diagnostics import DiagnosticsReporter
 from .winch_input import WinchInput
@@ -76,6 +77,10 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
     ("staleness", 0.5, ParameterDescriptor(
         description="[s] a sample is solved only when no cable's latest length is older than this",
         floating_point_range=_range(0.001, 60.0), read_only=True)),
+    ("gate_hold", DEFAULT_HOLD, ParameterDescriptor(
+        description="[s] a sensor failing its Mahalanobis gate this long is left out of the estimate "
+                    "(and taken back after passing as long)", floating_point_range=_range(0.0, 3600.0),
+        read_only=True)),
     ("stamp_ahead", StampWindow.ahead, ParameterDescriptor(
         description="[s] a winch stamp later than its arrival on the node clock by more than this is refused",
         floating_point_range=_range(0.001, 1e10), read_only=True)),
@@ -107,7 +112,8 @@ class WinchMonitorNode(Node):
         value = self._parameter
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
         window = StampWindow(value("stamp_ahead"), value("stamp_behind"), value("stamp_skew"))
-        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window)
+        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window,
+                                             gate_hold=value("gate_hold"))
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0
@@ -206,7 +212,7 @@ class WinchMonitorNode(Node):
         if output.solution.ok:  # never a pose that was not solved
             self.pose_pub.publish(build(PoseStamped, fields.pose_stamped(stamp, output.solution)))
             self.tf_pub.publish(build(TFMessage, frames.platform_tf(stamp, output.solution)))
-        self.tension_pub.publish(build(TensionDistribution, fields.tension_distribution(stamp, output.solution)))
+        self.tension_pub.publish(build(TensionDistribution, fields.tension_distribution(stamp, output.solution, output.estimate)))
         self.alarm_pub.publish(build(CollisionAlarm, fields.collision_alarm(stamp, output.alarm)))
         self._publish_residuals(stamp, output.residuals)
         if self.scene_throttle.due(output.stamp):

@@ -1,0 +1,101 @@
+"""What the monitor fuses with each sample's lengths: the latest readings of every channel, and which
+sensors it still trusts.
+
+A sensor is a load pin (one channel) or a topic's instrument (the inclinometer's roll and
+pitch, the position gauge's x, y and depth, a user's declared channel). A reading is
+fused with the samples stamped within the staleness limit of it; the depth gauge's is
+first carried to the sample's stamp by the payout since it was taken (the platform hangs
+on vertical ropes: its depth follows the mean payout), as a stale depth reading of a
+moving platform would otherwise be centimetres off. A sensor whose reading
+disagrees with the estimate beyond its Mahalanobis gate for `hold` seconds is left out
+(`model.gate.HeldGate`), and taken back once it has agreed as long.
+"""
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+from .. import channels
+from ..model.estimation import Estimate
+from ..model.gate import DEFAULT_PROBABILITY, HeldGate, chi_square_threshold
+
+CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
+DEFAULT_HOLD = 1.0  # [s] a sensor fails (or passes) its gate this long before it is left out (taken back)
+
+
+def sensor_of(channel: str) -> str:
+    """The sensor a channel belongs to: a load pin is its own, any other channel its topic's instrument."""
+    if channel in channels.TENSION_CHANNELS:
+        return channel
+    declared = channels.get(channel) if channel in channels.names() else None
+    return declared.topics[0] if declared is not None else channel
+
+
+def sensors_used(estimate: Estimate) -> list[str]:
+    """The sensors whose channels an estimate used, in the channels' declared order."""
+    used = set(estimate.used)
+    ordered = [name for name in channels.names() if name in used] + sorted(used - set(channels.names()))
+    return list(dict.fromkeys(sensor_of(name) for name in ordered))
+
+
+class LatestReadings:
+    """The latest finite reading of each channel read off a sensor topic, with its stamp and the mean
+    payout [m] then."""
+
+    def __init__(self, staleness: float):
+        self.staleness = staleness
+        self.values: dict[str, tuple[float, float, float]] = {}
+
+    def add(self, stamp: float, values: Mapping[str, float], payout: float) -> None:
+        for name, value in values.items():
+            if math.isfinite(value) and math.isfinite(stamp):
+                self.values[name] = (stamp, value, payout)
+
+    def at(self, stamp: float, payout: float) -> dict[str, float]:
+        """The readings stamped within the staleness limit of `stamp`, carried to the mean payout then."""
+        out = {}
+        for name, (taken, value, then) in self.values.items():
+            if abs(stamp - taken) <= self.staleness:
+                carry = CARRIED.get(name, 0.0) * (payout - then) if carry_known(payout, then) else 0.0
+                out[name] = value + carry
+        return out
+
+
+def carry_known(payout: float, then: float) -> bool:
+    return math.isfinite(payout) and math.isfinite(then)
+
+
+class SensorGates:
+    """One held Mahalanobis gate per sensor: which sensors are trusted, and which are left out now."""
+
+    def __init__(self, hold: float = DEFAULT_HOLD, probability: float = DEFAULT_PROBABILITY):
+        if not (math.isfinite(hold) and hold >= 0.0):
+            raise ValueError(f"gate hold time must be a finite number of seconds >= 0, got {hold!r}")
+        self.hold, self.probability = hold, probability
+        self.gates: dict[str, HeldGate] = {}
+        self.last_chi_square: dict[str, float] = {}
+
+    def trusted(self, measured: Mapping[str, float]) -> dict[str, float]:
+        """The measured channels of the sensors not left out."""
+        return {name: value for name, value in measured.items() if self.is_trusted(sensor_of(name))}
+
+    def is_trusted(self, sensor: str) -> bool:
+        gate = self.gates.get(sensor)
+        return gate is None or gate.trusted
+
+    @property
+    def refused(self) -> tuple[str, ...]:
+        """The sensors left out now."""
+        return tuple(sorted(s for s, gate in self.gates.items() if not gate.trusted))
+
+    def update(self, stamp: float, normalised: Mapping[str, float]) -> None:
+        """Each sensor's verdict at `stamp` from its channels' (measured - predicted) / sigma."""
+        grouped: dict[str, list[float]] = {}
+        for name, value in normalised.items():
+            if math.isfinite(value):
+                grouped.setdefault(sensor_of(name), []).append(value)
+        for sensor, values in grouped.items():  # normalised innovations: d^2 is their sum of squares
+            chi_square = math.fsum(v * v for v in values)
+            self.last_chi_square[sensor] = chi_square
+            passed = chi_square <= chi_square_threshold(len(values), self.probability)
+            self.gates.setdefault(sensor, HeldGate(self.hold)).update(stamp, passed)
