@@ -17,6 +17,7 @@ from .model.solve import METHODS
 from .paths import config_dir
 from .sim.scenario import ScenarioError
 
+DIAGNOSE_BUDGET = 180.0  # [s] default wall time of `diagnose`: a 20-minute recording in three minutes
 
 class UsageError(Exception):
     """A command line that cannot be carried out; the message says why."""
@@ -181,24 +182,15 @@ def _limits(args: argparse.Namespace) -> int:
 def _analysis_inputs(args: argparse.Namespace):
     """The plant model (with its effects, user modules loaded) and the bag's measurements for compare and
     fit; UsageError if the bag holds none."""
-    from .analysis.data import read_bag
+    from .analysis.data import read_bag, require_measurements
     from .effects import PlantModel, load_module
 
     for path in args.effect_module:
         load_module(path)
     model = PlantModel.from_plant(load_plant(args.config))
     data = read_bag(args.bag, model.inputs)
-    _require_measurements(data)
+    require_measurements(data)
     return model, data
-
-
-def _require_measurements(data) -> None:
-    """Refuse a bag that holds no measurement the model could be compared with."""
-    import numpy as np
-
-    if not len(data) or not np.isfinite(data.measured).any():
-        raise UsageError(f"{data.bag}: no measurements to compare the model with (load pins, inclinometer or "
-                         "depth gauge readings with the four cable lengths): nothing to compare")
 
 
 def _write_json(path: str | None, content: dict) -> None:
@@ -227,9 +219,7 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _diagnose(args: argparse.Namespace) -> int:
     from .analysis import report
-    from .analysis.bagfields import read_fields
-    from .analysis.diagnose import diagnose, diagnosis_inputs
-    from .analysis.evaluate import noise
+    from .analysis.diagnose import diagnose_bag
     from .effects import load_module
     from .fleet import diagnose_job, is_fleet
 
@@ -239,9 +229,8 @@ def _diagnose(args: argparse.Namespace) -> int:
     candidates = _effect_names(args.candidates, "--candidates")
     if is_fleet(args.bag):
         return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
-    model, data = diagnosis_inputs(args.bag, load_plant(args.config), candidates)
-    _require_measurements(data)
-    result = diagnose(model, data, noise(model.plant, data)[0], candidates, read_fields(args.bag))
+    budget = args.budget if args.budget > 0 else None
+    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates, budget, progress=True)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0
@@ -291,6 +280,9 @@ def _add_analysis(sub: argparse._SubParsersAction) -> None:
             p.add_argument("--html", metavar="PATH", help="write a standalone HTML report with plots")
         if name == "diagnose":
             p.add_argument("--candidates", help="comma-separated effects to consider (default: every known one)")
+            p.add_argument("--budget", type=float, default=DIAGNOSE_BUDGET, metavar="SECONDS",
+                           help=f"wall time to spend (default {DIAGNOSE_BUDGET:g} s; 0: no limit); what did not fit "
+                           "in it is reported as skipped")
             p.add_argument("--out", metavar="FOLDER", help="fleet diagnose (bag is a folder of bags): a new folder "
                            "for one JSON result per bag; --json then writes the summary table")
             _add_fleet_options(p, "diagnose")

@@ -23,7 +23,15 @@ CASES = {
     # strongly inclined ropes (wide sheaves, shallow platform) to show at all
     "sheave_geometry": ({"r": 2.5}, "wide", SHALLOW),
     "tension_sensor_bending": ({"B": 150.0}, "elastic", None),
+    "load_pin_calibration": ({"zero_1": 2000.0, "zero_3": -1500.0, "gain_2": 0.03, "gain_4": -0.02}, "elastic", None),
+    # ropes up posts from winches at their feet, over pulleys: the wrapped arc changes with the rope angle
+    "pulley_geometry": ({"r": 1.0}, "wide", SHALLOW),
 }
+
+
+# effects of a sensor's mounting, applied to the recorded readings themselves (the simulator's
+# inclinometer reads the true attitude): effect -> (channel offsets, confounders screened with it)
+MOUNTED = {"inclinometer_offset": ({"roll": 0.01, "pitch": -0.008}, ["cog_offset", "encoder_offset"])}
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +55,24 @@ def _diagnosis(tmp_path, plants, name, hidden, plant, profile):
 
 def test_every_builtin_has_a_case():
     builtins = {name for name, cls in available().items() if cls.__module__.startswith("cable_winch_monitor.")}
-    assert builtins == set(CASES)
+    assert builtins == set(CASES) | set(MOUNTED)
+
+
+@pytest.mark.parametrize("name", list(MOUNTED))
+def test_mounting_offset_is_found(tmp_path, plants, name):
+    """The readings of a tilted sensor are the platform's attitude plus the mounting: shift the recorded columns."""
+    offsets, confounders = MOUNTED[name]
+    bag = simulate_bag(tmp_path, "nominal", plants["elastic"], {}, duration=60.0)
+    base = PlantModel.from_plant(load_plant(plants["elastic"]))
+    data = read_bag(bag)
+    for channel, offset in offsets.items():
+        data.measured[:, data.channels.index(channel)] += offset
+    result = diagnose(base, data, noise(base.plant, data)[0], [name, *confounders])
+    assert result.selected == [name], [(c.name, c.score_after) for c in result.ranking]
+    params = result.final.params(name)
+    for key, true in offsets.items():
+        assert abs(params[key]["value"] - true) <= 0.1 * abs(true), (key, true, params[key])
+    assert result.ladder[0].score_heldout > 5.0 and result.ladder[-1].score_heldout <= 1.3
 
 
 @pytest.mark.parametrize("name", list(CASES))

@@ -4,7 +4,9 @@ A failure region is a stretch of time where some channel's error exceeds 3 sigma
 samples (isolated 3-sigma samples are noise: 0.3 % of them exceed it by chance),
 described by what the plant was doing: payout, the share of lowering, hoisting and
 standing within it (a region may span many moves), tension state, and which channels and
-cables miss in which direction.
+cables miss in which direction. Where a channel's prediction is ill-conditioned on the
+lengths (analysis.conditioning), that is said too: an error there blames the encoders'
+millimetres as much as the model.
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..model.result import Solution
+from .conditioning import IllConditioned, ill_conditioned
 from .bagfields import BagFields
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise
@@ -41,6 +44,7 @@ class Comparison:
     channels: dict[str, ChannelStats] = field(default_factory=dict)
     score: float = float("nan")
     regions: list[dict[str, Any]] = field(default_factory=list)
+    ill_conditioned: list[IllConditioned] = field(default_factory=list)  # where the lengths do not determine a channel
     follows: list[Finding] = field(default_factory=list)
     follows_notes: list[str] = field(default_factory=list)
 
@@ -59,6 +63,7 @@ def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -
     result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
     result.score = evaluator.score(model, sigma)
     result.regions = failure_regions(result)
+    result.ill_conditioned = ill_conditioned(model, data, sigma)
     result.follows = what_follows(data, result.residuals, sigma, fields=fields)
     result.follows_notes = fields.remarks() if fields else []
     return result

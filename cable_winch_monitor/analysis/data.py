@@ -113,6 +113,13 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[In
     return data
 
 
+def require_measurements(data: Dataset) -> None:
+    """Refuse (BagError) a bag that holds no measurement the model could be compared with."""
+    if not len(data) or not np.isfinite(data.measured).any():
+        raise BagError(f"{data.bag}: no measurements to compare the model with (load pins, inclinometer or "
+                       "depth gauge readings with the four cable lengths): nothing to compare")
+
+
 def _dataset(bag: str, joints: list, others: list, names: tuple[str, ...], sources: tuple[str, ...]) -> Dataset:
     joints.sort(key=lambda j: j[0])
     times = np.array([j[0] for j in joints])

@@ -7,9 +7,16 @@ model is not perfect); correlations from the same matrix. A parameter whose 1-si
 uncertainty exceeds a quarter of its bounds' range, or that is correlated beyond 0.98
 with another, is reported as not identified by the data, as are the effect's own
 reasons (e.g. sheave friction without motion in both directions).
+
+A parameter that ends at its bound (or within AT_BOUND, 1 %, of it) was
+stopped by the bound, not by the data: its value is not an estimate and its Jacobian
+uncertainty means nothing, so it is listed in `at_bound` and warned about, and the
+effect is never reported as found. Values outside an effect's physical plausibility
+(`Effect.implausible`, e.g. a mass change beyond 30 %) are listed and warned about too.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -22,6 +29,8 @@ from .evaluate import Evaluator
 MAX_EVALUATIONS = 60
 UNIDENTIFIED_SPREAD = 0.25  # 1-sigma uncertainty / width of the bounds
 UNIDENTIFIED_CORRELATION = 0.98
+AT_BOUND = 0.01     # a value within 1 % of a bound ended on it (bounds span decades: relative to the bound) ...
+ZERO_BOUND = 1e-4   # ... or, for a bound at zero, within 1 % of this share of the bounds' width
 
 
 @dataclass
@@ -37,6 +46,14 @@ class FitResult:
     count: int
     evaluations: int
     warnings: list[str] = field(default_factory=list)
+    at_bound: list[str] = field(default_factory=list)      # "effect.parameter" stopped by a bound
+    implausible: list[str] = field(default_factory=list)   # why a fitted value is physically implausible
+    truncated: bool = False  # stopped at its deadline: the best values met so far, not converged
+
+    def honest(self, effect: str) -> bool:
+        """The fitted values of `effect` are estimates: none ended on a bound, none is implausible."""
+        return not self.truncated and not any(label.split(".")[0] == effect for label in self.at_bound) and \
+            not any(reason.startswith(f"{effect}.") for reason in self.implausible)
 
     @property
     def bic(self) -> float:
@@ -44,12 +61,13 @@ class FitResult:
         return self.chi2 + len(self.free) * np.log(max(self.count, 1))
 
     def params(self, effect: str) -> dict[str, dict[str, Any]]:
-        """{parameter: {value, sigma, unit}} of one effect (all its parameters; fixed ones without sigma)."""
+        """{parameter: {value, sigma, unit, at_bound}} of one effect (all its parameters; fixed ones without sigma)."""
         out = {}
         for name, value in self.model.get(effect).values.items():
             index = next((k for k, (e, p) in enumerate(self.free) if e == effect and p.name == name), None)
             unit = next(p.unit for p in type(self.model.get(effect)).parameters if p.name == name)
-            out[name] = {"value": value, "sigma": None if index is None else float(self.sigmas[index]), "unit": unit}
+            out[name] = {"value": value, "sigma": None if index is None else float(self.sigmas[index]), "unit": unit,
+                         "at_bound": f"{effect}.{name}" in self.at_bound}
         return out
 
     def correlations(self) -> dict[str, float]:
@@ -65,8 +83,15 @@ def chi_square(model: PlantModel, evaluator: Evaluator, noise: np.ndarray) -> tu
     return float(np.sum(z ** 2)), int(np.isfinite(evaluator.data.measured).sum())
 
 
-def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray) -> FitResult:
-    """Fit the fittable parameters of `effects` (added to `base`, others held) from their current values."""
+class _OutOfTime(Exception):
+    """The fit's deadline passed."""
+
+
+def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray,
+                deadline: float | None = None) -> FitResult:
+    """Fit the fittable parameters of `effects` (added to `base`, others held) from their current values;
+    at `deadline` (time.monotonic) the fit stops with the best values met so far (`truncated`)."""
+    effects = [e if e.for_plant is not None else type(e)(e.values, base.plant) for e in effects]  # bounds of this plant
     free = [(e.name, p) for e in effects for p in e.fitted()]
     start = np.array([next(e for e in effects if e.name == name)[p.name] for name, p in free])
     scale = np.array([p.scale for _, p in free])
@@ -79,15 +104,28 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
                    for e in effects]
         return base.with_effects(updated)
 
+    best: list[tuple[float, np.ndarray, np.ndarray]] = []  # (chi-square, z, residuals) of the best call yet
+    calls = [0]
+
     def residual(z: np.ndarray) -> np.ndarray:
-        return evaluator.normalised(model_at(z), noise)
+        if deadline is not None and best and time.monotonic() > deadline:
+            raise _OutOfTime
+        calls[0] += 1
+        fun = evaluator.normalised(model_at(z), noise)
+        if not best or float(fun @ fun) < best[0][0]:
+            best[:] = [(float(fun @ fun), z.copy(), fun)]
+        return fun
 
     if not free:
         chi2, count = chi_square(base.with_effects(effects), evaluator, noise)
         return FitResult(base.with_effects(effects), [], np.zeros(0), np.zeros(0), np.zeros((0, 0)), chi2, count, 1)
-    result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
-                           method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
-                           max_nfev=MAX_EVALUATIONS)
+    try:
+        result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
+                               method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
+                               max_nfev=MAX_EVALUATIONS)
+    except _OutOfTime:
+        return _truncated(model_at(best[0][1]), free, start + best[0][1] * scale, best[0][0], best[0][2].size,
+                          calls[0])
     count = int(np.isfinite(evaluator.data.measured).sum())  # the corrections are not more data
     chi2 = float(np.sum(result.fun ** 2))
     information = result.jac.T @ result.jac
@@ -97,8 +135,43 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
         correlation = np.nan_to_num(covariance / np.outer(sigmas_z, sigmas_z))
     fit = FitResult(model_at(result.x), free, start + result.x * scale, sigmas_z * scale, correlation, chi2, count,
                     int(result.nfev))
-    fit.warnings = _identifiability(fit, effects, evaluator)
+    fit.at_bound = _at_bound(fit)
+    fit.implausible = [reason for e in fit.model.effects if e.name in {name for name, _ in free}
+                       for reason in e.implausible(base.plant)]
+    fit.warnings = _bound_warnings(fit) + [f"implausible: {reason}" for reason in fit.implausible] \
+        + _identifiability(fit, effects, evaluator)
     return fit
+
+
+def _truncated(model: PlantModel, free: list[tuple[str, Parameter]], values: np.ndarray, chi2: float,
+               count: int, evaluations: int) -> FitResult:
+    """A fit stopped at its deadline: the best values met, no uncertainties."""
+    fit = FitResult(model, free, values, np.full(len(free), np.nan), np.zeros((len(free), len(free))), chi2, count,
+                    evaluations, truncated=True)
+    fit.warnings = [f"{', '.join(sorted({name for name, _ in free}))}: the fit stopped at the time budget after "
+                    f"{evaluations} evaluations, before it converged; its values are the best met, not estimates"]
+    return fit
+
+
+def _at_bound(fit: FitResult) -> list[str]:
+    """The free parameters whose value ended at, or within AT_BOUND of, a bound."""
+    out = []
+    for (name, p), value in zip(fit.free, fit.values):
+        low, high = (AT_BOUND * max(abs(b), ZERO_BOUND * (p.bounds[1] - p.bounds[0])) for b in p.bounds)
+        if value <= p.bounds[0] + low or value >= p.bounds[1] - high:
+            out.append(f"{name}.{p.name}")
+    return out
+
+
+def _bound_warnings(fit: FitResult) -> list[str]:
+    warnings = []
+    for (name, p), value in zip(fit.free, fit.values):
+        if f"{name}.{p.name}" in fit.at_bound:
+            side = "lower" if value - p.bounds[0] <= p.bounds[1] - value else "upper"
+            warnings.append(f"{name}.{p.name} = {value:.4g} {p.unit} ended at its {side} bound "
+                            f"[{p.bounds[0]:.4g}, {p.bounds[1]:.4g}]: the bound, not the data, set it "
+                            f"(not an estimate; widen plant.effect_bounds.{name}.{p.name} if the plant needs it)")
+    return warnings
 
 
 def _identifiability(fit: FitResult, effects: Sequence[Effect], evaluator: Evaluator) -> list[str]:
@@ -106,6 +179,8 @@ def _identifiability(fit: FitResult, effects: Sequence[Effect], evaluator: Evalu
     for effect in effects:
         warnings += effect.warnings(evaluator.conditions)
     for k, (name, p) in enumerate(fit.free):
+        if f"{name}.{p.name}" in fit.at_bound:
+            continue
         width = p.bounds[1] - p.bounds[0]
         if not np.isfinite(fit.sigmas[k]) or fit.sigmas[k] > UNIDENTIFIED_SPREAD * width:
             warnings.append(f"{name}.{p.name}: not identified by this bag (uncertainty {fit.sigmas[k]:.3g} {p.unit} "

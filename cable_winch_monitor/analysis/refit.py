@@ -45,7 +45,7 @@ def fit_command(base: PlantModel, data: Dataset, names: Sequence[str]) -> FitRep
     """Fit `names` (added to, or refitted within, `base`) and score both models on both parts."""
     sigma, source = noise(base.plant, data)
     train_rows, held_rows = split(data)
-    effects = [base.get(n) or effect_class(n)() for n in names]
+    effects = [base.get(n) or effect_class(n)(plant=base.plant) for n in names]
     fit = fit_effects(base, effects, Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND))), sigma)
     parts = {"training": Evaluator(data.subset(train_rows)), "held_out": Evaluator(data.subset(held_rows))}
     before = {k: _scores(base, e, sigma) for k, e in parts.items()}

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from .compare import Comparison
 from .diagnose import Diagnosis
 from .evaluate import ChannelStats
@@ -35,10 +37,14 @@ def _effect_values(model: Any) -> list[dict[str, Any]]:
     return [{"name": e.name, "params": dict(e.values), "enabled": True} for e in model.effects]
 
 
+def _ill_conditioned(spans: list[Any]) -> list[str]:
+    return [f"ill-conditioned: {s.describe()}" for s in spans]
+
+
 def compare_json(c: Comparison) -> dict[str, Any]:
     return {"bag": c.bag, "samples": len(c.data), "channels": _channels(c.channels), "score": c.score,
             "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model),
-            **_follows_json(c.follows, c.follows_notes)}
+            "ill_conditioned": [s.to_dict() for s in c.ill_conditioned], **_follows_json(c.follows, c.follows_notes)}
 
 
 def compare_text(c: Comparison) -> str:
@@ -48,7 +54,7 @@ def compare_text(c: Comparison) -> str:
              *_table(c.channels), f"score {c.score:.3f} (1.0 = down to the sensor noise; noise: {', '.join(sources)})",
              f"failure regions (|error| > 3 sigma): {len(c.regions) or 'none'}"]
     lines += [f"  {r['description']}" for r in c.regions[:10]]
-    return "\n".join(lines + _follows_lines(c.follows, c.follows_notes))
+    return "\n".join(lines + _ill_conditioned(c.ill_conditioned) + _follows_lines(c.follows, c.follows_notes))
 
 
 def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
@@ -58,7 +64,9 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
         if final is not None and final.model.get(entry["name"]) is not None and entry["selected"]:
             params = final.params(entry["name"])
             entry["params"] = {k: v["value"] for k, v in params.items()}
-            entry["uncertainties"] = {k: v["sigma"] for k, v in params.items()}
+            entry["uncertainties"] = {k: None if v["at_bound"] else v["sigma"] for k, v in params.items()}
+            entry["honest"] = final.honest(entry["name"])
+        entry["found"] = entry["selected"] and entry["honest"]
     return {"bag": bag, "samples": samples, "channels": _channels(d.channels), "score": d.ladder[0].score_heldout,
             "score_after": d.ladder[-1].score_heldout, "selected": d.selected,
             "split": {"method": "interleaved blocks in time (30 % held out)", "training_rows": d.train_rows,
@@ -66,7 +74,16 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
             "ladder": [{"added": s.added, "score_train": s.score_train, "score_heldout": s.score_heldout,
                         "bic": s.bic} for s in d.ladder],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
-            "effects": ranked, "skipped": d.skipped, **_follows_json(d.follows, d.follows_notes)}
+            "ill_conditioned": [s.to_dict() for s in d.ill_conditioned], "budget": d.budget, "skipped": d.skipped, "untried": d.untried,
+            "effects": ranked, **_follows_json(d.follows, d.follows_notes)}
+
+
+def _value(name: str, v: dict[str, Any], short: bool = False) -> str:
+    """A fitted value with its uncertainty, or marked as stopped by a bound or the time budget (none then)."""
+    if v["at_bound"] or not np.isfinite(v["sigma"]):
+        why = "at bound" if v["at_bound"] else "not converged"
+        return f"{name}={v['value']:.4g} ({why})" if short else f"{name} = {v['value']:.5g} {v['unit']} ({why})"
+    return f"{name}={v['value']:.4g}+-{v['sigma']:.2g}" if short else f"{name} = {v['value']:.5g} +- {v['sigma']:.2g} {v['unit']}"
 
 
 def diagnose_text(d: Diagnosis) -> str:
@@ -74,24 +91,25 @@ def diagnose_text(d: Diagnosis) -> str:
              "held-out rows from interleaved blocks):",
              f"{'effect':<24}{'held-out score':>15}{'delta BIC':>12}  fitted"]
     for c in d.ranking:
-        values = ", ".join(f"{k}={v['value']:.4g}+-{v['sigma']:.2g}" for k, v in c.fit.params(c.name).items()
-                           if v["sigma"] is not None)
+        values = ", ".join(_value(k, v, short=True) for k, v in c.fit.params(c.name).items() if v["sigma"] is not None)
         lines.append(f"{c.name:<24}{c.score_before:>7.3f}->{c.score_after:<7.3f}{c.delta_bic:>12.1f}  {values}"
                      + ("  <- selected" if c.selected else ""))
-    lines += [f"{name:<24}not tried: {reason}" for name, reason in d.skipped.items()]
+    lines += [f"{name:<24}not tried: {reason}" for name, reason in d.untried.items()]
     lines.append("ladder: " + " -> ".join(f"{s.added or 'model'} ({s.score_heldout:.3f})" for s in d.ladder))
     if d.final is not None:
         for name in d.selected:
             effect = d.final.model.get(name)
-            values = ", ".join(f"{k} = {v['value']:.5g} +- {v['sigma']:.2g} {v['unit']}"
-                               for k, v in d.final.params(name).items() if v["sigma"] is not None)
-            lines.append(f"found: {type(effect).title} [{name}: {values}]")
+            values = ", ".join(_value(k, v) for k, v in d.final.params(name).items() if v["sigma"] is not None)
+            verdict = "found" if d.final.honest(name) else "not determined (see warnings)"
+            lines.append(f"{verdict}: {type(effect).title} [{name}: {values}]")
         lines += [f"correlation {k}: {v:+.3f}" for k, v in d.final.correlations().items()]
         lines += [f"warning: {w}" for w in d.final.warnings]
     else:
         lines.append("found: nothing -- no candidate effect explains the data significantly better "
                      "(held-out error and BIC)")
-    return "\n".join(lines + _follows_lines(d.follows, d.follows_notes))
+    if d.skipped:
+        lines.append(f"skipped (the time budget of {d.budget:g} s was spent): {'; '.join(d.skipped)}")
+    return "\n".join(lines + _ill_conditioned(d.ill_conditioned) + _follows_lines(d.follows, d.follows_notes))
 
 
 def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
@@ -101,7 +119,8 @@ def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
             "before": {part: {"score": s.score, "channels": _channels(s.channels)} for part, s in r.before.items()},
             "after": {part: {"score": s.score, "channels": _channels(s.channels)} for part, s in r.after.items()},
             "effects": [{"name": n, "params": {k: v["value"] for k, v in fit.params(n).items()},
-                         "uncertainties": {k: v["sigma"] for k, v in fit.params(n).items()},
+                         "uncertainties": {k: None if v["at_bound"] else v["sigma"] for k, v in fit.params(n).items()},
+                         "honest": fit.honest(n), "at_bound": fit.at_bound, "implausible": fit.implausible,
                          "score_before": r.before["held_out"].score, "score_after": r.after["held_out"].score,
                          "delta_bic": None, "selected": True} for n in r.effects],
             "correlations": fit.correlations(), "warnings": fit.warnings, "noise_source": r.noise_source}
@@ -110,8 +129,8 @@ def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
 def fit_text(r: FitReport) -> str:
     lines = []
     for name in r.effects:
-        values = ", ".join(f"{k} = {v['value']:.5g}" + (f" +- {v['sigma']:.2g}" if v["sigma"] is not None else "")
-                           + f" {v['unit']}" for k, v in r.fit.params(name).items())
+        values = ", ".join(_value(k, v) if v["sigma"] is not None else f"{k} = {v['value']:.5g} {v['unit']}"
+                           for k, v in r.fit.params(name).items())
         lines.append(f"fitted {name}: {values}")
     lines.append(f"{'channel':<17}{'train before':>14}{'train after':>13}{'held before':>13}{'held after':>12}")
     for name in r.after["held_out"].channels:

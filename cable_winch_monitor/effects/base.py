@@ -13,6 +13,13 @@ An effect acts on one part of the model (`acts`):
   sensor calibration): it edits the predicted channels only, so fitting it needs no
   new solves.
 
+Parameters scale with the plant: a default, bounds or fit step may be a function of the
+plant (`relative`: of its weight m g, its anchors' span, its attachments' reach), so one
+library describes a 10 t sinking platform and a 13 kg laboratory robot; the plant file's
+`effect_bounds:` section replaces an effect's bounds where the plant needs others.
+`Parameter.resolved(plant)` gives the numbers, and an effect made for a plant holds them
+(`Effect.specs`).
+
 Hooks default to "no change"; an effect overrides the ones it needs. The hooks that run
 per sample see its `Conditions` (time, payout speeds and accelerations, direction of
 motion, extra inputs): an effect that reads a topic declares it in `inputs`
@@ -22,7 +29,7 @@ motion, extra inputs): an effect that reads a topic declares it in `inputs`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import Any, Callable, ClassVar, Mapping, Union
 
 import numpy as np
 
@@ -38,17 +45,60 @@ class EffectError(ValueError):
     """An effect name, parameter or value is wrong; the message names it."""
 
 
+Number = Union[float, Callable[[Plant], float]]
+Bounds = Union[tuple[float, float], Callable[[Plant], tuple[float, float]]]
+UNKNOWN = float("nan")  # a plant-relative default without a plant: the value must be given
+
+
+def span(plant: Plant) -> float:
+    """The plant's size [m]: the largest distance between two anchors (sheaves)."""
+    a = plant.anchors
+    return float(np.linalg.norm(a[:, None, :] - a[None, :, :], axis=2).max())
+
+
+def reach(plant: Plant) -> float:
+    """How far the attachments sit from the platform's origin [m] (largest |B_i|)."""
+    return float(np.linalg.norm(plant.attachments, axis=1).max())
+
+
 @dataclass(frozen=True)
 class Parameter:
-    """One parameter: name, unit, default, (low, high) bounds, typical size of a fit step, meaning."""
+    """One parameter: name, unit, default, (low, high) bounds, typical size of a fit step, meaning.
+
+    default, bounds and scale are numbers, or functions of the plant where the parameter's size
+    depends on it (see `relative`)."""
 
     name: str
     unit: str
-    default: float
-    bounds: tuple[float, float]
-    scale: float
+    default: Number
+    bounds: Bounds
+    scale: Number
     doc: str = ""
     fit: bool = True
+
+    def resolved(self, plant: Plant | None, bounds: tuple[float, float] | None = None) -> "Parameter":
+        """The numbers for this plant; `bounds` (the plant file's effect_bounds) replace the declared ones.
+        Without a plant, plant-relative bounds are open and a plant-relative default unknown."""
+        def number(spec: Any, unknown: Any) -> Any:
+            return (unknown if plant is None else spec(plant)) if callable(spec) else spec
+        low, high = bounds if bounds is not None else number(self.bounds, (-np.inf, np.inf))
+        return Parameter(self.name, self.unit, float(number(self.default, UNKNOWN)), (float(low), float(high)),
+                         float(number(self.scale, UNKNOWN)), self.doc, self.fit)
+
+
+def relative(factor: float, size: Callable[[Plant], float]) -> Callable[[Plant], float]:
+    """A parameter size proportional to one of the plant's: e.g. relative(0.5, lambda p: p.mass)."""
+    return lambda plant: factor * size(plant)
+
+
+def relative_bounds(low: float, high: float, size: Callable[[Plant], float]) -> Callable[[Plant], tuple[float, float]]:
+    """Bounds (low, high) times one of the plant's sizes."""
+    return lambda plant: (low * size(plant), high * size(plant))
+
+
+def weight(plant: Plant) -> float:
+    """m g [N]: forces scale with it."""
+    return plant.weight
 
 
 @dataclass
@@ -71,20 +121,28 @@ class Effect:
     order: ClassVar[int] = 50         # measurement effects apply in this order (physics before sensors)
     inputs: ClassVar[tuple[Input, ...]] = ()  # extra topics the effect reads (their values in Conditions.inputs)
 
-    def __init__(self, values: Mapping[str, Any] | None = None):
+    def __init__(self, values: Mapping[str, Any] | None = None, plant: Plant | None = None):
+        """The effect with these values (the rest at their defaults), its parameters resolved for `plant`
+        (its size and its file's effect_bounds; without a plant, plant-relative bounds are not checked)."""
         values = dict(values or {})
         known = {p.name for p in self.parameters}
         unknown = sorted(set(values) - known)
         if unknown:
             raise EffectError(f"effect '{self.name}': unknown parameter '{unknown[0]}' "
                               f"(known: {', '.join(sorted(known)) or 'none'})")
+        self.for_plant = plant
+        given_bounds = plant.effect_bounds.get(self.name, {}) if plant is not None else {}
+        self.specs: tuple[Parameter, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
         self.values: dict[str, float] = {}
-        for p in self.parameters:
+        for p in self.specs:
             try:
                 value = float(values.get(p.name, p.default))
             except (TypeError, ValueError):
                 raise EffectError(f"effect '{self.name}': parameter '{p.name}' must be a number, "
                                   f"got {values[p.name]!r}") from None
+            if np.isnan(value):
+                raise EffectError(f"effect '{self.name}': parameter '{p.name}' needs a value (its default "
+                                  "depends on the plant)")
             if not p.bounds[0] <= value <= p.bounds[1]:
                 raise EffectError(f"effect '{self.name}': parameter '{p.name}' = {value:g} {p.unit} is outside "
                                   f"its bounds [{p.bounds[0]:g}, {p.bounds[1]:g}]")
@@ -97,13 +155,17 @@ class Effect:
         return f"{self.name}(" + ", ".join(f"{k}={v:g}" for k, v in self.values.items()) + ")"
 
     @classmethod
-    def fitted(cls) -> tuple[Parameter, ...]:
-        """The parameters a fit adjusts."""
-        return tuple(p for p in cls.parameters if p.fit)
+    def fittable(cls) -> bool:
+        """The effect has parameters a fit adjusts."""
+        return any(p.fit for p in cls.parameters)
+
+    def fitted(self) -> tuple[Parameter, ...]:
+        """The parameters a fit adjusts, resolved for the plant (bounds, step)."""
+        return tuple(p for p in self.specs if p.fit)
 
     def replaced(self, **values: float) -> "Effect":
-        """A copy with some parameter values changed."""
-        return type(self)({**self.values, **values})
+        """A copy with some parameter values changed (for the same plant)."""
+        return type(self)({**self.values, **values}, self.for_plant)
 
     # -- hooks: each returns its input unchanged unless the effect acts there ---------------
     def rope(self, law: RopeLaw) -> RopeLaw:
@@ -133,6 +195,10 @@ class Effect:
 
     def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
         """measurement: edit the predicted sensor readings in place."""
+
+    def implausible(self, plant: Plant) -> list[str]:
+        """Why the values are physically implausible for this plant, each "name.parameter: reason" (empty: none)."""
+        return []
 
     def warnings(self, conditions: list[Conditions]) -> list[str]:
         """Why a bag with these conditions cannot identify the parameters (empty: no reason known)."""

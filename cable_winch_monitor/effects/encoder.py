@@ -4,12 +4,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.conditions import Conditions
-from .base import Effect, Parameter
+from .base import Bounds, Effect, Number, Parameter, relative, relative_bounds, span
 
 
-def _per_winch(prefix: str, unit: str, bound: float, scale: float, doc: str) -> tuple[Parameter, ...]:
-    return tuple(Parameter(f"{prefix}_{i}", unit, 0.0, (-bound, bound), scale, f"{doc}, winch {i}")
-                 for i in range(1, 5))
+def _per_winch(prefix: str, unit: str, bounds: Bounds, scale: Number, doc: str) -> tuple[Parameter, ...]:
+    return tuple(Parameter(f"{prefix}_{i}", unit, 0.0, bounds, scale, f"{doc}, winch {i}") for i in range(1, 5))
 
 
 class EncoderScale(Effect):
@@ -23,7 +22,7 @@ class EncoderScale(Effect):
     name = "encoder_scale"
     title = "the winch encoders' scale is off (drum radius or rope layer)"
     acts = "geometry"
-    parameters = _per_winch("k", "-", 0.02, 1.0e-4, "relative payout scale error")
+    parameters = _per_winch("k", "-", (-0.1, 0.1), 1.0e-4, "relative payout scale error")
     signature = "tilt, depth and tension share drift in proportion to the payout"
     source = "drum kinematics: payout = drum angle * effective radius"
 
@@ -41,7 +40,7 @@ class EncoderOffset(Effect):
     name = "encoder_offset"
     title = "the winch encoders' zero is off"
     acts = "geometry"
-    parameters = _per_winch("d", "m", 1.0, 0.005, "length zero offset")
+    parameters = _per_winch("d", "m", relative_bounds(-0.25, 0.25, span), relative(0.001, span), "length zero offset")
     signature = "constant tilt, depth and tension-share errors at every payout"
     source = "encoder zeroing"
 

@@ -4,9 +4,9 @@
 load on the platform (gravity, then load effects) and the rope law (rope-law effects),
 and solves with the matching solver -- the rigid one chosen (energy, or seed 002's
 traversal), or the elastic one with EA and the rope's own-weight stretch -- then refines
-pose-dependent geometry (sheave tangent points) by fixed-point iteration.
+pose-dependent geometry (the plant's pulleys, sheave tangent points) by fixed-point iteration.
 `PlantModel.solve_batch` does the same for many samples along a trajectory at once
-(model/batched*.py), where no effect makes the geometry depend on the pose.
+(model/batched*.py), where nothing makes the geometry depend on the pose.
 `PlantModel.predict` gives every declared channel's reading for a solved state
 (channels.predicted, then measurement effects). The live node, replay, the analysis,
 `limits`, the command check and the wall clearance all go through this object; a model
@@ -31,6 +31,7 @@ from ..model.plant import Plant, PlantConfigError
 from ..model.result import Solution, SolveStatus, failed
 from ..model.solve import METHODS, solve
 from .base import Effect, EffectError, RopeLaw
+from .pulley import wrap
 from .registry import effect_class, load_module
 
 REFINE_STEPS = 6
@@ -42,8 +43,9 @@ def _overrides(cls: type[Effect], hook: str) -> bool:
     return getattr(cls, hook) is not getattr(Effect, hook)
 
 
-def effects_from_mapping(section: Any, where: str) -> list[Effect]:
-    """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}}."""
+def effects_from_mapping(section: Any, where: str, plant: Plant | None = None) -> list[Effect]:
+    """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}},
+    their parameters resolved for `plant` (Effect)."""
     if section is None:
         return []
     if not isinstance(section, Mapping):
@@ -55,12 +57,22 @@ def effects_from_mapping(section: Any, where: str) -> list[Effect]:
         if not isinstance(enabled, bool):
             raise EffectError(f"key '{where}.{name}.enabled' must be true or false, got {enabled!r}")
         try:
-            effect = effect_class(str(name))(spec)
+            effect = effect_class(str(name))(spec, plant)
         except EffectError as error:
             raise EffectError(f"key '{where}.{name}': {error}") from None
         if enabled:
             effects.append(effect)
     return effects
+
+
+def _check_effect_bounds(plant: Plant) -> None:
+    """Every effect and parameter the plant file's effect_bounds names exists."""
+    for name, params in plant.effect_bounds.items():
+        known = {p.name for p in effect_class(name).parameters}
+        unknown = sorted(set(params) - known)
+        if unknown:
+            raise EffectError(f"key 'plant.effect_bounds.{name}.{unknown[0]}': effect '{name}' has no such parameter "
+                              f"(known: {', '.join(sorted(known))})")
 
 
 @dataclass(frozen=True)
@@ -85,7 +97,8 @@ class PlantModel:
         try:
             for path in plant.effect_modules:
                 load_module(path)
-            return cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects")), solver)
+            _check_effect_bounds(plant)
+            return cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant)), solver)
         except EffectError as error:
             raise PlantConfigError(f"plant file: {error}") from None
 
@@ -140,13 +153,13 @@ class PlantModel:
 
     @property
     def refining(self) -> bool:
-        """Some effect's geometry depends on the pose (solved by fixed-point refinement)."""
-        return bool(self._refiners)
+        """The geometry depends on the pose (an effect's, or the plant's pulleys): fixed-point refinement."""
+        return bool(self._refiners) or bool(self.physical.sheaves)
 
     @property
     def plain(self) -> bool:
-        """No effect at all: the rigid model."""
-        return not self.effects
+        """No effect and no pulleys: the rigid model, which the batched solver serves."""
+        return not self.effects and not self.plant.sheaves
 
     @property
     def batchable(self) -> bool:
@@ -202,10 +215,12 @@ class PlantModel:
                 return failed(SolveStatus.INVALID_INPUT, f"cannot apply the plant's effects: {error}",
                               self.solver, np.full(4, np.nan))
         solution = self._solve_once(self.physical, lengths, warm_start, load)
-        for _ in range(REFINE_STEPS if self._refiners else 0):
+        for _ in range(REFINE_STEPS if self._refiners or self.physical.sheaves else 0):
             if not solution.ok:
                 break
             plant, refined = self.physical, lengths
+            if plant.sheaves:
+                plant, refined, _ = wrap(plant, refined, solution.points_b)
             for effect in self._refiners:
                 plant, refined = effect.refine(plant, refined, solution)
             previous, solution = solution, self._solve_once(plant, refined, solution, load)

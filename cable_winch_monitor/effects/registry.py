@@ -17,14 +17,17 @@ from pathlib import Path
 
 from .base import ACTS, Effect, EffectError
 from .body import CogOffset, PayloadMass
+from .calibration import InclinometerOffset, LoadPinCalibration
 from .encoder import EncoderOffset, EncoderScale
+from .pulley import PulleyGeometry
 from .rope import RopeElasticity, RopeWeight
 from .sensor import TensionSensorBending
 from .sheave import SheaveFriction, SheaveGeometry
 
 GROUP = "cable_winch_monitor.effects"
 BUILTINS: tuple[type[Effect], ...] = (RopeElasticity, RopeWeight, EncoderScale, EncoderOffset, SheaveFriction,
-                                      CogOffset, PayloadMass, SheaveGeometry, TensionSensorBending)
+                                      CogOffset, PayloadMass, SheaveGeometry, TensionSensorBending, InclinometerOffset,
+                                      LoadPinCalibration, PulleyGeometry)
 _registry: dict[str, type[Effect]] = {}
 _entry_points_loaded = False
 

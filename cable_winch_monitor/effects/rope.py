@@ -5,7 +5,12 @@ import numpy as np
 
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
-from .base import Conditions, Effect, Parameter, RopeLaw
+from .base import Conditions, Effect, Parameter, RopeLaw, relative, relative_bounds, span, weight
+
+
+def _weight_per_span(plant: Plant) -> float:
+    """m g per metre of the plant's span [N/m]: the size of a rope's weight per metre."""
+    return weight(plant) / span(plant)
 
 
 class RopeElasticity(Effect):
@@ -23,7 +28,9 @@ class RopeElasticity(Effect):
     name = "rope_elasticity"
     title = "the ropes stretch elastically (Hooke, axial stiffness EA)"
     acts = "rope_law"
-    parameters = (Parameter("EA", "N", 1.0e8, (1.0e6, 1.0e11), 2.0e7, "axial stiffness of each rope"),)
+    # a quarter of m g stretches a rope by a strain between 1e-1 and 1e-6; 1e-3 by default
+    parameters = (Parameter("EA", "N", relative(1000.0, weight), relative_bounds(2.5, 2.5e5, weight),
+                            relative(200.0, weight), "axial stiffness of each rope"),)
     signature = "one rope predicted slack and the others overloaded while all four pins read a share"
     source = "seeds 000 (eq. 22, K = EA/L) and 004 (eqs. 14-28)"
 
@@ -46,7 +53,9 @@ class RopeWeight(Effect):
     title = "the ropes' own weight (the load pins read more than the platform carries)"
     acts = "rope_law"
     order = 10
-    parameters = (Parameter("w", "N/m", 50.0, (0.0, 1000.0), 20.0, "rope weight per metre"),)
+    # at most m g per plant span of rope
+    parameters = (Parameter("w", "N/m", relative(0.003, _weight_per_span), relative_bounds(0.0, 1.0, _weight_per_span),
+                            relative(0.001, _weight_per_span), "rope weight per metre"),)
     signature = "all load pins read high by an amount proportional to the payout"
     source = "statics of a hanging rope; stretch as in seeds 000/004 with a linearly growing tension"
 

@@ -6,7 +6,7 @@ import numpy as np
 from ..model.plant import Plant
 from ..model.result import Solution
 from ..channels import TENSION_CHANNELS
-from .base import Conditions, Effect, Parameter
+from .base import Conditions, Effect, Parameter, relative, relative_bounds, weight
 
 MAX_BENDING = 0.5  # 3 sqrt(B/T)/l beyond this the sensor is outside its range: reading capped at 2 T
 
@@ -38,7 +38,8 @@ class TensionSensorBending(Effect):
     title = "the tension sensors ignore the rope's bending rigidity (three-point bending, T = Pl/4d)"
     acts = "measurement"
     order = 30
-    parameters = (Parameter("B", "N m^2", 100.0, (0.0, 1.0e4), 20.0, "rope bending rigidity EI"),
+    parameters = (Parameter("B", "N m^2", relative(0.001, weight), relative_bounds(0.0, 0.1, weight),
+                            relative(2.0e-4, weight), "rope bending rigidity EI (bounds per N of m g, times 1 m^2)"),
                   Parameter("span", "m", 2.0, (0.05, 20.0), 0.1, "sensor span l between the outer rollers",
                             fit=False))
     signature = "all tensions read high, relatively more at low tension (excess ~ 3 sqrt(B T) / l)"

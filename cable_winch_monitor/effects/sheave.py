@@ -6,7 +6,7 @@ import numpy as np
 from ..model.conditions import Conditions
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
-from .base import Effect, Parameter
+from .base import Effect, Parameter, relative, relative_bounds, span
 
 MIN_SHARE = 0.05  # fraction of samples needed in each direction of motion to identify friction
 
@@ -35,7 +35,8 @@ class SheaveGeometry(Effect):
     name = "sheave_geometry"
     title = "the head sheaves' radius moves the rope's tangent point with its angle"
     acts = "geometry"
-    parameters = (Parameter("r", "m", 1.0, (0.0, 5.0), 0.2, "head-sheave radius (to the rope axis)"),)
+    parameters = (Parameter("r", "m", relative(0.07, span), relative_bounds(0.0, 0.35, span), relative(0.015, span),
+                            "head-sheave radius (to the rope axis)"),)
     signature = "errors that grow with tilt and swing and fall with the payout"
     source = "geometry of a rope wrapping a pulley (seed 000, Fig. 3; seed 004, eqs. 3-9)"
 

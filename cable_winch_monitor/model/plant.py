@@ -37,6 +37,22 @@ class OutlinePoint:
 
 
 @dataclass(frozen=True)
+class Sheave:
+    """A pulley the rope wraps on its way from the winch to the platform (plant file: geometry.sheaves).
+
+    The rope arrives along `axis` (unit, pointing back towards the winch) and touches the pulley
+    at the anchor A_i; the pulley's centre lies `radius` from A_i in its plane. A swivelling
+    pulley turns about `axis` so that its plane holds the rope to the platform; a fixed one
+    keeps its plane, given by `towards` (unit, perpendicular to `axis`, from A_i to the centre).
+    """
+
+    radius: float
+    axis: np.ndarray
+    swivel: bool = True
+    towards: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
 class Plant:
     """Rigid-cable model of the platform: anchors, attachment points, centre of gravity, weight.
 
@@ -63,6 +79,8 @@ class Plant:
     alarm: Mapping[str, float] = field(default_factory=dict)  # alarm margins given (monitor.alarm)
     effects: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # effect name -> its parameters
     effect_modules: tuple[str, ...] = ()  # user files defining effects (and channels)
+    sheaves: tuple[Sheave, ...] = ()  # one per cable where the plant file describes pulleys (anchors: where ropes meet them)
+    effect_bounds: Mapping[str, Mapping[str, tuple[float, float]]] = field(default_factory=dict)  # effect -> param -> (lo, hi)
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -191,6 +209,77 @@ def _effects(section: Any) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _unit(value: Any, key: str) -> np.ndarray:
+    vector = _points([value], key, 1)[0]
+    norm = float(np.linalg.norm(vector))
+    if norm < 1e-9:
+        raise PlantConfigError(f"plant file: key '{key}' must be a non-zero direction, got {value!r}")
+    return vector / norm
+
+
+def _sheave(spec: Any, where: str) -> Sheave:
+    if not isinstance(spec, Mapping):
+        raise PlantConfigError(f"plant file: key '{where}' must be a mapping with radius, axis and swivel")
+    unknown = sorted(set(map(str, spec)) - {"radius", "axis", "swivel", "towards"})
+    if unknown:
+        raise PlantConfigError(f"plant file: unknown key '{where}.{unknown[0]}' (known: radius, axis, swivel, towards)")
+    radius = _number(spec, "radius", where + ".")
+    if radius < 0.0:
+        raise PlantConfigError(f"plant file: key '{where}.radius' must not be negative, got {radius}")
+    axis = _unit(spec.get("axis", [0.0, 0.0, -1.0]), where + ".axis")
+    swivel = spec.get("swivel", True)
+    if not isinstance(swivel, bool):
+        raise PlantConfigError(f"plant file: key '{where}.swivel' must be true or false, got {swivel!r}")
+    if swivel:
+        return Sheave(radius, axis)
+    if "towards" not in spec:
+        raise PlantConfigError(f"plant file: key '{where}.towards' is missing: a fixed sheave needs the direction "
+                               "from its anchor to its centre")
+    towards = _unit(spec["towards"], where + ".towards")
+    towards = towards - (towards @ axis) * axis
+    if np.linalg.norm(towards) < 1e-6:
+        raise PlantConfigError(f"plant file: key '{where}.towards' must not be along the sheave's axis")
+    return Sheave(radius, axis, False, towards / np.linalg.norm(towards))
+
+
+def _sheaves(section: Any) -> tuple[Sheave, ...]:
+    """`plant.geometry.sheaves`: one mapping for all four pulleys, or a list of four."""
+    where = "plant.geometry.sheaves"
+    if section is None:
+        return ()
+    if isinstance(section, Mapping):
+        return (_sheave(section, where),) * 4
+    if not isinstance(section, list) or len(section) != 4:
+        raise PlantConfigError(f"plant file: key '{where}' must be one mapping for all pulleys or a list of four")
+    return tuple(_sheave(spec, f"{where}[{i}]") for i, spec in enumerate(section))
+
+
+def _effect_bounds(section: Any) -> dict[str, dict[str, tuple[float, float]]]:
+    """`plant.effect_bounds`: {effect name: {parameter: [low, high]}}, bounds this plant needs instead of an
+    effect's own (the effect layer checks the names)."""
+    if section is None:
+        return {}
+    if not isinstance(section, Mapping):
+        raise PlantConfigError("plant file: key 'plant.effect_bounds' must be a mapping of effect names to "
+                               "{parameter: [low, high]}")
+    out: dict[str, dict[str, tuple[float, float]]] = {}
+    for name, params in section.items():
+        where = f"plant.effect_bounds.{name}"
+        if not isinstance(params, Mapping):
+            raise PlantConfigError(f"plant file: key '{where}' must be a mapping of parameters to [low, high]")
+        out[str(name)] = {}
+        for param, pair in params.items():
+            try:
+                low, high = (float(v) for v in pair)
+            except (TypeError, ValueError):
+                raise PlantConfigError(f"plant file: key '{where}.{param}' must be [low, high], got {pair!r}") from None
+            if not (np.isfinite(low) and np.isfinite(high) and low < high):
+                raise PlantConfigError(f"plant file: key '{where}.{param}' must be finite with low < high, "
+                                       f"got [{low}, {high}]")
+            out[str(name)][str(param)] = (low, high)
+    return out
+
+
 def _modules(value: Any) -> tuple[str, ...]:
     if value is None:
         return ()
@@ -261,6 +350,8 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         alarm=_numbers(section.get("alarm"), "plant.alarm", ALARM_KEYS),
         effects=_effects(section.get("effects")),
         effect_modules=_modules(section.get("effect_modules")),
+        sheaves=_sheaves(geometry.get("sheaves")),
+        effect_bounds=_effect_bounds(section.get("effect_bounds")),
         raw=config,
     )
 

@@ -1,0 +1,52 @@
+"""diagnose within a time budget: a fit stops at its deadline and is never found; what is skipped is said."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cable_winch_monitor.analysis import report
+from cable_winch_monitor.analysis.data import read_bag
+from cable_winch_monitor.analysis.diagnose import diagnose
+from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
+from cable_winch_monitor.analysis.fit import fit_effects
+from cable_winch_monitor.effects import PlantModel, effect_class
+from cable_winch_monitor.model.plant import load_plant
+
+BAG = Path(__file__).parents[1] / "bags" / "all_channels"
+
+
+@pytest.fixture(scope="module")
+def bag():
+    model = PlantModel.from_plant(load_plant())
+    data = read_bag(BAG)
+    return model, data, noise(model.plant, data)[0]
+
+
+def test_fit_past_its_deadline_keeps_the_best_values_met_and_is_not_found(bag):
+    model, data, sigma = bag
+    train = Evaluator(data.subset(thin(split(data)[0], data.kinds, 30)))
+    effect = effect_class("rope_elasticity")(plant=model.plant)
+    fit = fit_effects(model, [effect], train, sigma, deadline=time.monotonic() - 1.0)
+    assert fit.truncated and not fit.honest("rope_elasticity")
+    assert fit.values == pytest.approx([effect["EA"]])  # only the start was evaluated
+    assert np.isnan(fit.sigmas).all() and "time budget" in fit.warnings[0]
+
+
+def test_spent_budget_skips_and_says_what(bag):
+    model, data, sigma = bag
+    result = diagnose(model, data, sigma, ["sheave_friction", "rope_elasticity", "cog_offset"], budget=0.0)
+    assert result.ranking == [] and result.selected == []
+    assert result.skipped == ["candidate sheave_friction", "candidate rope_elasticity", "candidate cog_offset",
+                              "the identifiability check (ill-conditioned channels)"]  # cheapest first
+    text = report.diagnose_text(result)
+    assert "skipped (the time budget of 0 s was spent)" in text
+    assert report.diagnose_json(result, "all_channels", len(data))["skipped"] == result.skipped
+
+
+def test_unbounded_diagnosis_skips_nothing(bag):
+    model, data, sigma = bag
+    result = diagnose(model, data, sigma, ["inclinometer_offset"], budget=None)
+    assert result.skipped == [] and [c.name for c in result.ranking] == ["inclinometer_offset"]
