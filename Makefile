@@ -11,7 +11,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
 PYTEST_ARGS ?=
 
-.PHONY: all setup setup-test demo test clean
+.PHONY: all setup setup-test demo test test-slow clean
 
 all: test
 
@@ -30,6 +30,10 @@ demo: setup
 
 test: setup-test
 	$(VENV)/bin/python -m pytest -q test $(PYTEST_ARGS)
+
+# The full diagnose runs (every candidate effect against recordings at site noise): tens of minutes.
+test-slow: setup-test
+	$(VENV)/bin/python -m pytest -q test -m slow $(PYTEST_ARGS)
 
 clean:
 	rm -rf build $(VENV)

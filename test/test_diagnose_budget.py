@@ -46,6 +46,7 @@ def test_spent_budget_skips_and_says_what(bag):
     assert report.diagnose_json(result, "all_channels", len(data))["skipped"] == result.skipped
 
 
+@pytest.mark.slow
 def test_unbounded_diagnosis_skips_nothing(bag):
     model, data, sigma = bag
     result = diagnose(model, data, sigma, ["inclinometer_offset"], budget=None)

@@ -58,6 +58,7 @@ def test_every_builtin_has_a_case():
     assert builtins == set(CASES) | set(MOUNTED)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(MOUNTED))
 def test_mounting_offset_is_found(tmp_path, plants, name):
     """The readings of a tilted sensor are the platform's attitude plus the mounting: shift the recorded columns."""
@@ -75,6 +76,7 @@ def test_mounting_offset_is_found(tmp_path, plants, name):
     assert result.ladder[0].score_heldout > 5.0 and result.ladder[-1].score_heldout <= 1.3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(CASES))
 def test_hidden_effect_is_found(tmp_path, plants, name):
     hidden, plant, profile = CASES[name]
@@ -90,6 +92,7 @@ def test_hidden_effect_is_found(tmp_path, plants, name):
     assert result.ladder[-1].score_heldout <= 1.3
 
 
+@pytest.mark.slow
 def test_nothing_hidden_selects_nothing(tmp_path, plants):
     bag = simulate_bag(tmp_path, "nominal", plants["elastic"], {})
     base = PlantModel.from_plant(load_plant(plants["elastic"]))

@@ -76,6 +76,7 @@ def test_without_the_module_the_report_names_what_the_error_follows(bags, case):
     assert best.regressor == condition and abs(best.r) > 0.8, best.sentence
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", CASES)
 def test_diagnose_with_the_module_finds_the_effect_and_its_parameter(bags, case):
     module, name, parameter, value, *_ = CASES[case]

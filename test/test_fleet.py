@@ -85,6 +85,7 @@ def effect_fleet(tmp_path_factory) -> tuple[Path, Path]:
     return bags, plant
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_fleet_diagnose_finds_each_bags_effect_on_workers_and_on_dask(effect_fleet, tmp_path):
     bags, plant = effect_fleet

@@ -192,6 +192,7 @@ def test_compare_names_the_payout_for_a_hidden_rope_weight(tmp_path, rope_weight
     assert "What the remaining error follows" in page.read_text() and first["sentence"] in page.read_text()
 
 
+@pytest.mark.slow
 def test_diagnose_without_the_effect_in_its_library_names_the_payout(tmp_path, rope_weight_bag):
     bag, plant = rope_weight_bag
     out = tmp_path / "diagnose.json"

@@ -50,6 +50,7 @@ def _json(path):
     return json.loads(path.read_text())
 
 
+@pytest.mark.slow
 def test_user_effect_found_fitted_and_used(user_bag):
     directory, module, plant, bag = user_bag
     before = directory / "compare.json"
