@@ -42,9 +42,13 @@ def test_rigid_ropes_leave_tensions_undetermined_where_the_taut_set_changes(bag_
 
 
 def test_elastic_ropes_determine_the_tensions(bag_data):
-    """EA / L = 7.5e7 N / 40 m: a millimetre moves a tension by ~2 kN, no more than 3 load-pin sigmas of 500 N ...
-    (the rope's stiffness is what makes four tensions determinate)."""
+    """EA / L = 7.5e7 N / 50 m: a millimetre along the internal mode moves a tension by a few kN, an
+    order of magnitude less than with rigid ropes (the rope's stiffness makes four tensions
+    determinate); with 150 N load pins that is still more than their noise, and it is said."""
     plant = load_plant()
+    rigid = compare(PlantModel.from_plant(plant), bag_data)
     model = PlantModel(plant, (effect_class("rope_elasticity")({"EA": 7.5e7}, plant),))
-    result = compare(model, bag_data)
-    assert not [s for s in result.ill_conditioned if s.channel.startswith("tension_")]
+    elastic = compare(model, bag_data)
+    worst = {r.channel: r.sigma_per_mm for r in rigid.ill_conditioned}
+    for span in (s for s in elastic.ill_conditioned if s.channel.startswith("tension_")):
+        assert span.sigma_per_mm < 0.25 * worst[span.channel], (span, worst)
