@@ -72,5 +72,6 @@ def test_scene_rate_is_bounded_by_the_stamps(live):
                    for _, m in collectors["tf"].messages)
     scenes = [m for _, m in collectors["scene"].messages
               if (m.markers[0].header.stamp.sec, m.markers[0].header.stamp.nanosec) in keys]
-    assert tf_count == len(stamps), "a transform for every solved pose"
+    poses = sum(bool(node.client.outputs_with_stamp(stamp)["pose"]) for stamp in stamps)  # the node may skip
+    assert tf_count == poses >= 1, "a transform for every solved pose"  # samples under load (newest first)
     assert 1 <= len(scenes) <= math.floor((seconds[-1] - seconds[0]) * SCENE_RATE) + 1
