@@ -178,8 +178,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 try:
                     if isinstance(result, Exception):
                         raise result
-                    stamp = fields.stamp_of(item.message) if hasattr(item.message, "header") else \
-                        divmod(item.log_time, 1_000_000_000)
+                    stamp = fields.message_stamp(item.message, item.log_time)
                     outputs = _records(item, stamp, result, scenes)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1

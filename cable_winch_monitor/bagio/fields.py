@@ -51,6 +51,11 @@ def message_seconds(msg: Any, receive_ns: int) -> float:
     return seconds(header.stamp) if header is not None else receive_ns * 1e-9
 
 
+def message_stamp(msg: Any, receive_ns: int) -> Stamp:
+    """`message_seconds` as (sec, nanosec): the stamp of the outputs made from the message."""
+    return stamp_of(msg) if getattr(msg, "header", None) is not None else divmod(receive_ns, 1_000_000_000)
+
+
 def stamp_of(msg: Any) -> Stamp:
     """(sec, nanosec) of a message's header stamp."""
     return int(msg.header.stamp.sec), int(msg.header.stamp.nanosec)

@@ -11,7 +11,6 @@ window ends at the sample; over a recording (`conditions_along`) it is centred o
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -124,7 +123,3 @@ class ConditionsTracker:
         self.direction = motion_direction(speeds, self.direction)
         return Conditions(time, speeds, acceleration, self.direction, dict(inputs or {}))
 
-
-def is_number(value: object) -> bool:
-    """A finite real number (an extra input's value must be one to be used)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

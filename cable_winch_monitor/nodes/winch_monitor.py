@@ -228,8 +228,7 @@ class WinchMonitorNode(Node):
         now = self.get_clock().now().nanoseconds
         with self.pipeline.lock:
             residuals = self.pipeline.on_measurement(topic, fields.message_seconds(msg, now), msg)
-        stamp = fields.stamp_of(msg) if hasattr(msg, "header") else divmod(now, 1_000_000_000)
-        self._publish_residuals(stamp, residuals)
+        self._publish_residuals(fields.message_stamp(msg, now), residuals)
 
     def _on_input(self, msg: Any, spec: Input) -> None:
         with self.pipeline.lock:
