@@ -20,8 +20,9 @@ the forward kinematics of the reported lengths cold) is solved by `fusion.solve_
 where the result is doubtful -- a tension below zero, a slack rope overstretched, a
 residual beyond SEARCH_SIGMA -- its neighbouring sets (one rope added, released or
 exchanged) are solved from it, all stacked (together with the start where an observation
-contradicts the start already); where the best of these is still doubtful, every other
-set of two or more ropes. The admissible row of least cost is kept.
+contradicts the start already), then the neighbours of a better set found there; where the
+best is still inadmissible or overstretches a slack rope, every other set of two or more
+ropes. The admissible row of least cost is kept.
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .batched import solve_batch
+from .batched_elastic import solve_batch_elastic
 from .elastic import solve_elastic
 from .energy import TENSION_TOL, solve_energy
 from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
@@ -236,10 +238,11 @@ def _warm_rows(problem: Problem, warm_start: Estimate | None) -> Rows | None:
                 (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / problem.scales[0])
 
 
-def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solution]]:
-    """Cold starts: the rigid forward kinematics of the reported lengths (batched for many samples) of
-    the samples it solves, and today's forward kinematics of any sample i (for those the estimator
-    leaves: a single-cable state, bad input, no admissible set)."""
+def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solution], bool]:
+    """Cold starts: the forward kinematics of the reported lengths (batched for many samples: elastic
+    where the ropes are) of the samples it solves, today's forward kinematics of any sample i (for
+    those the estimator leaves: a single-cable state, bad input, no admissible set), and whether the
+    starts are rigid (their taut sets are often wrong: four taut rigid ropes are the exception)."""
     plant, ropes = problem.plant, problem.ropes
     effective = ropes.effective(problem.lengths)
     if len(effective) == 1:
@@ -249,16 +252,17 @@ def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solutio
                      np.array([s.rotation for s in picked]).reshape(-1, 3, 3),
                      np.array([s.position for s in picked]).reshape(-1, 3),
                      np.array([s.tensions for s in picked]).reshape(-1, 4))
-        rigid = (lambda i: solution)
+        forward = (lambda i: solution) if ropes.rigid else \
+            (lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness, load=problem.loads[i]))
+        rigid_start = True
     else:
-        batch = solve_batch(plant, effective, loads=problem.loads)
+        batch = solve_batch(plant, effective, loads=problem.loads) if ropes.rigid else \
+            solve_batch_elastic(plant, effective, ropes.axial_stiffness, loads=problem.loads)
         ok = np.flatnonzero(batch.ok)
         start = Rows(ok, batch.taut[ok], batch.rotation[ok], batch.position[ok], batch.tensions[ok])
-        rigid = batch.solution
+        forward, rigid_start = batch.solution, ropes.rigid
     start.mu = start.mu / problem.scales[start.sample, None]
-    if ropes.rigid:
-        return start, rigid
-    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness, load=problem.loads[i])
+    return start, forward, rigid_start
 
 
 def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
@@ -267,8 +271,8 @@ def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
         best = _search(problem, warm, probe=False)
         if _admissible(best).all():
             return _assemble(problem, best, {})
-    cold, forward = _forward_kinematics(problem)
-    cold = _search(problem, cold, probe=True)
+    cold, forward, rigid_start = _forward_kinematics(problem)
+    cold = _search(problem, cold, probe=rigid_start)
     best = cold.take(np.flatnonzero(_admissible(cold)))
     missing = sorted(set(range(count)) - set(best.sample.tolist()))
     return _assemble(problem, best, {i: forward(i) for i in missing})
@@ -279,11 +283,12 @@ def _admissible(rows: Rows) -> np.ndarray:
     return rows.converged & np.all(~rows.taut | (rows.mu >= -TENSION_TOL), axis=1)
 
 
-def _doubtful(rows: Rows) -> np.ndarray:
-    """Rows whose taut set may not be the best: inadmissible, a slack rope overstretched, or a residual
-    beyond SEARCH_SIGMA."""
+def _doubtful(rows: Rows, misfit: bool = True) -> np.ndarray:
+    """Rows whose taut set may not be the best: inadmissible, a slack rope overstretched, or (`misfit`)
+    a residual beyond SEARCH_SIGMA."""
     overstretched = np.any(~rows.taut & (rows.residuals[:, :4] > SLACK_SEARCH), axis=1)
-    return ~_admissible(rows) | overstretched | (np.abs(rows.residuals).max(axis=1) > SEARCH_SIGMA)
+    doubtful = ~_admissible(rows) | overstretched
+    return doubtful | (np.abs(rows.residuals).max(axis=1) > SEARCH_SIGMA) if misfit else doubtful
 
 
 def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
@@ -292,8 +297,10 @@ def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
     The start's set is solved, with its neighbours where `probe` and an observation already
     disagrees at the start (from forward kinematics: a load pin reading kilonewtons on a rope
     the lengths have slack; a warm start is not probed, its pose is a sample old); where the best
-    is doubtful, its neighbours; where the best of these is still doubtful, every other set
-    of two or more ropes is solved from it.
+    is doubtful, its neighbours, and the neighbours of a better set found there; where the best is
+    then still inadmissible or leaves a slack rope overstretched, every other set of two or more
+    ropes is solved from it (a misfit alone does not go that far: after the neighbours have not
+    explained it, the model lacks something a taut set cannot give).
     """
     count = len(start.sample)
     best = Rows(start.sample, start.taut, start.rotation, start.position, start.mu)
@@ -305,7 +312,7 @@ def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
         observed = residuals(problem, best, np.arange(count))[:, 4:]
         pending = np.flatnonzero(np.abs(observed).max(axis=1) > SEARCH_SIGMA)
     solved = np.zeros(count, bool)
-    for search in (NEIGHBOURS, NEIGHBOURS, ALL_SETS):
+    for stage, search in enumerate((NEIGHBOURS, NEIGHBOURS, ALL_SETS)):
         owner, codes = _candidates(best, pending, visited, search)
         fresh = np.flatnonzero(~solved)
         if not fresh.size and not owner.size:
@@ -323,7 +330,7 @@ def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
             getattr(best, name)[replaced] = getattr(candidates, name)[better]
         solved[:] = True
         searched = np.unique(owner)
-        pending = searched[_doubtful(best.take(searched))]
+        pending = searched[_doubtful(best.take(searched), misfit=stage == 0)]
         if not pending.size:
             break
     return best
