@@ -15,7 +15,7 @@ from typing import Any, Iterator, Mapping
 from rosbags.typesys.store import Typestore
 
 from ..model.safe_yaml import YamlLimitError, load_yaml_file
-from .decode import decode
+from .decode import decode, decodes_as
 from .mcapfile import McapError, McapFile
 from .typestore import typestore
 
@@ -138,7 +138,7 @@ class BagReader:
 
     def __iter__(self) -> Iterator[BagMessage]:
         for file in self.files:
-            with McapFile(file) as mcap:
+            with McapFile(file, lambda msgtype, data: decodes_as(data, msgtype, self.store)) as mcap:
                 yield from self._file_messages(mcap)
         report = self.report
         if report.damage and report.missing is not None:
