@@ -181,8 +181,10 @@ class McapFile:
         self.schemas.update(kept.schemas)
         self.channels.update(kept.channels)
         held = "" if entries is None else f" of the {len(entries)} its index lists"
+        end = (f"reading stopped where {kept.end}" if kept.end else "every record checks, so the damage lies in a "
+               "payload or the CRC field: one of these messages may carry altered values")
         return kept.messages, Damage(offset, f"chunk at byte {offset} damaged ({why}): {len(kept.messages)} messages"
-                                     f"{held} salvaged, up to where {kept.end}", kept.lost(entries))
+                                     f"{held} salvaged; {end}", kept.lost(entries))
 
     def _record_at(self, offset: int, length: int | None = None) -> tuple[int, bytes]:
         """Opcode and body of the record at `offset`, of `length` bytes if given (else as its header says)."""
@@ -278,12 +280,14 @@ class McapFile:
             broken = self._broken_chunk(error.offset, end, str(error))
             if broken is not None:
                 yield broken[0]
-            self.damage.append(Damage(error.offset, f"file damaged or cut short at byte {error.offset} of "
-                                      f"{self.size}: {error}; bytes {error.offset}-{end} "
-                                      f"({100.0 * (end - error.offset) / self.size:.1f}%) could not be read"
-                                      + ("" if broken is None else f" but for {broken[1].description}")
-                                      + ("" if resume is None else f", reading went on at the chunk at byte {resume}"),
-                                      None if broken is None else broken[1].lost))
+            where = f"file damaged or cut short at byte {error.offset} of {self.size}: "
+            went_on = "" if resume is None else f", reading went on at the chunk at byte {resume}"
+            if broken is not None:
+                self.damage.append(Damage(error.offset, where + broken[1].description + went_on, broken[1].lost))
+            else:
+                self.damage.append(Damage(error.offset, f"{where}{error}; bytes {error.offset}-{end} "
+                                          f"({100.0 * (end - error.offset) / self.size:.1f}%) could not be read"
+                                          + went_on, None))
             return resume
         self.damage.append(Damage(self.size, f"the file ends at byte {self.size} without its data-end record: "
                                   "the recording was cut short; everything before was read", None))

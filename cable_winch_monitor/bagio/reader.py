@@ -143,7 +143,8 @@ class BagReader:
         report = self.report
         if report.damage and report.missing is not None:
             report.damage.append(f"in all {report.missing} of the {report.expected} messages the bag lists "
-                                 "were not found")
+                                 "were not found" if report.missing else
+                                 f"all {report.expected} messages the bag lists were found")
 
     def _file_messages(self, mcap: McapFile) -> Iterator[BagMessage]:
         report = self.report
@@ -186,5 +187,7 @@ class BagReader:
             channel = mcap.channels.get(channel_id)
             by_topic[channel.topic if channel else f"<channel {channel_id}>"] += count
         self.report.lost.update(by_topic)
+        if not by_topic:
+            return "; no message lost"
         return f"; {sum(by_topic.values())} messages lost (" + ", ".join(
             f"{topic} {count}" for topic, count in sorted(by_topic.items())) + ")"

@@ -62,7 +62,7 @@ class Salvage:
     messages: list[RawMessage] = field(default_factory=list)
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
-    end: str = "every record in it checks"
+    end: str = ""  # where and why the walk stopped ('' if every record checks)
 
     def lost(self, entries: IndexEntries | None) -> Counter[int] | None:
         """Messages per channel the index lists that were not kept (None: the chunk's index is not readable)."""
