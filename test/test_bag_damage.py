@@ -133,3 +133,28 @@ def test_compressed_chunks_cut_and_corrupted(bag, tmp_path, compression):
         delivered, report = read_damaged(compressed, tmp_path, damaged)
         check_replayed(located, delivered, report, (place, end))
     assert from_cut_chunks > 0
+
+
+@pytest.mark.parametrize("alteration", ["log time + 1 ns", "channel id", "string length"])
+def test_an_altered_record_that_still_parses_ends_the_salvage(bag, original, tmp_path, alteration):
+    """A message in the middle of a chunk altered so that its record still parses: the index's log time and
+    channel, or the payload's decoding, catch it; the chunk's messages before it are replayed, it and the rest
+    of the chunk are counted as lost."""
+    content, located = original
+    chunk = sorted({m.chunk for m in located})[3]
+    inside = [m for m in located if m.chunk == chunk]
+    target = next(m for m in inside[len(inside) // 2:] if m.topic == "/winch/joint_states")
+    damaged = bytearray(content)
+    if alteration == "log time + 1 ns":
+        damaged[target.start + 15:target.start + 23] = (target.log_time + 1).to_bytes(8, "little")
+    elif alteration == "channel id":
+        other = next(m for m in located if m.topic != target.topic)
+        damaged[target.start + 9:target.start + 11] = content[other.start + 9:other.start + 11]
+    else:  # the header's frame_id length, after the encapsulation and the stamp
+        damaged[target.start + 31 + 12:target.start + 31 + 16] = (2 ** 20).to_bytes(4, "little")
+    delivered, report = read_damaged(bag, tmp_path, bytes(damaged))
+    check_replayed(located, delivered, report, (target.start, target.end))
+    before = [m for m in inside if m.start < target.start]
+    assert {(m.topic, m.log_time) for m in inside} & {d[:2] for d in delivered} == {
+        (m.topic, m.log_time) for m in before}
+    assert sum(report.lost.values()) == len(inside) - len(before) == report.missing

@@ -21,9 +21,8 @@ from collections import Counter
 from dataclasses import dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import BinaryIO, Callable, Generator, Iterable, Iterator
+from typing import Callable, Generator, Iterable, Iterator
 
-from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, ChunkIndex, MessageIndex, Schema, Statistics
 
