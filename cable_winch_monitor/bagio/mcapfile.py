@@ -180,6 +180,8 @@ class McapFile:
         self.schemas.update(kept.schemas)
         self.channels.update(kept.channels)
         held = "" if entries is None else f" of the {len(entries)} its index lists"
+        if not kept.end and len(data) < chunk.uncompressed_size:
+            kept.end = f"its data ends after {len(data)} of its {chunk.uncompressed_size} bytes"
         end = (f"reading stopped where {kept.end}" if kept.end else "every record checks, so the damage lies in a "
                "payload or the CRC field: one of these messages may carry altered values")
         return kept.messages, Damage(offset, f"chunk at byte {offset} damaged ({why}): {len(kept.messages)} messages"
