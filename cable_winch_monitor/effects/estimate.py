@@ -120,9 +120,11 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
 
 
 def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
-                       conditions: Sequence[Conditions]) -> list[Estimate]:
+                       conditions: Sequence[Conditions],
+                       warm_starts: Sequence[Estimate | None] | None = None) -> list[Estimate]:
     """`estimate_sample` for N samples at once: reported (N, 4), each channel (N,) (NaN where not
-    measured), each sample's conditions (its load, its lengths, what its sensors read depend on them)."""
+    measured), each sample's conditions (its load, its lengths, what its sensors read depend on them),
+    and optionally each sample's estimate under slightly different parameters to start from (a fit)."""
     reported = np.asarray(reported, dtype=float).reshape(-1, 4)
     if len(conditions) != len(reported):
         raise ValueError(f"{len(conditions)} conditions for {len(reported)} samples")
@@ -138,7 +140,7 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
     loads = np.array([model.load(at) for at in conditions])
     return estimate_batch(model.physical, lengths, observations_for(model, measured, conditions),
                           length_noise(model), law.EA, law.weight if law.EA is not None else 0.0,
-                          loads=loads).estimates()
+                          loads=loads, warm_starts=warm_starts).estimates()
 
 
 def forward_estimate(solution: Solution, reported: Sequence[float]) -> Estimate:
