@@ -87,7 +87,7 @@ class StackedConditions:
 def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
     """+1 paying out, -1 hauling in; within the dead band the last direction holds (static friction
     keeps the slip state the rope had when it stopped)."""
-    speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
+    speeds = np.asarray(speeds, dtype=float)  # NaN compares false both ways: the last direction holds
     return np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, previous))
 
 
@@ -137,11 +137,12 @@ def directions(speeds: np.ndarray) -> np.ndarray:
 
 def _window_slope(times: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Least-squares slope of values (k, 4) over all k stamps (0 where fewer than two stamps differ)."""
-    t = times - times.mean()
+    t = times - times.sum() / times.size
     tt = float(t @ t)
     if tt <= 0.0:
         return np.zeros(values.shape[1])
-    return t @ np.nan_to_num(values - values.mean(axis=0)) / tt
+    slope = t @ values / tt  # t sums to zero: the values' mean drops out
+    return slope if np.isfinite(slope).all() else t @ np.nan_to_num(values - np.nanmean(values, axis=0)) / tt
 
 
 class ConditionsTracker:
