@@ -18,16 +18,20 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
+
+import numpy as np
 
 from .model.conditions import Conditions
 from .model.geometry import roll_pitch_of_quaternion, roll_pitch_yaw
+from .model.observations import States, pitch_of, roll_of
 from .model.plant import CABLE_NAMES, Plant
 from .model.result import Solution
 
 JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
 WINCH_TOPICS = ("/winch/joint_states", *(f"/winch_{i}/joint_states" for i in range(1, 5)))  # interface.md
 Prediction = Callable[[Solution, Plant, Conditions], float]
+StatesPrediction = Callable[[States], np.ndarray]
 NAN = float("nan")
 
 
@@ -81,7 +85,8 @@ class Input:
 class Channel:
     """One measured number: its name, unit, noise key in the plant file, the topics and message type
     it is read from, the field (in words), how to read it from a message (None: the winch merger
-    reads it, aligned with the cable lengths) and how the model predicts it."""
+    reads it, aligned with the cable lengths) and how the model predicts it: for one solved state, and
+    optionally for stacked states at once (`predict_states`; without it each state is predicted alone)."""
 
     name: str
     unit: str
@@ -91,6 +96,7 @@ class Channel:
     field: str
     predict: Prediction
     read: Callable[[Any], float] | None = None
+    predict_states: StatesPrediction | None = None
 
     def __post_init__(self) -> None:
         if self.read is None and self.msgtype != JOINT_STATE:
@@ -117,15 +123,16 @@ def _position(axis: int) -> Prediction:
 
 TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # the load pins, one per cable
 BUILTIN = (
-    *(Channel(name, "N", "tension", WINCH_TOPICS, JOINT_STATE, f"effort[{cable}]", _tension(i))
+    *(Channel(name, "N", "tension", WINCH_TOPICS, JOINT_STATE, f"effort[{cable}]", _tension(i),
+              predict_states=(lambda i: lambda states: states.tensions[:, i])(i))
       for i, (name, cable) in enumerate(zip(TENSION_CHANNELS, CABLE_NAMES))),
     Channel("roll", "rad", "roll", ("/platform/imu",), IMU, "orientation (roll)",
-            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[0], _roll_pitch(0)),
+            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[0], _roll_pitch(0), roll_of),
     Channel("pitch", "rad", "pitch", ("/platform/imu",), IMU, "orientation (pitch)",
-            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[1], _roll_pitch(1)),
-    Channel("x", "m", "x", ("/platform/position",), POINT, "point.x", _position(0)),
-    Channel("y", "m", "y", ("/platform/position",), POINT, "point.y", _position(1)),
-    Channel("depth", "m", "depth", ("/platform/position",), POINT, "point.z", _position(2)),
+            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[1], _roll_pitch(1), pitch_of),
+    *(Channel(name, "m", name, ("/platform/position",), POINT, f"point.{axis}", _position(k),
+              predict_states=(lambda k: lambda states: states.position[:, k])(k))
+      for k, (name, axis) in enumerate(zip(("x", "y", "depth"), "xyz"))),
 )
 _declared: dict[str, Channel] = {c.name: c for c in BUILTIN}
 
@@ -169,3 +176,16 @@ def predicted(solution: Solution, plant: Plant, conditions: Conditions) -> dict[
     load pins the tension (weightless ropes), the inclinometer the platform's roll and pitch, the
     depth gauge the platform origin."""
     return {name: channel.predict(solution, plant, conditions) for name, channel in _declared.items()}
+
+
+def predicted_states(states: States, conditions: Sequence[Conditions]) -> dict[str, np.ndarray]:
+    """`predicted` for stacked states (conditions[k] is state k's): arrays (n,), one per channel."""
+    out: dict[str, np.ndarray] = {}
+    alone = [c for c in _declared.values() if c.predict_states is None]
+    solutions = states.solutions() if alone else []
+    for name, channel in _declared.items():
+        if channel.predict_states is not None:
+            out[name] = np.array(channel.predict_states(states), dtype=float)
+        else:
+            out[name] = np.array([channel.predict(s, states.plant, at) for s, at in zip(solutions, conditions)], float)
+    return out

@@ -15,9 +15,9 @@ ahead. For each window of messages:
    step 3 instead, as the node solves it;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
-   solved pose -- the per-sample pipeline's own code, so the outputs are the node's. A sample
-   whose trusted sensors changed within the window (a gate closed or opened) is estimated
-   again there, warm-started, as the node estimates it.
+   solved pose -- the per-sample pipeline's own code, so the outputs are the node's. Step 2
+   runs a chunk of samples ahead of step 3 (`Presolved`): where a gate closes or opens, the
+   chunk is estimated again from that sample on under the sensors trusted then.
 
 Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
 a sample's value is interpolated between the readings around its stamp.
@@ -33,21 +33,22 @@ import numpy as np
 
 from .bagio import fields
 from .effects.estimate import estimate_recording, forward_estimate
-from .model.conditions import Conditions
+from .model.conditions import Conditions, StackedConditions
+from .model.observations import States
 from .model.estimation import Estimate
 from . import channels
 from .model.plant import Plant
 from .model.result import Solution
-from .monitor.clearance import Clearance, solution_clearances
+from .monitor.clearance import solution_clearances
 from .monitor.inputs import StampWindow
-from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
+from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Solved
 from .monitor.residuals import Residuals
 from .monitor.sensors import DEFAULT_HOLD
 
 WINDOW = 2000  # messages read ahead
+CHUNKS = (16, 1024)  # fewest and most samples solved together under one set of trusted sensors
 
 Result = Union[MonitorOutput, Residuals, None, Exception]
-Solved = tuple[Solution, Clearance | None, Estimate | None]
 
 
 class Merged(NamedTuple):
@@ -55,6 +56,33 @@ class Merged(NamedTuple):
 
     sample: CompleteSample
     conditions: Conditions
+
+
+class Presolved:
+    """Step 2 for a window's samples, a chunk at a time: each chunk is solved together under the
+    sensors trusted when it starts. Where a gate opens or closes, the rest of the chunk is solved
+    again from that sample on under the new trusted set, in a chunk of CHUNKS[0] samples, each
+    following chunk twice as long up to CHUNKS[1] (a gate that flaps costs a few small chunks, a
+    steady one runs in long chunks, neither a per-sample solve)."""
+
+    def __init__(self, pipeline: "LookaheadPipeline"):
+        self.pipeline = pipeline
+        self.start = self.stop = 0
+        self.size = CHUNKS[1]
+        self.solved: list[Solved | None] = []
+        self.refused: tuple[str, ...] | None = None
+
+    def at(self, index: int, samples: list[Merged]) -> Solved | None:
+        """The presolved equilibrium, clearance, estimate and predictions of sample `index` of the window."""
+        refused = self.pipeline.gates.refused
+        changed = index < self.stop and refused != self.refused and self.solved[index - self.start] is not None \
+            and self.solved[index - self.start].estimate is not None
+        if index >= self.stop or changed:
+            self.size = CHUNKS[0] if changed else min(2 * self.size, CHUNKS[1])
+            self.start, self.stop = index, min(index + self.size, len(samples))
+            self.solved = self.pipeline._presolve(samples[self.start:self.stop])
+            self.refused = refused
+        return self.solved[index - self.start]
 
 
 class LookaheadPipeline(MonitorPipeline):
@@ -84,12 +112,13 @@ class LookaheadPipeline(MonitorPipeline):
                 self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
         merged = [self._merge_item(item) for item in window]
         samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
-        refused = self.gates.refused  # the sensors left out when the window was estimated
-        presolved = iter(self._presolve(samples))
+        ahead = Presolved(self)
+        index = 0
         for item, outcome in zip(window, merged):
-            solved = next(presolved) if isinstance(outcome, Merged) else None
-            if solved is not None and solved[2] is not None and self.gates.refused != refused:
-                solved = None  # a gate changed within the window: estimated as the node does
+            solved = None
+            if isinstance(outcome, Merged):
+                solved = ahead.at(index, samples)
+                index += 1
             try:
                 result = self._result(item, outcome, solved)
             except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
@@ -126,7 +155,23 @@ class LookaheadPipeline(MonitorPipeline):
         else:
             solutions = self.model.solve_batch(lengths, [s.conditions for s in samples], self._warm_start())
             estimates = [None] * len(samples)
-        return list(zip(solutions, solution_clearances(self.model.physical, solutions), estimates))
+        return [Solved(*row) for row in zip(solutions, solution_clearances(self.model.physical, solutions), estimates,
+                                            self._predictions(solutions, [s.conditions for s in samples]))]
+
+    def _predictions(self, solutions: list[Solution], conditions: list[Conditions]) -> list[dict[str, float] | None]:
+        """What every channel reads at each solved state (None where not solved), all at once."""
+        solved = [k for k, solution in enumerate(solutions) if solution.ok]
+        out: list[dict[str, float] | None] = [None] * len(solutions)
+        if not solved:
+            return out
+        states = States(self.model.physical, np.array([solutions[k].rotation for k in solved]),
+                        np.array([solutions[k].position for k in solved]),
+                        np.array([solutions[k].tensions for k in solved]))
+        table = self.model.predict_states(states, StackedConditions.of([conditions[k] for k in solved]))
+        columns = {name: values.tolist() for name, values in table.items()}
+        for row, k in enumerate(solved):
+            out[k] = {name: values[row] for name, values in columns.items()}
+        return out
 
     def _estimates(self, samples: list[Merged], lengths: np.ndarray) -> list[Estimate]:
         """The window's estimates from the sensors trusted now; a sample with none is solved from its

@@ -19,7 +19,7 @@ from cable_winch_monitor.bagio import fields
 from cable_winch_monitor.bagio.cdr import encoder
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.model.plant import CABLE_NAMES
-from root_truth import slack_truth, weak_mode_truth
+from root_truth import elastic_truth, slack_truth, weak_mode_truth
 
 NOISE = {"length": 1e-3, "tension": 150.0, "roll": np.radians(0.01), "pitch": np.radians(0.01), "depth": 5e-3}
 RATE, SPEED = 10.0, 0.4  # [Hz] winches, [m/s] lowering
@@ -60,17 +60,31 @@ def lowering_truths(plant, count: int, seed: int, speed: float = SPEED, lags: bo
     return truths
 
 
+def elastic_lowering_truths(plant, count: int, seed: int, start: float, speed: float, ea: float,
+                            weight: float) -> list:
+    """A lowering from `start` on elastic ropes (EA [N], weight [N/m]) whose winches drift by up to 2 cm."""
+    rng = np.random.default_rng(seed)
+    truths, offsets = [], np.zeros(4)
+    for k in range(count):
+        offsets = np.clip(offsets + rng.normal(0.0, 2e-4, 4), -0.02, 0.02)
+        truth = elastic_truth(plant, start + speed * k / RATE + offsets, ea, weight)
+        assert truth is not None
+        truths.append(truth)
+    return truths
+
+
 def sensed(truths, seed: int, pin_fault: tuple[int, int, float] | None = None,
-           reported: Callable[[np.ndarray], np.ndarray] = lambda lengths: lengths, speed: float = SPEED) \
-        -> list[SimpleNamespace]:
+           reported: Callable[[np.ndarray], np.ndarray] = lambda lengths: lengths, speed: float = SPEED,
+           pins: Callable[[object], np.ndarray] = lambda truth: truth.tensions) -> list[SimpleNamespace]:
     """Bag items of the truths: a merged winch message per sample, the inclinometer 30-40 ms after it,
     the depth gauge at 2 Hz; `pin_fault` (cable, from sample, offset [N]) makes a load pin read wrong,
-    `reported` is what the encoders report for the true lengths."""
+    `reported` is what the encoders report for the true lengths, `pins` what the load pins feel of a
+    truth (its rope tensions at the platform, by default)."""
     rng = np.random.default_rng(seed)
     items = []
     for k, truth in enumerate(truths):
         t = 100.0 + k / RATE
-        efforts = truth.tensions + rng.normal(0.0, NOISE["tension"], 4)
+        efforts = pins(truth) + rng.normal(0.0, NOISE["tension"], 4)
         if pin_fault is not None and k >= pin_fault[1]:
             efforts[pin_fault[0]] += pin_fault[2]
         winch = SimpleNamespace(header=header(t), name=list(CABLE_NAMES),

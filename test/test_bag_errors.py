@@ -89,7 +89,7 @@ def test_corrupt_chunk(camera_bag, tmp_path):
     mcap.write_bytes(bytes(data))
     result = run_cli("replay", bag, "--out", tmp_path / "out")
     assert_clean(result, 1)
-    assert f"chunk at byte {start} unreadable" in result.stdout and "PARTIAL REPLAY" in result.stdout
+    assert f"chunk at byte {start} damaged" in result.stdout and "PARTIAL REPLAY" in result.stdout
     summary = replay(bag, tmp_path / "out2", progress=False)
     lost = summary.report.lost[JOINTS]
     assert lost > 0 and summary.stats.used[JOINTS] + lost == 100  # the message index tells what was lost

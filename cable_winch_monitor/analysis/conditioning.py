@@ -18,8 +18,10 @@ from typing import Any
 import numpy as np
 
 from ..effects import PlantModel
+from ..model.conditions import Conditions
+from ..model.result import Solution
 from .data import Dataset
-from .evaluate import Evaluator, thin
+from .evaluate import thin
 
 LENGTH_STEP = 1.0e-3                         # [m] one millimetre of encoder error
 INTERNAL_MODE = np.array([-1.0, 1.0, -1.0, 1.0])
@@ -51,19 +53,25 @@ class IllConditioned:
 
 
 def _changes(model: PlantModel, data: Dataset, rows: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    """(rows, steps, channels): how far each prediction moves for each length step (NaN where unsolved)."""
-    evaluator = Evaluator(data.subset(rows))
-    base = evaluator.predicted(model)
+    """(rows, steps, channels): how far each prediction of the forward kinematics moves for each length
+    step (NaN where unsolved), the rows solved together per step (`PlantModel.solve_batch`)."""
+    subset = data.subset(rows)
+    conditions = subset.conditions()
+    before = _predictions(model, model.solve_batch(subset.lengths, conditions), conditions, data.channels)
     out = np.full((len(rows), len(steps), len(data.channels)), np.nan)
-    for k, (solution, lengths, conditions) in enumerate(zip(evaluator.solutions(model), evaluator.data.lengths,
-                                                             evaluator.conditions)):
-        if not solution.ok:
-            continue
-        for s, step in enumerate(steps):
-            moved = model.solve(lengths + step, solution, conditions)
-            if moved.ok:
-                predicted = model.predict(moved, conditions)
-                out[k, s] = [predicted[c] for c in data.channels] - base[k]
+    for s, step in enumerate(steps):
+        moved = model.solve_batch(subset.lengths + step, conditions)
+        out[:, s] = _predictions(model, moved, conditions, data.channels) - before
+    return out
+
+
+def _predictions(model: PlantModel, solutions: list[Solution], conditions: list[Conditions],
+                 names: tuple[str, ...]) -> np.ndarray:
+    out = np.full((len(solutions), len(names)), np.nan)
+    for k, (solution, at) in enumerate(zip(solutions, conditions)):
+        if solution.ok:
+            predicted = model.predict(solution, at)
+            out[k] = [predicted[c] for c in names]
     return out
 
 

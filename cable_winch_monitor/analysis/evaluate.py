@@ -47,14 +47,16 @@ class Evaluator:
 
     def estimates(self, model: PlantModel) -> list[Estimate] | None:
         """The fused estimate of every row from its lengths and measured channels (None: the model takes
-        the lengths as exact). Measurement effects change an estimate too: keyed on every effect."""
+        the lengths as exact), each started from the row's last estimate (a fit moves its parameters a
+        little between calls). Measurement effects change an estimate too: keyed on every effect."""
         if not fuses(model):
             return None
         key = (model.solve_key(), tuple((e.name, tuple(e.values.items())) for e in model.effects))
         if self._estimated is not None and self._estimated[0] == key:
             return self._estimated[1]
         measured = {name: self.data.measured[:, c] for c, name in enumerate(self.data.channels)}
-        out = estimate_recording(model, self.data.lengths, measured, self.conditions) if len(self.data) else []
+        warm = self._estimated[1] if self._estimated is not None else None
+        out = estimate_recording(model, self.data.lengths, measured, self.conditions, warm) if len(self.data) else []
         self.solves += len(out)
         self._estimated = (key, out)
         return out

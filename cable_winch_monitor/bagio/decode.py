@@ -167,3 +167,14 @@ def decode(data: bytes, msgtype: str, store: Typestore) -> Any:
     if fast is None or data[:2] != LITTLE_ENDIAN:
         return store.deserialize_cdr(data, msgtype)
     return fast(data)
+
+
+def decodes_as(data: bytes, msgtype: str, store: Typestore) -> bool:
+    """True if `data` decodes as `msgtype` (False too for a type the store does not know)."""
+    if msgtype not in store.types:
+        return False
+    try:
+        decode(data, msgtype, store)
+    except Exception:  # noqa: BLE001 - malformed bytes raise anything
+        return False
+    return True

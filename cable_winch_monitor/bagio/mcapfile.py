@@ -1,11 +1,12 @@
 """One MCAP file read record by record, so that damage costs only the part it touches.
 
-mcap's own readers stop at the first bad record. Here each chunk is read on its own: a
-chunk that cannot be read (broken framing, failed decompression or CRC) is skipped, its
-messages counted from the message index where that survived, and reading goes on at the
+mcap's own readers stop at the first bad record. Here each chunk is read on its own: of a
+chunk that does not read whole (broken framing, failed decompression or CRC) the
+well-formed records before the damage are salvaged (salvage.py), the rest counted as
+lost from the chunk's message index where that survived, and reading goes on at the
 next chunk the summary lists. A file without a readable summary (a recording cut short)
-is walked from its start: the complete records of a chunk cut off by the end of the file
-are kept (a cut changes no byte before it), and where the framing breaks inside the file
+is walked from its start: a chunk cut off by the end of the file, or whose record length
+is damaged, is salvaged the same way, and where the framing breaks inside the file
 reading resumes at the next chunk whose CRC checks. Messages come out in log-time order:
 chunks are merged where their time ranges overlap, so memory stays at about one chunk.
 """
@@ -13,42 +14,32 @@ from __future__ import annotations
 
 import heapq
 import mmap
+import os
 import struct
 import zlib
 from collections import Counter
 from dataclasses import dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import BinaryIO, Callable, Generator, Iterable, Iterator
+from typing import Callable, Generator, Iterable, Iterator
 
-from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, ChunkIndex, MessageIndex, Schema, Statistics
 
+from .decode import decodes_as
+from .framing import (CHUNK_HEAD, RECORD_HEADER, McapDamage, RawMessage, chunk_data, chunk_layout, keep_definition,
+                      parse_record, read_message, read_records)
+from .salvage import ChunkContext, IndexEntries, PayloadCheck, Salvage, readable_prefix, salvage
+from .typestore import typestore
+
 MAGIC = b"\x89MCAP0\r\n"
-RECORD_HEADER = struct.Struct("<BQ")
-MESSAGE_HEADER = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
-CHUNK_HEAD = struct.Struct("<QQQII")  # start time, end time, uncompressed size, CRC, compression name length
 FOOTER_SIZE = RECORD_HEADER.size + 20 + len(MAGIC)
+MAX_CHUNK_DATA = 2 ** 28  # bytes of one chunk's data read at most, whatever a damaged header claims
+MAX_COMPRESSION_NAME = 16  # bytes; "zstd" and "lz4" are the names in use
 
 
 class McapError(Exception):
     """The file is not an MCAP file at all."""
-
-
-class McapDamage(Exception):
-    """A part of the file that cannot be read; `offset` is where in the file it starts."""
-
-    def __init__(self, message: str, offset: int = 0):
-        super().__init__(message)
-        self.offset = offset
-
-
-@dataclass(frozen=True)
-class RawMessage:
-    channel_id: int
-    log_time: int
-    data: bytes
 
 
 @dataclass
@@ -58,77 +49,6 @@ class Damage:
     offset: int
     description: str
     lost: Counter[int] | None
-
-
-def _records(stream: BinaryIO, start: int, end: int) -> Iterator[tuple[int, int, bytes]]:
-    """(offset, opcode, body) of each record from `start` to `end`; McapDamage where the framing breaks."""
-    offset = start
-    stream.seek(start)
-    while offset < end:
-        header = stream.read(RECORD_HEADER.size)
-        if len(header) < RECORD_HEADER.size:
-            raise McapDamage(f"{end - offset} bytes at byte {offset} are too few for a record", offset)
-        opcode, length = RECORD_HEADER.unpack(header)
-        if length > end - offset - RECORD_HEADER.size:
-            raise McapDamage(f"the record at byte {offset} claims {length} bytes, only "
-                             f"{end - offset - RECORD_HEADER.size} follow", offset)
-        body = stream.read(length)
-        yield offset, opcode, body
-        offset += RECORD_HEADER.size + length
-
-
-def _parse(reader: Callable[[ReadDataStream], object], body: bytes, what: str, offset: int) -> object:
-    try:
-        return reader(ReadDataStream(BytesIO(body)))
-    except Exception as error:  # noqa: BLE001 - any parse failure is damage, with its cause
-        raise McapDamage(f"{what} record at byte {offset} unreadable ({type(error).__name__}: {error})",
-                         offset) from None
-
-
-def _definition(opcode: int, body: bytes, offset: int, schemas: dict[int, Schema],
-                channels: dict[int, Channel]) -> bool:
-    """Keep a schema or channel record; False for any other kind of record."""
-    if opcode == Opcode.SCHEMA:
-        schema = _parse(Schema.read, body, "schema", offset)
-        schemas[schema.id] = schema
-    elif opcode == Opcode.CHANNEL:
-        channel = _parse(Channel.read, body, "channel", offset)
-        channels[channel.id] = channel
-    else:
-        return False
-    return True
-
-
-def _message(body: bytes, where: str, offset: int) -> RawMessage:
-    if len(body) < MESSAGE_HEADER.size:
-        raise McapDamage(f"message record too short at {where}", offset)
-    channel_id, _, log_time, _ = MESSAGE_HEADER.unpack_from(body)
-    return RawMessage(channel_id, log_time, body[MESSAGE_HEADER.size:])
-
-
-def _decompress(chunk: Chunk, offset: int) -> bytes:
-    try:
-        if chunk.compression == "":
-            data = chunk.data
-        elif chunk.compression == "zstd":
-            import zstandard
-
-            data = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
-        elif chunk.compression == "lz4":
-            import lz4.frame
-
-            data = lz4.frame.decompress(chunk.data)
-        else:
-            raise McapDamage(f"unsupported chunk compression {chunk.compression!r}", offset)
-    except McapDamage:
-        raise
-    except Exception as error:  # noqa: BLE001 - corrupt compressed data raises library-specific errors
-        raise McapDamage(f"{chunk.compression} decompression failed ({error})", offset) from None
-    if len(data) != chunk.uncompressed_size:
-        raise McapDamage(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}", offset)
-    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
-        raise McapDamage("chunk CRC mismatch", offset)
-    return data
 
 
 def merge_by_log_time(chunks: Iterable[tuple[int, list[RawMessage]]]) -> Iterator[RawMessage]:
@@ -150,8 +70,11 @@ def merge_by_log_time(chunks: Iterable[tuple[int, list[RawMessage]]]) -> Iterato
 class McapFile:
     """Schemas, channels and messages of one MCAP file, with every unreadable part in `damage`."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, decodes: PayloadCheck | None = None):
+        """`decodes` tells whether bytes salvaged from a damaged chunk decode as a message type
+        (default: the package's decoders over its type store)."""
         self.path = path
+        self._decodes = decodes or (lambda msgtype, data: decodes_as(data, msgtype, typestore()))
         self.size = path.stat().st_size
         self.schemas: dict[int, Schema] = {}
         self.channels: dict[int, Channel] = {}
@@ -196,13 +119,13 @@ class McapFile:
             return None
         chunks: list[ChunkIndex] = []
         try:
-            for offset, opcode, body in _records(self._file, summary_start, footer_offset):
-                if _definition(opcode, body, offset, self.schemas, self.channels):
+            for offset, opcode, body in read_records(self._file, summary_start, footer_offset):
+                if keep_definition(opcode, body, offset, self.schemas, self.channels):
                     continue
                 if opcode == Opcode.CHUNK_INDEX:
-                    chunks.append(_parse(ChunkIndex.read, body, "chunk index", offset))
+                    chunks.append(parse_record(ChunkIndex.read, body, "chunk index", offset))
                 elif opcode == Opcode.STATISTICS:
-                    self.message_count = _parse(Statistics.read, body, "statistics", offset).message_count
+                    self.message_count = parse_record(Statistics.read, body, "statistics", offset).message_count
         except McapDamage as error:
             self.notes.append(f"{self.path.name}: summary section unreadable ({error}): "
                               "reading the file from the start")
@@ -219,50 +142,109 @@ class McapFile:
         chunks = self._indexed_chunks() if self._index is not None else self._scanned_chunks()
         return merge_by_log_time(chunks)
 
-    def _chunk(self, body: bytes, offset: int) -> tuple[int, list[RawMessage]]:
-        """Start time and messages (sorted by log time) of one chunk record; schemas and channels
-        it defines are kept only if the whole chunk reads."""
-        chunk = _parse(Chunk.read, body, "chunk", offset)
-        data = _decompress(chunk, offset)
+    def _chunk(self, body: bytes, offset: int, index: ChunkIndex | None,
+               entries: Callable[[], IndexEntries | None]) -> tuple[int, list[RawMessage]]:
+        """Start time and messages (sorted by log time) of one chunk record; of a damaged chunk, the ones its
+        salvage keeps, the loss noted in `damage`. McapDamage if not even the chunk's layout can be read."""
+        chunk = chunk_layout(body, offset, index)
+        try:
+            messages = self._whole(chunk, offset)
+        except McapDamage as error:
+            messages, damage = self._salvaged(chunk, offset, str(error), entries())
+            self.damage.append(damage)
+        messages.sort(key=lambda m: m.log_time)
+        return chunk.message_start_time, messages
+
+    def _whole(self, chunk: Chunk, offset: int) -> list[RawMessage]:
+        """The messages of a chunk that reads whole with a matching CRC; its definitions kept."""
+        data = chunk_data(chunk, offset)
         schemas, channels, messages = {}, {}, []
         try:
-            for inner, opcode, record in _records(BytesIO(data), 0, len(data)):
+            for inner, opcode, record in read_records(BytesIO(data), 0, len(data)):
                 if opcode == Opcode.MESSAGE:
-                    messages.append(_message(record, f"byte {inner}", inner))
-                elif not _definition(opcode, record, inner, schemas, channels):
+                    messages.append(read_message(record, f"byte {inner}", inner))
+                elif not keep_definition(opcode, record, inner, schemas, channels):
                     raise McapDamage(f"record type 0x{opcode:02x} at byte {inner} cannot stand in a chunk", inner)
         except McapDamage as error:
             raise McapDamage(f"inside the chunk ({len(data)} bytes): {error}", offset) from None
         self.schemas.update(schemas)
         self.channels.update(channels)
-        messages.sort(key=lambda m: m.log_time)
-        return chunk.message_start_time, messages
+        return messages
 
-    def _index_counts(self, index: ChunkIndex) -> Counter[int] | None:
-        """Messages per channel of an indexed chunk, from its message index records (None if unreadable)."""
-        counts: Counter[int] = Counter()
-        for channel_id, offset in index.message_index_offsets.items():
+    def _salvaged(self, chunk: Chunk, offset: int, why: str,
+                  entries: IndexEntries | None) -> tuple[list[RawMessage], Damage]:
+        """The well-formed records before the damage in a chunk, and the damage with the messages it cost."""
+        data = readable_prefix(chunk.compression, chunk.data, min(chunk.uncompressed_size, MAX_CHUNK_DATA))
+        kept = salvage(data, ChunkContext(self.schemas, self.channels, chunk.message_start_time,
+                                          chunk.message_end_time, entries, self._decodes))
+        self.schemas.update(kept.schemas)
+        self.channels.update(kept.channels)
+        held = "" if entries is None else f" of the {len(entries)} its index lists"
+        if not kept.end and len(data) < chunk.uncompressed_size:
+            kept.end = f"its data ends after {len(data)} of its {chunk.uncompressed_size} bytes"
+        end = (f"reading stopped where {kept.end}" if kept.end else "every record checks, so the damage lies in a "
+               "payload or the CRC field: one of these messages may carry altered values")
+        return kept.messages, Damage(offset, f"chunk at byte {offset} damaged ({why}): {len(kept.messages)} messages"
+                                     f"{held} salvaged; {end}", kept.lost(entries))
+
+    def _record_at(self, offset: int, length: int | None = None) -> tuple[int, bytes]:
+        """Opcode and body of the record at `offset`, of `length` bytes if given (else as its header says)."""
+        header = os.pread(self._file.fileno(), RECORD_HEADER.size, offset)
+        if len(header) < RECORD_HEADER.size:
+            raise McapDamage(f"no record at byte {offset}", offset)
+        opcode, stated = RECORD_HEADER.unpack(header)
+        length = stated if length is None else length
+        if length > self.size - offset - RECORD_HEADER.size:
+            raise McapDamage(f"the record at byte {offset} claims {length} bytes, only "
+                             f"{self.size - offset - RECORD_HEADER.size} follow", offset)
+        return opcode, os.pread(self._file.fileno(), length, offset + RECORD_HEADER.size)
+
+    def _index_entries(self, offsets: Iterable[int]) -> IndexEntries | None:
+        """Channel and log time of each message a chunk's message index records list, by offset in the chunk's
+        data (None if there are none or one is unreadable)."""
+        entries: IndexEntries = {}
+        offsets = list(offsets)
+        for offset in offsets:
             try:
-                _, opcode, body = next(_records(self._file, offset, self.size))
+                opcode, body = self._record_at(offset)
                 if opcode != Opcode.MESSAGE_INDEX:
                     return None
-                counts[channel_id] += len(_parse(MessageIndex.read, body, "message index", offset).records)
-            except (McapDamage, StopIteration):
+                index = parse_record(MessageIndex.read, body, "message index", offset)
+            except McapDamage:
                 return None
-        return counts
+            entries.update({position: (index.channel_id, time) for time, position in index.records})
+        return entries if offsets else None
+
+    def _indexes_after(self, offset: int) -> list[int]:
+        """Offsets of the message index records that follow a chunk ending at `offset`."""
+        found = []
+        while offset < self.size:
+            try:
+                opcode, body = self._record_at(offset)
+            except McapDamage:
+                break
+            if opcode != Opcode.MESSAGE_INDEX:
+                break
+            found.append(offset)
+            offset += RECORD_HEADER.size + len(body)
+        return found
 
     def _indexed_chunks(self) -> Iterator[tuple[int, list[RawMessage]]]:
         for index in self._index:
             offset = index.chunk_start_offset
+
+            def entries(index: ChunkIndex = index) -> IndexEntries | None:
+                return self._index_entries(index.message_index_offsets.values())
+
             try:
-                _, opcode, body = next(_records(self._file, offset, self.size))
+                opcode, body = self._record_at(offset, index.chunk_length - RECORD_HEADER.size)
                 if opcode != Opcode.CHUNK:
                     raise McapDamage(f"the summary points to a chunk at byte {offset}, found record type "
                                      f"0x{opcode:02x}", offset)
-                yield self._chunk(body, offset)
+                yield self._chunk(body, offset, index, entries)
             except McapDamage as error:
                 self.damage.append(Damage(offset, f"chunk at byte {offset} unreadable: {error}",
-                                          self._index_counts(index)))
+                                          Salvage().lost(entries())))
 
     def _scanned_chunks(self) -> Iterator[tuple[int, list[RawMessage]]]:
         """Records from the start, in file order, until the data section ends; past a break in the framing,
@@ -273,74 +255,66 @@ class McapFile:
 
     def _scan_from(self, start: int) -> Generator[tuple[int, list[RawMessage]], None, int | None]:
         """Records from `start` in file order; returns where to go on after a break in the framing (None: done)."""
-        lost: Damage | None = None  # the last unreadable chunk: its message index records follow it
         try:
-            for offset, opcode, body in _records(self._file, start, self.size):
-                if opcode == Opcode.MESSAGE_INDEX and lost is not None:
-                    try:
-                        record = _parse(MessageIndex.read, body, "message index", offset)
-                        lost.lost = (lost.lost or Counter()) + Counter({record.channel_id: len(record.records)})
-                    except McapDamage:
-                        lost.lost, lost = None, None  # the count is no longer known
-                    continue
-                lost = None
+            for offset, opcode, body in read_records(self._file, start, self.size):
                 if opcode == Opcode.CHUNK:
+                    end = offset + RECORD_HEADER.size + len(body)
+
+                    def entries(end: int = end) -> IndexEntries | None:
+                        return self._index_entries(self._indexes_after(end))
+
                     try:
-                        yield self._chunk(body, offset)
+                        yield self._chunk(body, offset, None, entries)
                     except McapDamage as error:
-                        lost = Damage(offset, f"chunk at byte {offset} unreadable: {error}", None)
-                        self.damage.append(lost)
+                        self.damage.append(Damage(offset, f"chunk at byte {offset} unreadable: {error}",
+                                                  Salvage().lost(entries())))
                 elif opcode == Opcode.MESSAGE:
-                    message = _message(body, f"byte {offset}", offset)
+                    message = read_message(body, f"byte {offset}", offset)
                     yield message.log_time, [message]
                 elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
                     return None
-                else:
-                    _definition(opcode, body, offset, self.schemas, self.channels)
+                elif opcode != Opcode.MESSAGE_INDEX:
+                    keep_definition(opcode, body, offset, self.schemas, self.channels)
         except McapDamage as error:
-            cut = self._cut_chunk(error.offset) if self._cut_short else None
-            if cut is not None:
-                yield cut
-                self.damage.append(Damage(error.offset, f"chunk at byte {error.offset} cut short at byte {self.size} "
-                                          f"(the end of the file): its {len(cut[1])} complete messages were read, "
-                                          "the rest of it and anything after it are lost", None))
-                return None
             resume = self._next_intact_chunk(error.offset + 1)
             end = self.size if resume is None else resume
-            self.damage.append(Damage(error.offset, f"file damaged or cut short at byte {error.offset} of "
-                                      f"{self.size}: {error}; bytes {error.offset}-{end} "
-                                      f"({100.0 * (end - error.offset) / self.size:.1f}%) could not be read"
-                                      + ("" if resume is None else f", reading went on at the chunk at byte {resume}"),
-                                      None))
+            broken = self._broken_chunk(error.offset, end, str(error))
+            if broken is not None:
+                yield broken[0]
+            where = f"file damaged or cut short at byte {error.offset} of {self.size}: "
+            went_on = "" if resume is None else f", reading went on at the chunk at byte {resume}"
+            if broken is not None:
+                self.damage.append(Damage(error.offset, where + broken[1].description + went_on, broken[1].lost))
+            else:
+                self.damage.append(Damage(error.offset, f"{where}{error}; bytes {error.offset}-{end} "
+                                          f"({100.0 * (end - error.offset) / self.size:.1f}%) could not be read"
+                                          + went_on, None))
             return resume
         self.damage.append(Damage(self.size, f"the file ends at byte {self.size} without its data-end record: "
                                   "the recording was cut short; everything before was read", None))
         return None
 
-    def _cut_chunk(self, offset: int) -> tuple[int, list[RawMessage]] | None:
-        """Start time and complete messages of an uncompressed chunk at `offset` that the end of the file cuts off
-        (None if no such chunk starts there). Only for a file without footer: a cut changes no byte before it,
-        while a chunk that runs past the footer has a damaged header and its contents are not to be trusted."""
-        self._file.seek(offset)
-        head = self._file.read(RECORD_HEADER.size + CHUNK_HEAD.size)
+    def _broken_chunk(self, offset: int, end: int,
+                      why: str) -> tuple[tuple[int, list[RawMessage]], Damage] | None:
+        """The salvage of a chunk at `offset` whose record does not fit before `end` (a cut, or a damaged
+        length): its start time, the messages kept and the damage (None if no chunk header starts there)."""
+        head = os.pread(self._file.fileno(), RECORD_HEADER.size + CHUNK_HEAD.size, offset)
         if len(head) < RECORD_HEADER.size + CHUNK_HEAD.size or head[0] != Opcode.CHUNK:
             return None
-        start_time, _, _, _, compression_length = CHUNK_HEAD.unpack_from(head, RECORD_HEADER.size)
-        if compression_length != 0:
-            return None  # compressed data cannot be read in part
-        self._file.seek(offset + RECORD_HEADER.size + CHUNK_HEAD.size + 8)  # past the records' length
-        data = self._file.read()
-        messages = []
-        try:
-            for inner, opcode, record in _records(BytesIO(data), 0, len(data)):
-                if opcode == Opcode.MESSAGE:
-                    messages.append(_message(record, f"byte {inner}", inner))
-                elif not _definition(opcode, record, inner, self.schemas, self.channels):
-                    break
-        except McapDamage:
-            pass  # the cut: everything before it was kept
+        start_time, end_time, size, crc, name_length = CHUNK_HEAD.unpack_from(head, RECORD_HEADER.size)
+        name_start = offset + len(head)
+        tail = os.pread(self._file.fileno(), name_length + 8, name_start) if name_length <= MAX_COMPRESSION_NAME else b""
+        if len(tail) < name_length + 8:
+            return None
+        data_start, length = name_start + len(tail), struct.unpack_from("<Q", tail, name_length)[0]
+        data = os.pread(self._file.fileno(), max(min(length, end - data_start, MAX_CHUNK_DATA), 0), data_start)
+        chunk = Chunk(compression=tail[:name_length].decode(errors="replace"), data=data,
+                      message_start_time=start_time, message_end_time=end_time, uncompressed_crc=crc,
+                      uncompressed_size=size)
+        entries = self._index_entries(self._indexes_after(data_start + length)) if data_start + length <= end else None
+        messages, damage = self._salvaged(chunk, offset, why, entries)
         messages.sort(key=lambda m: m.log_time)
-        return start_time, messages
+        return (start_time, messages), damage
 
     def _next_intact_chunk(self, start: int) -> int | None:
         """Offset of the first chunk record at or after `start` that reads whole with a matching CRC (None: none)."""
@@ -359,7 +333,7 @@ class McapFile:
     @staticmethod
     def _intact(body: bytes, offset: int) -> bool:
         try:
-            _decompress(_parse(Chunk.read, body, "chunk", offset), offset)
+            chunk_data(parse_record(Chunk.read, body, "chunk", offset), offset)
         except McapDamage:
             return False
         return True

@@ -15,7 +15,7 @@ from typing import Any, Iterator, Mapping
 from rosbags.typesys.store import Typestore
 
 from ..model.safe_yaml import YamlLimitError, load_yaml_file
-from .decode import decode
+from .decode import decode, decodes_as
 from .mcapfile import McapError, McapFile
 from .typestore import typestore
 
@@ -138,12 +138,13 @@ class BagReader:
 
     def __iter__(self) -> Iterator[BagMessage]:
         for file in self.files:
-            with McapFile(file) as mcap:
+            with McapFile(file, lambda msgtype, data: decodes_as(data, msgtype, self.store)) as mcap:
                 yield from self._file_messages(mcap)
         report = self.report
         if report.damage and report.missing is not None:
             report.damage.append(f"in all {report.missing} of the {report.expected} messages the bag lists "
-                                 "were not found")
+                                 "were not found" if report.missing else
+                                 f"all {report.expected} messages the bag lists were found")
 
     def _file_messages(self, mcap: McapFile) -> Iterator[BagMessage]:
         report = self.report
@@ -186,5 +187,7 @@ class BagReader:
             channel = mcap.channels.get(channel_id)
             by_topic[channel.topic if channel else f"<channel {channel_id}>"] += count
         self.report.lost.update(by_topic)
+        if not by_topic:
+            return "; no message lost"
         return f"; {sum(by_topic.values())} messages lost (" + ", ".join(
             f"{topic} {count}" for topic, count in sorted(by_topic.items())) + ")"

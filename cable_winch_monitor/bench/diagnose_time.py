@@ -39,7 +39,7 @@ def _inputs(directory: Path) -> tuple[Path, Path]:
             {"move": 300.0, "speed": 1.0, "accel": 0.1}, {"stop": 60.0}, {"move": -200.0, "speed": 1.0, "accel": 0.1},
             {"stop": 60.0}, {"move": 250.0, "speed": 1.0, "accel": 0.1}]},
         "sync": {"sigma": 0.01, "tau": 30.0},
-        "sensors": {"joint_states": {"length_noise": 0.0002}, "imu": {"enabled": True, "rate": 15.0},
+        "sensors": {"imu": {"enabled": True, "rate": 15.0},
                     "position": {"enabled": True, "rate": 1.5}},
         "effects": {"rope_weight": {"w": 60.0}}}))
     return plant, scenario

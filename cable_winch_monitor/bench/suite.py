@@ -5,7 +5,8 @@ realistic one (elastic ropes with their weight, sheave friction: bench/plants.py
 baseline of every ratio is seed 002's traversal, one solve per sample, timed in the same
 run on the same lowering samples. Figures: the per-sample solve warm-started along the
 lowering (the node's), the batched solver (replay's and the analysis'), replay of a
-10,000-sample bag end to end, peak memory replaying a large bag (copies of the
+10,000-sample bag end to end (each plant replays a recording of its own physics, with
+the sensors at site noise: the fused estimate is what replay publishes), peak memory replaying a large bag (copies of the
 10,000-sample stream with shifted stamps; 1 GiB is the acceptance run, smaller by
 default), fleet replay on 1 and 2 workers, diagnose of a 20-minute bag when a diagnose
 job is given, and the live node's latency at 50 Hz when ROS 2 is available.
@@ -31,7 +32,7 @@ from ..model.solve import solve
 from ..bagio.fields import input_topics
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
-from .plants import realistic, realistic_plant_file
+from .plants import REALISTIC_EFFECTS, realistic, realistic_plant_file
 from .replay_throughput import replay_child
 from .solvers import lowering_samples, timed
 
@@ -56,6 +57,22 @@ def write_copies(source: Path, out: Path, megabytes: float) -> int:
                 writer.write_raw(topic, msgtype, log_time + k * shift * 10 ** 9,
                                  data[:4] + struct.pack("<i", sec) + data[8:])
     return copies
+
+
+def recordings(directory: Path) -> dict[str, Path]:
+    """The 10,000-sample benchmark recording on each plant, its truth that plant's physics: rigid ropes
+    for the rigid plant; elastic ropes with their weight and sheave friction for the realistic one (each
+    plant replays what its model explains, as a fitted plant file does at site; sensors at site noise)."""
+    truths = {"rigid": {"ropes": {"model": "rigid"}, "effects": {}},
+              "realistic": {"ropes": {"model": "elastic", "EA": REALISTIC_EFFECTS["rope_elasticity"]["EA"]},
+                            "effects": {name: values for name, values in REALISTIC_EFFECTS.items()
+                                        if name != "rope_elasticity"}}}
+    out = {}
+    for label, truth in truths.items():
+        scenario = {**load_scenario(scenario_path("benchmark")), **truth}
+        out[label] = directory / f"bench10k_{label}"
+        simulate(scenario, out[label])
+    return out
 
 
 def solver_rows(plant: Plant, count: int) -> tuple[list[Row], float]:
@@ -197,17 +214,17 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
     with tempfile.TemporaryDirectory(prefix="cwm_bench_") as tmp:
         directory = Path(tmp)
         files = {"rigid": None, "realistic": realistic_plant_file(directory)}
-        bag = directory / "bench10k"
-        simulate(load_scenario(scenario_path("benchmark")), bag)
+        bags = recordings(directory)
         for label, plant in plants.items():
-            rows += _progress(replay_rows(bag, directory, label, files[label], large_mb, traversal_ms))
+            rows += _progress(replay_rows(bags[label], directory, label, files[label], large_mb, traversal_ms))
         if node:
             rows += _progress(node_rows(files, traversal_ms))
         twenty = directory / "twenty_minutes"
         simulate(load_scenario(scenario_path("benchmark"), ["duration=1200.0"]), twenty)
         rows += _progress(diagnose_rows(twenty, diagnose, plants, traversal_ms))
         for label, plant in plants.items():
-            rows += _progress(fleet_rows(bag, directory / f"fleet_{label}", fleet_bags, plant, label, traversal_ms))
+            rows += _progress(fleet_rows(bags[label], directory / f"fleet_{label}", fleet_bags, plant, label,
+                                         traversal_ms))
     widths = [max(len(row[k]) for row in rows) for k in range(3)]
     print()
     for name, value, detail, ratio in rows:

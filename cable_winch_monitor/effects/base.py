@@ -10,8 +10,11 @@ An effect acts on one part of the model (`acts`):
 * ``load`` -- the external wrench on the platform (gravity by default): inertia when the
   winches accelerate, a side pull;
 * ``measurement`` -- what a sensor reads for a given equilibrium (load-pin friction,
-  sensor calibration): it edits the predicted channels only, so fitting it needs no
-  new solves.
+  sensor calibration): it edits the predicted channels only. Its hook comes in two
+  forms: `measure` for one solved state (the simple one to write), `measure_states`
+  for stacked states at once (what the estimator and the analysis call, hundreds of
+  states per call); the built-in effects write the stacked form, a user's effect may
+  write either.
 
 Parameters scale with the plant: a default, bounds or fit step may be a function of the
 plant (`relative`: of its weight m g, its anchors' span, its attachments' reach), so one
@@ -34,7 +37,8 @@ from typing import Any, Callable, ClassVar, Mapping, Union
 import numpy as np
 
 from ..channels import Input
-from ..model.conditions import Conditions
+from ..model.conditions import Conditions, StackedConditions
+from ..model.observations import States
 from ..model.plant import Plant
 from ..model.result import Solution
 
@@ -194,7 +198,17 @@ class Effect:
         return None
 
     def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
-        """measurement: edit the predicted sensor readings in place."""
+        """measurement, one solved state: edit the predicted sensor readings in place."""
+
+    def measure_states(self, channels: dict[str, np.ndarray], states: States, plant: Plant,
+                       conditions: StackedConditions) -> None:
+        """measurement, stacked states (conditions[k] is state k's): edit the predicted readings, arrays
+        (n,) by channel, in place. By default `measure` on each state."""
+        for k, solution in enumerate(states.solutions()):
+            row = {name: float(values[k]) for name, values in channels.items()}
+            self.measure(row, solution, plant, conditions[k])
+            for name, value in row.items():
+                channels[name][k] = value
 
     def implausible(self, plant: Plant) -> list[str]:
         """Why the values are physically implausible for this plant, each "name.parameter: reason" (empty: none)."""

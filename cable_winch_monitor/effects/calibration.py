@@ -1,10 +1,12 @@
 """Measurement effects of sensor calibration: the inclinometer's mounting and the load pins' zero and gain."""
 from __future__ import annotations
 
+import numpy as np
+
 from ..channels import TENSION_CHANNELS
 from ..model.plant import Plant
-from ..model.result import Solution
-from .base import Conditions, Effect, Parameter, relative, relative_bounds, weight
+from ..model.observations import States
+from .base import Effect, Parameter, StackedConditions, relative, relative_bounds, weight
 
 INCLINOMETER_CHANNELS = ("roll", "pitch")
 
@@ -28,9 +30,10 @@ class InclinometerOffset(Effect):
     signature = "constant roll and pitch errors at every pose; tensions and depth unaffected"
     source = "sensor mounting: the reading is the platform's attitude composed with the mounting rotation"
 
-    def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
+    def measure_states(self, channels: dict[str, np.ndarray], states: States, plant: Plant,
+                       conditions: StackedConditions) -> None:
         for name in INCLINOMETER_CHANNELS:
-            channels[name] += self[name]
+            channels[name] = channels[name] + self[name]
 
 
 class LoadPinCalibration(Effect):
@@ -53,6 +56,7 @@ class LoadPinCalibration(Effect):
     signature = "per-cable tension errors: an offset plus a part proportional to the tension"
     source = "load-cell calibration: reading = gain x force + zero"
 
-    def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
+    def measure_states(self, channels: dict[str, np.ndarray], states: States, plant: Plant,
+                       conditions: StackedConditions) -> None:
         for i, name in enumerate(TENSION_CHANNELS, 1):
             channels[name] = (1.0 + self[f"gain_{i}"]) * channels[name] + self[f"zero_{i}"]

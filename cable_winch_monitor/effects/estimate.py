@@ -7,7 +7,8 @@ A channel is fused where it was measured (finite) and has a finite noise. Withou
 measurement effects the built-in channels are read off the state directly (load pins,
 depth, x, y) or by their analytic prediction (roll, pitch); a user's channel, or any
 channel when measurement effects act (a load pin reading the rope's weight too), is
-predicted by `PlantModel.predict` for each candidate state, differentiated numerically.
+predicted by `PlantModel.predict_states` for all candidate states at once, differentiated
+numerically (`ModelledChannels`).
 Pose-dependent geometry (sheave tangent points) is not estimated: such a model gives its
 forward kinematics.
 """
@@ -20,10 +21,10 @@ import numpy as np
 
 from .. import channels
 from ..model import observations as obs
-from ..model.conditions import Conditions
+from ..model.conditions import Conditions, StackedConditions
 from ..model.estimation import Estimate, estimate, estimate_batch
-from ..model.observations import Observation, States
-from ..model.result import Solution, solved_rows
+from ..model.observations import Observation, States, forward_differences
+from ..model.result import Solution
 from .model import NO_CONDITIONS, PlantModel
 
 BUILT_IN = {
@@ -42,18 +43,37 @@ def length_noise(model: PlantModel) -> float | None:
     return float(value) if value is not None and math.isfinite(value) and value > 0.0 else None
 
 
-def _modelled(model: PlantModel, name: str, value: float | np.ndarray, sigma: float,
-              conditions: Sequence[Conditions]) -> Observation:
-    """A channel predicted by the plant model for each state, at its sample's conditions (numerical gradient)."""
-    plant = model.physical
+class ModelledChannels:
+    """Every channel the plant model predicts for stacked states (`PlantModel.predict_states`) and its
+    derivative by forward differences: computed once per set of states for all the modelled
+    observations of a problem (the estimator asks each observation in turn for the same states)."""
 
-    def predict(states: States) -> np.ndarray:
-        rows = solved_rows(plant, "estimate", states.spans, states.rotation, states.position, states.tensions,
-                           states.tensions > 0.0, [0] * len(states))
+    def __init__(self, model: PlantModel, conditions: Sequence[Conditions]):
+        self.model = model
+        self.conditions = StackedConditions.of(conditions)
+        self._values: tuple[States, dict[str, np.ndarray]] | None = None
+        self._jacobians: tuple[States, dict[str, np.ndarray]] | None = None
+
+    def _predict(self, states: States) -> dict[str, np.ndarray]:
         samples = states.sample if states.sample is not None else np.zeros(len(states), int)
-        return np.array([model.predict(solution, conditions[k])[name] for solution, k in zip(rows, samples.tolist())])
+        return self.model.predict_states(states, self.conditions.take(samples))
 
-    return Observation(name, value, sigma, predict)
+    def values(self, states: States) -> dict[str, np.ndarray]:
+        if self._values is None or self._values[0] is not states:
+            self._values = (states, self._predict(states))
+        return self._values[1]
+
+    def jacobians(self, states: States) -> dict[str, np.ndarray]:
+        """(n, 10) derivative of every channel, from one prediction of all displaced states."""
+        if self._jacobians is None or self._jacobians[0] is not states:
+            names = tuple(self.values(states))
+            table = forward_differences(lambda moved: np.stack(list(self._predict(moved).values()), axis=1), states)
+            self._jacobians = (states, {name: table[:, k] for k, name in enumerate(names)})
+        return self._jacobians[1]
+
+    def observation(self, name: str, value: float | np.ndarray, sigma: float) -> Observation:
+        return Observation(name, value, sigma, lambda states: self.values(states)[name],
+                           lambda states: self.jacobians(states)[name])
 
 
 def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarray],
@@ -62,6 +82,7 @@ def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarra
     arrays over a batch (NaN where a channel was not measured) with each sample's conditions."""
     noise = model.plant.noise
     direct = not model.measuring
+    modelled = ModelledChannels(model, conditions)
     out = []
     for name, value in measured.items():
         sigma = noise.get(channels.get(name).noise_key) if name in channels.names() else None
@@ -70,7 +91,7 @@ def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarra
         if direct and name in BUILT_IN:
             out.append(BUILT_IN[name](value, sigma))
         else:
-            out.append(_modelled(model, name, value, sigma, conditions))
+            out.append(modelled.observation(name, value, sigma))
     return out
 
 
@@ -99,9 +120,11 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
 
 
 def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
-                       conditions: Sequence[Conditions]) -> list[Estimate]:
+                       conditions: Sequence[Conditions],
+                       warm_starts: Sequence[Estimate | None] | None = None) -> list[Estimate]:
     """`estimate_sample` for N samples at once: reported (N, 4), each channel (N,) (NaN where not
-    measured), each sample's conditions (its load, its lengths, what its sensors read depend on them)."""
+    measured), each sample's conditions (its load, its lengths, what its sensors read depend on them),
+    and optionally each sample's estimate under slightly different parameters to start from (a fit)."""
     reported = np.asarray(reported, dtype=float).reshape(-1, 4)
     if len(conditions) != len(reported):
         raise ValueError(f"{len(conditions)} conditions for {len(reported)} samples")
@@ -117,7 +140,7 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
     loads = np.array([model.load(at) for at in conditions])
     return estimate_batch(model.physical, lengths, observations_for(model, measured, conditions),
                           length_noise(model), law.EA, law.weight if law.EA is not None else 0.0,
-                          loads=loads).estimates()
+                          loads=loads, warm_starts=warm_starts).estimates()
 
 
 def forward_estimate(solution: Solution, reported: Sequence[float]) -> Estimate:

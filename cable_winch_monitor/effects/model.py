@@ -8,7 +8,7 @@ pose-dependent geometry (the plant's pulleys, sheave tangent points) by fixed-po
 `PlantModel.solve_batch` does the same for many samples along a trajectory at once
 (model/batched*.py), where nothing makes the geometry depend on the pose.
 `PlantModel.predict` gives every declared channel's reading for a solved state
-(channels.predicted, then measurement effects). The live node, replay, the analysis,
+(channels.predicted, then measurement effects), `predict_states` for stacked states. The live node, replay, the analysis,
 `limits`, the command check and the wall clearance all go through this object; a model
 without effects is exactly the monitor's rigid model.
 """
@@ -25,8 +25,9 @@ from .. import channels
 from ..channels import Input
 from ..model.batched import BatchSolution, solve_batch
 from ..model.batched_elastic import solve_batch_elastic
-from ..model.conditions import Conditions
+from ..model.conditions import Conditions, StackedConditions
 from ..model.elastic import solve_elastic
+from ..model.observations import States
 from ..model.plant import Plant, PlantConfigError
 from ..model.result import Solution, SolveStatus, failed
 from ..model.solve import METHODS, solve
@@ -135,7 +136,8 @@ class PlantModel:
 
     @cached_property
     def _measurers(self) -> tuple[Effect, ...]:
-        return tuple(sorted((e for e in self.effects if _overrides(type(e), "measure")), key=lambda e: e.order))
+        return tuple(sorted((e for e in self.effects if _overrides(type(e), "measure")
+                             or _overrides(type(e), "measure_states")), key=lambda e: e.order))
 
     @cached_property
     def _loaders(self) -> tuple[Effect, ...]:
@@ -280,9 +282,17 @@ class PlantModel:
 
     def predict(self, solution: Solution, conditions: Conditions = NO_CONDITIONS) -> dict[str, float]:
         """What every declared channel reads for a solved state: the plain model, then measurement effects."""
-        predicted = channels.predicted(solution, self.physical, conditions)
+        if not self._measurers:
+            return channels.predicted(solution, self.physical, conditions)
+        states = States(self.physical, solution.rotation[None], solution.position[None], solution.tensions[None])
+        stacked = StackedConditions.of((conditions,))
+        return {name: float(values[0]) for name, values in self.predict_states(states, stacked).items()}
+
+    def predict_states(self, states: States, conditions: StackedConditions) -> dict[str, np.ndarray]:
+        """`predict` for stacked states (row k of `conditions` is state k's): arrays (n,) by channel."""
+        predicted = channels.predicted_states(states, conditions)
         for effect in self._measurers:
-            effect.measure(predicted, solution, self.physical, conditions)
+            effect.measure_states(predicted, states, self.physical, conditions)
         return predicted
 
     def effects_config(self) -> dict[str, dict[str, Any]]:

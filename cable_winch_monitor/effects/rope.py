@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.plant import CABLE_NAMES, Plant
-from ..model.result import Solution
-from .base import Conditions, Effect, Parameter, RopeLaw, relative, relative_bounds, span, weight
+from ..model.observations import States
+from .base import Effect, Parameter, RopeLaw, StackedConditions, relative, relative_bounds, span, weight
 
 
 def _weight_per_span(plant: Plant) -> float:
@@ -62,7 +62,8 @@ class RopeWeight(Effect):
     def rope(self, law: RopeLaw) -> RopeLaw:
         return RopeLaw(EA=law.EA, weight=law.weight + self["w"])
 
-    def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
-        drop = plant.anchors[:, 2] - solution.points_b[:, 2]
-        for name, height in zip(CABLE_NAMES, np.maximum(drop, 0.0)):
-            channels[f"tension_{name}"] += self["w"] * float(height)
+    def measure_states(self, channels: dict[str, np.ndarray], states: States, plant: Plant,
+                       conditions: StackedConditions) -> None:
+        drop = np.maximum(plant.anchors[:, 2] - states.points_b[:, :, 2], 0.0)
+        for i, name in enumerate(CABLE_NAMES):
+            channels[f"tension_{name}"] = channels[f"tension_{name}"] + self["w"] * drop[:, i]

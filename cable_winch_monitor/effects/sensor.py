@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.plant import Plant
-from ..model.result import Solution
+from ..model.observations import States
 from ..channels import TENSION_CHANNELS
-from .base import Conditions, Effect, Parameter, relative, relative_bounds, weight
+from .base import Effect, Parameter, StackedConditions, relative, relative_bounds, weight
 
 MAX_BENDING = 0.5  # 3 sqrt(B/T)/l beyond this the sensor is outside its range: reading capped at 2 T
 
@@ -45,6 +45,7 @@ class TensionSensorBending(Effect):
     signature = "all tensions read high, relatively more at low tension (excess ~ 3 sqrt(B T) / l)"
     source = "seed 001, eqs. (12)-(18)"
 
-    def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
-        readings = bending_reading(np.array([channels[k] for k in TENSION_CHANNELS]), self["B"], self["span"])
-        channels.update({k: float(v) for k, v in zip(TENSION_CHANNELS, readings)})
+    def measure_states(self, channels: dict[str, np.ndarray], states: States, plant: Plant,
+                       conditions: StackedConditions) -> None:
+        for name in TENSION_CHANNELS:
+            channels[name] = bending_reading(channels[name], self["B"], self["span"])

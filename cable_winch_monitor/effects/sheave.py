@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.conditions import Conditions
+from ..model.conditions import Conditions, StackedConditions
 from ..model.plant import CABLE_NAMES, Plant
+from ..model.observations import States
 from ..model.result import Solution
 from .base import Effect, Parameter, relative, relative_bounds, span
 
@@ -76,10 +77,11 @@ class SheaveFriction(Effect):
     signature = "tension error changes sign with the direction of motion, proportional to the tension"
     source = "seeds 000 (eq. 5) and 004 (eqs. 6-9): Euler-Eytelwein T2 = T1 e^{mu theta}"
 
-    def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
+    def measure_states(self, channels: dict[str, np.ndarray], states: States, plant: Plant,
+                       conditions: StackedConditions) -> None:
         factors = np.exp(-conditions.direction * self["mu"] * self["wrap"])
-        for name, factor in zip(CABLE_NAMES, factors):
-            channels[f"tension_{name}"] *= float(factor)
+        for i, name in enumerate(CABLE_NAMES):
+            channels[f"tension_{name}"] = channels[f"tension_{name}"] * factors[:, i]
 
     def warnings(self, conditions: list[Conditions]) -> list[str]:
         directions = np.array([c.direction for c in conditions]) if conditions else np.zeros((0, 4))

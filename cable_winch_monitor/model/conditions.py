@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -43,6 +43,45 @@ class Conditions:
     def acceleration(self) -> float:
         """The platform's downward acceleration [m/s^2]: the mean payout acceleration of the winches."""
         return float(np.mean(self.accelerations))
+
+
+@dataclass(frozen=True)
+class StackedConditions:
+    """The conditions of n stacked states as arrays (what measurement hooks written for many states
+    read); `stacked[k]` is state k's own `Conditions`, for hooks written per sample.
+
+    time (n,), speeds, accelerations, direction (n, 4), inputs {key: (n,)} (NaN where a state has none).
+    """
+
+    time: np.ndarray
+    speeds: np.ndarray
+    accelerations: np.ndarray
+    direction: np.ndarray
+    inputs: Mapping[str, np.ndarray]
+
+    @classmethod
+    def of(cls, conditions: Sequence[Conditions]) -> "StackedConditions":
+        keys = sorted({key for c in conditions for key in c.inputs})
+        return cls(np.array([c.time for c in conditions], dtype=float),
+                   np.array([c.speeds for c in conditions], dtype=float).reshape(-1, 4),
+                   np.array([c.accelerations for c in conditions], dtype=float).reshape(-1, 4),
+                   np.array([c.direction for c in conditions], dtype=float).reshape(-1, 4),
+                   {key: np.array([c.inputs.get(key, NAN) for c in conditions], dtype=float) for key in keys})
+
+    def take(self, index: np.ndarray) -> "StackedConditions":
+        """The conditions of the states `index` (e.g. each candidate state's sample)."""
+        return StackedConditions(self.time[index], self.speeds[index], self.accelerations[index],
+                                 self.direction[index], {key: value[index] for key, value in self.inputs.items()})
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def __getitem__(self, k: int) -> Conditions:
+        return Conditions(float(self.time[k]), self.speeds[k], self.accelerations[k], self.direction[k],
+                          {key: float(value[k]) for key, value in self.inputs.items() if np.isfinite(value[k])})
+
+    def __iter__(self) -> Iterator[Conditions]:
+        return (self[k] for k in range(len(self)))
 
 
 def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
@@ -96,6 +135,15 @@ def directions(speeds: np.ndarray) -> np.ndarray:
     return np.where(last >= 0, np.take_along_axis(moving, np.maximum(last, 0), axis=0), 0.0)
 
 
+def _window_slope(times: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Least-squares slope of values (k, 4) over all k stamps (0 where fewer than two stamps differ)."""
+    t = times - times.mean()
+    tt = float(t @ t)
+    if tt <= 0.0:
+        return np.zeros(values.shape[1])
+    return t @ np.nan_to_num(values - values.mean(axis=0)) / tt
+
+
 class ConditionsTracker:
     """The conditions of each new winch sample from the samples before it (live: causal windows)."""
 
@@ -114,12 +162,11 @@ class ConditionsTracker:
         history.append((time, lengths, speeds))
         while history[0][0] < time - self.window:
             history.popleft()
-        times = np.array([h[0] for h in history])
-        whole = (np.array([0]), np.array([len(times)]))
+        times = np.fromiter((h[0] for h in history), float, len(history))
         if not np.all(np.isfinite(speeds)):  # a winch without velocity: its lengths' slope
-            speeds = np.where(np.isfinite(speeds), speeds, _slopes(times, np.array([h[1] for h in history]), *whole)[0])
+            speeds = np.where(np.isfinite(speeds), speeds, _window_slope(times, np.array([h[1] for h in history])))
             history[-1] = (time, lengths, speeds)
-        acceleration = _slopes(times, np.array([h[2] for h in history]), *whole)[0]
+        acceleration = _window_slope(times, np.array([h[2] for h in history]))
         self.direction = motion_direction(speeds, self.direction)
         return Conditions(time, speeds, acceleration, self.direction, dict(inputs or {}))
 

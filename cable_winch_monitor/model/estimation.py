@@ -20,8 +20,9 @@ the forward kinematics of the reported lengths cold) is solved by `fusion.solve_
 where the result is doubtful -- a tension below zero, a slack rope overstretched, a
 residual beyond SEARCH_SIGMA -- its neighbouring sets (one rope added, released or
 exchanged) are solved from it, all stacked (together with the start where an observation
-contradicts the start already); where the best of these is still doubtful, every other
-set of two or more ropes. The admissible row of least cost is kept.
+contradicts the start already), then the neighbours of a better set found there; where the
+best is still inadmissible or overstretches a slack rope, every other set of two or more
+ropes. The admissible row of least cost is kept.
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .batched import solve_batch
+from .batched_elastic import solve_batch_elastic
 from .elastic import solve_elastic
 from .energy import TENSION_TOL, solve_energy
 from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
@@ -176,7 +178,7 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
         return _unfused(failed(SolveStatus.INVALID_INPUT, str(error), METHOD, array), array, sigma_length)
     try:
         with np.errstate(all="ignore"):
-            return _estimate(problem, _warm_rows(problem, warm_start)).estimate(0)
+            return _estimate(problem, _warm_rows(problem, [warm_start])).estimate(0)
     except (ValueError, np.linalg.LinAlgError) as error:
         return _unfused(failed(SolveStatus.SOLVER_FAILED, f"estimator failed: {error}", METHOD, array), array,
                         sigma_length)
@@ -184,15 +186,18 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
 
 def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Observation] = (),
                    sigma_length: float = 1e-3, axial_stiffness: object = None, rope_weight: float = 0.0,
-                   loads: np.ndarray | None = None) -> BatchEstimate:
+                   loads: np.ndarray | None = None, warm_starts: Sequence[Estimate | None] | None = None) \
+        -> BatchEstimate:
     """`estimate` for the rows of lengths (N, 4), observation values (N,) each, under `loads` (one
-    wrench (6,) for all, one per sample (N, 6), None: gravity): every sample starts from the batched
-    forward kinematics of its reported lengths, the search runs on all together. ValueError names a
-    bad argument."""
+    wrench (6,) for all, one per sample (N, 6), None: gravity): every sample starts from its warm start
+    where given (an estimate of the sample under slightly different parameters, as a fit makes them),
+    else from the batched forward kinematics of its reported lengths; the search runs on all together.
+    ValueError names a bad argument."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
-        return _estimate(Problem.build(plant, lengths, sigma_length, observations, ropes, loads), None)
+        problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads)
+        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, True)
 
 
 def estimate_gated(plant: Plant, lengths: object, observations: Sequence[Observation],
@@ -226,50 +231,67 @@ def _innovations(plant: Plant, fused: Estimate, observations: Sequence[Observati
             for o in observations if np.isfinite(np.asarray(o.value, dtype=float)).all()}
 
 
-def _warm_rows(problem: Problem, warm_start: Estimate | None) -> Rows | None:
-    """The previous state as start, lowered by the change of the mean length."""
-    if warm_start is None or not warm_start.ok:
+def _warm_rows(problem: Problem, warm_starts: Sequence[Estimate | None]) -> Rows | None:
+    """The samples' previous states as starts (those that have one), each lowered by the change of its
+    mean length."""
+    picked = [(i, e.solution) for i, e in enumerate(warm_starts) if e is not None and e.ok]
+    if not picked:
         return None
-    previous = warm_start.solution
-    shift = float(previous.lengths.mean() - problem.lengths[0].mean())
-    return Rows(np.zeros(1, int), previous.taut[None].copy(), previous.rotation[None].copy(),
-                (previous.position + np.array([0.0, 0.0, shift]))[None], previous.tensions[None] / problem.scales[0])
+    samples = np.array([i for i, _ in picked], dtype=int)
+    solutions = [s for _, s in picked]
+    shift = np.array([s.lengths.mean() for s in solutions]) - problem.lengths[samples].mean(axis=1)
+    return Rows(samples, np.array([s.taut for s in solutions]), np.array([s.rotation for s in solutions]),
+                np.array([s.position for s in solutions]) + np.outer(shift, [0.0, 0.0, 1.0]),
+                np.array([s.tensions for s in solutions]) / problem.scales[samples, None])
 
 
-def _forward_kinematics(problem: Problem) -> tuple[Rows, Callable[[int], Solution]]:
-    """Cold starts: the rigid forward kinematics of the reported lengths (batched for many samples) of
-    the samples it solves, and today's forward kinematics of any sample i (for those the estimator
-    leaves: a single-cable state, bad input, no admissible set)."""
+def _forward_kinematics(problem: Problem, samples: np.ndarray) -> tuple[Rows, Callable[[int], Solution], bool]:
+    """Cold starts of `samples`: the forward kinematics of their reported lengths (batched for many:
+    elastic where the ropes are) where it solves, today's forward kinematics of any of them (for those
+    the estimator leaves: a single-cable state, bad input, no admissible set), and whether the starts
+    are rigid (their taut sets are often wrong: four taut rigid ropes are the exception)."""
     plant, ropes = problem.plant, problem.ropes
-    effective = ropes.effective(problem.lengths)
-    if len(effective) == 1:
-        solution = solve_energy(plant, effective[0], load=problem.loads[0])  # one sample: the per-sample solver is the faster
+    effective = ropes.effective(problem.lengths[samples])
+    loads = problem.loads[samples]
+    if len(samples) == 1:
+        solution = solve_energy(plant, effective[0], load=loads[0])  # one sample: the per-sample solver is the faster
         picked = [solution] if solution.ok else []
-        start = Rows(np.arange(len(picked)), np.array([s.taut for s in picked], bool).reshape(-1, 4),
+        start = Rows(samples[:len(picked)], np.array([s.taut for s in picked], bool).reshape(-1, 4),
                      np.array([s.rotation for s in picked]).reshape(-1, 3, 3),
                      np.array([s.position for s in picked]).reshape(-1, 3),
                      np.array([s.tensions for s in picked]).reshape(-1, 4))
-        rigid = (lambda i: solution)
+        one = (lambda k: solution) if ropes.rigid else \
+            (lambda k: solve_elastic(plant, effective[k], ropes.axial_stiffness, load=loads[k]))
+        rigid_start = True
     else:
-        batch = solve_batch(plant, effective, loads=problem.loads)
+        batch = solve_batch(plant, effective, loads=loads) if ropes.rigid else \
+            solve_batch_elastic(plant, effective, ropes.axial_stiffness, loads=loads)
         ok = np.flatnonzero(batch.ok)
-        start = Rows(ok, batch.taut[ok], batch.rotation[ok], batch.position[ok], batch.tensions[ok])
-        rigid = batch.solution
+        start = Rows(samples[ok], batch.taut[ok], batch.rotation[ok], batch.position[ok], batch.tensions[ok])
+        one, rigid_start = batch.solution, ropes.rigid
     start.mu = start.mu / problem.scales[start.sample, None]
-    if ropes.rigid:
-        return start, rigid
-    return start, lambda i: solve_elastic(plant, effective[i], ropes.axial_stiffness, load=problem.loads[i])
+    position = {int(i): k for k, i in enumerate(samples)}
+    return start, lambda i: one(position[i]), rigid_start
 
 
-def _estimate(problem: Problem, warm: Rows | None) -> BatchEstimate:
+def _estimate(problem: Problem, warm: Rows | None, same_samples: bool = False) -> BatchEstimate:
+    """The search from the warm starts; the samples without one, or whose warm search found no
+    admissible state, from their forward kinematics. Warm starts that are the same samples' states
+    under slightly other parameters (`same_samples`: a fit) were searched already: a misfit alone does
+    not send them to their neighbouring taut sets again."""
     count = len(problem.lengths)
+    kept, rest = None, np.arange(count)
     if warm is not None:
-        best = _search(problem, warm, probe=False)
-        if _admissible(best).all():
-            return _assemble(problem, best, {})
-    cold, forward = _forward_kinematics(problem)
-    cold = _search(problem, cold, probe=True)
+        best = _search(problem, warm, probe=False, misfit=not same_samples)
+        kept = best.take(np.flatnonzero(_admissible(best)))
+        rest = np.setdiff1d(rest, kept.sample)
+        if not rest.size:
+            return _assemble(problem, kept, {})
+    cold, forward, rigid_start = _forward_kinematics(problem, rest)
+    cold = _search(problem, cold, probe=rigid_start)
     best = cold.take(np.flatnonzero(_admissible(cold)))
+    if kept is not None:
+        best = Rows.joined(kept, best)
     missing = sorted(set(range(count)) - set(best.sample.tolist()))
     return _assemble(problem, best, {i: forward(i) for i in missing})
 
@@ -279,21 +301,24 @@ def _admissible(rows: Rows) -> np.ndarray:
     return rows.converged & np.all(~rows.taut | (rows.mu >= -TENSION_TOL), axis=1)
 
 
-def _doubtful(rows: Rows) -> np.ndarray:
-    """Rows whose taut set may not be the best: inadmissible, a slack rope overstretched, or a residual
-    beyond SEARCH_SIGMA."""
+def _doubtful(rows: Rows, misfit: bool = True) -> np.ndarray:
+    """Rows whose taut set may not be the best: inadmissible, a slack rope overstretched, or (`misfit`)
+    a residual beyond SEARCH_SIGMA."""
     overstretched = np.any(~rows.taut & (rows.residuals[:, :4] > SLACK_SEARCH), axis=1)
-    return ~_admissible(rows) | overstretched | (np.abs(rows.residuals).max(axis=1) > SEARCH_SIGMA)
+    doubtful = ~_admissible(rows) | overstretched
+    return doubtful | (np.abs(rows.residuals).max(axis=1) > SEARCH_SIGMA) if misfit else doubtful
 
 
-def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
+def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> Rows:
     """The best admissible row per sample (one start row per sample in, one row per sample out).
 
     The start's set is solved, with its neighbours where `probe` and an observation already
     disagrees at the start (from forward kinematics: a load pin reading kilonewtons on a rope
     the lengths have slack; a warm start is not probed, its pose is a sample old); where the best
-    is doubtful, its neighbours; where the best of these is still doubtful, every other set
-    of two or more ropes is solved from it.
+    is doubtful, its neighbours, and the neighbours of a better set found there; where the best is
+    then still inadmissible or leaves a slack rope overstretched, every other set of two or more
+    ropes is solved from it (a misfit alone does not go that far: after the neighbours have not
+    explained it, the model lacks something a taut set cannot give).
     """
     count = len(start.sample)
     best = Rows(start.sample, start.taut, start.rotation, start.position, start.mu)
@@ -305,7 +330,7 @@ def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
         observed = residuals(problem, best, np.arange(count))[:, 4:]
         pending = np.flatnonzero(np.abs(observed).max(axis=1) > SEARCH_SIGMA)
     solved = np.zeros(count, bool)
-    for search in (NEIGHBOURS, NEIGHBOURS, ALL_SETS):
+    for stage, search in enumerate((NEIGHBOURS, NEIGHBOURS, ALL_SETS)):
         owner, codes = _candidates(best, pending, visited, search)
         fresh = np.flatnonzero(~solved)
         if not fresh.size and not owner.size:
@@ -323,7 +348,7 @@ def _search(problem: Problem, start: Rows, probe: bool) -> Rows:
             getattr(best, name)[replaced] = getattr(candidates, name)[better]
         solved[:] = True
         searched = np.unique(owner)
-        pending = searched[_doubtful(best.take(searched))]
+        pending = searched[_doubtful(best.take(searched), misfit=misfit and stage == 0)]
         if not pending.size:
             break
     return best

@@ -120,6 +120,15 @@ class Rows:
         self.residuals = np.zeros((n, 0))
         self.steps = np.zeros(n, int)
 
+    @staticmethod
+    def joined(first: "Rows", second: "Rows") -> "Rows":
+        """The rows of both, first's then second's."""
+        out = Rows(*(np.concatenate([getattr(first, name), getattr(second, name)])
+                     for name in ("sample", "taut", "rotation", "position", "mu")))
+        for name in ("converged", "cost", "residuals", "steps"):
+            setattr(out, name, np.concatenate([getattr(first, name), getattr(second, name)]))
+        return out
+
     def take(self, index: np.ndarray, taut: np.ndarray | None = None) -> "Rows":
         """The rows `index` (copies), with another taut set where given (its slack ropes' tensions zeroed)."""
         out = Rows(self.sample[index], self.taut[index] if taut is None else taut, self.rotation[index],

@@ -19,6 +19,7 @@ import numpy as np
 
 from .geometry import rotations_from_vectors
 from .plant import CABLE_NAMES, Plant
+from .result import Solution, solved_rows
 
 STATE_SIZE = 10          # position (3), rotation vector (3), tensions (4)
 FD_STEPS = np.array([1e-6] * 3 + [1e-8] * 3 + [1e-3] * 4)  # finite-difference steps [m, rad, N]
@@ -47,6 +48,17 @@ class States:
     def spans(self) -> np.ndarray:
         """|A_i B_i|, (n, 4) [m]."""
         return np.linalg.norm(self.points_b - self.plant.anchors, axis=2)
+
+    def solutions(self) -> list[Solution]:
+        """The states as the package's Solutions (each taut where its tension is positive)."""
+        return solved_rows(self.plant, "estimate", self.spans, self.rotation, self.position, self.tensions,
+                           self.tensions > 0.0, [0] * len(self))
+
+    def repeated(self, times: int) -> "States":
+        """The n states `times` over, stacked (times * n rows, in blocks of n)."""
+        sample = None if self.sample is None else np.tile(self.sample, times)
+        return States(self.plant, np.tile(self.rotation, (times, 1, 1)), np.tile(self.position, (times, 1)),
+                      np.tile(self.tensions, (times, 1)), sample)
 
     def moved(self, step: np.ndarray) -> "States":
         """The states moved by `step` (n, 10) in the state coordinates."""
@@ -89,19 +101,29 @@ class Observation:
         return values
 
     def jacobian(self, states: States) -> np.ndarray:
-        """(n, 10) derivative of the prediction; central differences where no gradient is declared."""
+        """(n, 10) derivative of the prediction; forward differences where no gradient is declared."""
         if self.gradient is not None:
             return np.asarray(self.gradient(states), dtype=float).reshape(len(states), STATE_SIZE)
-        out = np.empty((len(states), STATE_SIZE))
-        for k, h in enumerate(FD_STEPS):
-            step = np.zeros((len(states), STATE_SIZE))
-            step[:, k] = h
-            out[:, k] = (self.evaluate(states.moved(step)) - self.evaluate(states.moved(-step))) / (2.0 * h)
-        return out
+        return forward_differences(self.evaluate, states)
 
     def with_value(self, value: float | np.ndarray) -> "Observation":
         """The same channel with another reading."""
         return replace(self, value=value)
+
+
+def forward_differences(function: Callable[[States], np.ndarray], states: States) -> np.ndarray:
+    """The derivative of function(states) -- (n,) or (n, k) values -- with respect to the state
+    coordinates, (n, 10) or (n, k, 10), by forward differences of FD_STEPS: the states and their ten
+    displaced copies in one call (the steps are small enough that the one-sided error, of the order of
+    the step, is far below the sensors' noise)."""
+    n, copies = len(states), STATE_SIZE + 1
+    steps = np.zeros((copies, n, STATE_SIZE))
+    for k, h in enumerate(FD_STEPS):
+        steps[k + 1, :, k] = h
+    values = np.asarray(function(states.repeated(copies).moved(steps.reshape(-1, STATE_SIZE))), dtype=float)
+    values = values.reshape((copies, n) + values.shape[1:])
+    slopes = (values[1:] - values[0]) / FD_STEPS.reshape((STATE_SIZE,) + (1,) * (values.ndim - 1))
+    return np.moveaxis(slopes, 0, -1)
 
 
 def _unit_gradient(n: int, column: int) -> np.ndarray:
@@ -122,7 +144,8 @@ def position_component(axis: int, value: float | np.ndarray, sigma: float) -> Ob
                        lambda s: _unit_gradient(len(s), axis), coordinate=axis)
 
 
-def _roll(states: States) -> np.ndarray:
+def roll_of(states: States) -> np.ndarray:
+    """The platform's roll [rad] in each state (REP-103, as geometry.roll_pitch_yaw)."""
     r = states.rotation
     return np.arctan2(r[:, 2, 1], r[:, 2, 2])
 
@@ -139,7 +162,8 @@ def _roll_gradient(states: States) -> np.ndarray:
     return out
 
 
-def _pitch(states: States) -> np.ndarray:
+def pitch_of(states: States) -> np.ndarray:
+    """The platform's pitch [rad] in each state."""
     return np.arcsin(np.clip(-states.rotation[:, 2, 0], -1.0, 1.0))
 
 
@@ -154,9 +178,9 @@ def _pitch_gradient(states: States) -> np.ndarray:
 
 def roll(value: float | np.ndarray, sigma: float) -> Observation:
     """Inclinometer roll of `platform` [rad] (REP-103)."""
-    return Observation("roll", value, sigma, _roll, _roll_gradient)
+    return Observation("roll", value, sigma, roll_of, _roll_gradient)
 
 
 def pitch(value: float | np.ndarray, sigma: float) -> Observation:
     """Inclinometer pitch of `platform` [rad] (REP-103)."""
-    return Observation("pitch", value, sigma, _pitch, _pitch_gradient)
+    return Observation("pitch", value, sigma, pitch_of, _pitch_gradient)

@@ -50,6 +50,16 @@ class MonitorOutput:
     refused: tuple[str, ...] = ()     # sensors left out by their gate
 
 
+class Solved(NamedTuple):
+    """A sample's equilibrium, wall clearance, fused estimate (None: the lengths taken as exact) and what
+    the model says each channel reads (None: not solved), computed ahead (replay solves many at once)."""
+
+    solution: Solution
+    clearance: Clearance | None
+    estimate: Estimate | None
+    predicted: dict[str, float] | None
+
+
 class CompleteSample(NamedTuple):
     """Four fresh cable lengths at a winch message's stamp, with what the merger knew then."""
 
@@ -171,22 +181,20 @@ class MonitorPipeline:
         """The fused state of a sample from its trusted sensors, warm-started from the previous estimate."""
         return estimate_sample(self.model, sample.lengths, self.gates.trusted(measured), conditions, self.last_estimate)
 
-    def _solve(self, sample: CompleteSample,
-               solved: tuple[Solution, Clearance | None, Estimate | None] | None = None,
+    def _solve(self, sample: CompleteSample, solved: Solved | None = None,
                conditions: Conditions | None = None) -> MonitorOutput:
-        """Solve (or estimate, from what the sensors read) a complete sample, or take its equilibrium,
-        clearance and estimate as `solved` ahead with its `conditions`; raise its alarm, gate its
-        sensors and compare its load pins with the model."""
+        """Solve (or estimate, from what the sensors read) a complete sample, or take it `solved` ahead
+        with its `conditions`; raise its alarm, gate its sensors and compare its load pins with the model."""
         conditions = conditions or self.conditions(sample)
         if solved is None:
             fused = self.estimate(sample, sample.sensors, conditions) if self.fusing else None
             solution = fused.solution if fused is not None else \
                 self.model.solve(sample.lengths, self._warm_start(), conditions)
-            solved = solution, solution_clearance(self.model.physical, solution), fused
-        solution, clearance, fused = solved
+            solved = Solved(solution, solution_clearance(self.model.physical, solution), fused,
+                            self.model.predict(solution, conditions) if solution.ok else None)
+        solution, clearance, fused, predicted = solved
         alarm = self.alarms.update(solution, clearance)
         pins = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
-        predicted = self.model.predict(solution, conditions) if solution.ok else None
         resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
         if fused is not None and predicted is not None:
             self._gate(sample.stamp, fused, sample.sensors, predicted)
