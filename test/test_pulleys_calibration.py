@@ -64,10 +64,11 @@ def test_rope_leaves_at_the_tangent_point_of_the_shortest_path(axis, swivel):
 
 def test_rope_up_a_post_wraps_half_a_turn_when_hanging_straight_down():
     lab = load_plant(LAB_FILE)
-    below_far_side = lab.anchors + np.array([[-2 * RADIUS * np.sign(a[0]), 0.0, -1.0] for a in lab.anchors])
+    radius = lab.sheaves[0].radius
+    below_far_side = lab.anchors + np.array([[-2 * radius * np.sign(a[0]), 0.0, -1.0] for a in lab.anchors])
     moved, spans, theta = wrap(lab, np.full(4, 1.5), below_far_side)
     assert theta == pytest.approx(np.full(4, np.pi), abs=1e-9)
-    assert spans == pytest.approx(1.5 - np.pi * RADIUS)
+    assert spans == pytest.approx(1.5 - np.pi * radius)
     assert np.linalg.norm(below_far_side - moved.anchors, axis=1) == pytest.approx(np.ones(4), abs=1e-9)
 
 

@@ -117,8 +117,8 @@ def test_sheave_truth_matches_the_package_description():
     """The same tangent-point geometry, formulated apart (root finding with the exit point inside the
     equations, against the package's fixed-point refinement): poses within 1 mm, tensions within 1 N."""
     model = PlantModel(PLANT, (effect_class("sheave_geometry")({"r": 2.0}),))
-    from cable_winch_monitor.sim.truth import sheave_planes
-    trajectory = Trajectory(rig(sheave_radius=2.0, sheave_planes=sheave_planes(PLANT)))
+    from cable_winch_monitor.sim.truth import head_sheaves
+    trajectory = Trajectory(rig(pulleys=head_sheaves(PLANT, 2.0)))
     for step, lengths in enumerate([np.array([12.0, 12.3, 12.1, 11.9]), np.array([12.5, 12.6, 12.4, 12.45])]):
         state = trajectory(float(step), lengths, PLANT.wrench)
         package = model.solve(lengths)

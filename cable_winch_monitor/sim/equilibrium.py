@@ -17,9 +17,9 @@ than its length. Along a trajectory the previous taut set and state are the star
 to three iterations); only when that set stops being admissible are the other sets
 tried, and of the admissible ones the lowest energy is taken.
 
-With head sheaves of radius r the anchor is the point where the rope leaves the sheave:
-it depends on the rope's direction and shortens the free length by the extra wrap (see
-`sheave_exit`).
+With pulleys (head sheaves, swivelling lab pulleys) the anchor is the point where the rope
+leaves its pulley: it depends on the rope's direction, and the wrapped arc shortens the free
+length (`sim.pulleys`).
 """
 from __future__ import annotations
 
@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import root
+
+from .pulleys import Pulleys, pulley_exits
 
 TENSION_TOL = 1e-9   # [fraction of the weight] a tension this far below zero is zero (rounding)
 LENGTH_TOL = 1e-8    # [m] a slack span this far beyond its length is at its length (rounding)
@@ -42,8 +44,8 @@ MANY = tuple(s for s in SETS if len(s) > 2)  # tried first when cold; two taut r
 @dataclass(frozen=True)
 class Rig:
     """The mechanism as the truth sees it: anchors A_i (shaft), attachments B_i and centre of gravity C
-    (platform frame), rope stiffness EA (None: rigid) and weight w [N/m], head-sheave radius r [m] with the
-    horizontal unit vectors n_i of the sheave planes (towards the winch)."""
+    (platform frame), rope stiffness EA (None: rigid) and weight w [N/m], and the pulleys the ropes wrap
+    (None: the ropes leave from the anchors)."""
 
     anchors: np.ndarray
     attachments: np.ndarray
@@ -52,8 +54,7 @@ class Rig:
     lever_scale: float         # [m] scale of the moment equations
     EA: float | None = None
     rope_weight: float = 0.0
-    sheave_radius: float = 0.0
-    sheave_planes: np.ndarray | None = None
+    pulleys: Pulleys | None = None
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,7 @@ class State:
     tensions: np.ndarray        # [N] at B_i
     points_b: np.ndarray
     point_c: np.ndarray
-    exits: np.ndarray           # where each rope leaves its sheave (the anchor when r = 0)
+    exits: np.ndarray           # where each rope leaves its pulley (the anchor without pulleys)
     spans: np.ndarray           # |exit_i B_i| [m]
     free_lengths: np.ndarray    # unstretched rope length below the exit point [m]
     evaluations: int            # residual evaluations of the accepted root find
@@ -93,27 +94,12 @@ def _moment(levers: np.ndarray, pulls: np.ndarray) -> np.ndarray:
     return turned.sum(axis=1)
 
 
-def sheave_exit(rig: Rig, points_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Where each rope leaves its sheave, and the extra wrap angle [rad], for points B (..., 4, 3).
-
-    The sheave turns in the vertical plane through A_i along n_i; its centre O_i = A_i + r n_i.
-    In that plane, with P = B - O = (p_n, p_z), the rope touches the circle at O + r e where
-    e . P = r: e = (r P - h P_perp) / |P|^2, h = sqrt(|P|^2 - r^2), the root on the shaft side
-    (e = (-1, 0) for B straight below A). The wrap grows by the angle of e below (-1, 0).
-    The rope's sideways (fleet) angle out of the plane does not change the tangent point.
-    """
-    r = rig.sheave_radius
-    if r <= 0.0:
-        return rig.anchors, np.zeros(points_b.shape[:-1])
-    n = rig.sheave_planes
-    centres = rig.anchors + r * n
-    offset = points_b - centres
-    p_n, p_z = np.sum(offset * n, axis=-1), offset[..., 2]
-    d2 = p_n ** 2 + p_z ** 2
-    h = np.sqrt(np.maximum(d2 - r * r, 0.0))
-    e_n, e_z = (r * p_n + h * p_z) / d2, (r * p_z - h * p_n) / d2
-    exits = centres + r * (e_n[..., None] * n + e_z[..., None] * np.array([0.0, 0.0, 1.0]))
-    return exits, np.arctan2(-e_z, -e_n)
+def rope_exits(rig: Rig, points_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where each rope leaves for the platform, and the rope its pulley holds [m], for points B (..., 4, 3)."""
+    if rig.pulleys is None:
+        return np.broadcast_to(rig.anchors, points_b.shape), np.zeros(points_b.shape[:-1])
+    exits, theta = pulley_exits(rig.pulleys, rig.anchors, points_b)
+    return exits, rig.pulleys.radius * theta
 
 
 class _Equations:
@@ -132,10 +118,10 @@ class _Equations:
         rotation = rotations(x[:, 3:6])
         points_b = x[:, None, 0:3] + rig.attachments @ np.swapaxes(rotation, -1, -2)
         point_c = x[:, 0:3] + rotation @ rig.cog
-        exits, wrap = sheave_exit(rig, points_b)
+        exits, wrapped = rope_exits(rig, points_b)
         ropes = exits - points_b
         spans = np.sqrt(np.einsum("...i,...i->...", ropes, ropes))
-        free = self.lengths - rig.sheave_radius * wrap
+        free = self.lengths - wrapped
         # the span a rope reaches at zero tension at B: its own weight stretches it (vertical share)
         hanging = free * (1.0 + (0.5 * self.compliance * rig.rope_weight) * free * ropes[..., 2] / spans) \
             if self.compliance and rig.rope_weight else free

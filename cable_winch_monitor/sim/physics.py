@@ -3,8 +3,9 @@
 A scenario's `effects:` section names them with the package's effect names and
 parameters (`sim.truth` applies them in the plant's physical order); the effects the
 package does not have yet (platform_acceleration, rope_temperature, inclinometer_offset,
-load_pin_calibration) are defined here first. These are the independent truth: fitted
-data made with them tests the package's effect classes instead of repeating them.
+load_pin_calibration) are defined here first; the pulleys' geometry (sheave_geometry,
+pulley_geometry) is `sim.pulleys`, inside the equilibrium. These are the independent truth:
+fitted data made with them tests the package's effect classes instead of repeating them.
 """
 from __future__ import annotations
 
@@ -25,6 +26,8 @@ PARAMETERS: dict[str, dict[str, float]] = {
     "cog_offset": {"dx": 0.0, "dy": 0.0},                               # [m] platform frame
     "payload_mass": {"dm": 0.0},                                        # [kg]
     "sheave_geometry": {"r": 1.0},                                      # [m] head-sheave radius
+    "pulley_geometry": {"r": 0.05, "swivel": 1.0,                       # [m] pulley radius; 1: swivelling
+                        "axis_x": 0.0, "axis_y": 0.0, "axis_z": -1.0},  # [-] axis (plants without sheaves)
     "tension_sensor_bending": {"B": 100.0, "span": 2.0},                # [N m^2], [m]
     "platform_acceleration": {"scale": 1.0},                            # [-] share of the payout acceleration
     "rope_temperature": {"alpha": 1.2e-5, "T_ref": 15.0},               # [1/K], [deg C]
@@ -34,7 +37,8 @@ PARAMETERS: dict[str, dict[str, float]] = {
 }
 POSITIVE = {("rope_elasticity", "EA"), ("tension_sensor_bending", "span")}
 NOT_NEGATIVE = {("rope_weight", "w"), ("sheave_friction", "mu"), ("sheave_friction", "wrap"),
-                ("sheave_geometry", "r"), ("tension_sensor_bending", "B"), ("rope_temperature", "alpha")}
+                ("sheave_geometry", "r"), ("pulley_geometry", "r"), ("tension_sensor_bending", "B"),
+                ("rope_temperature", "alpha")}
 
 
 def per_cable(values: Mapping[str, float], prefix: str) -> np.ndarray:

@@ -58,7 +58,8 @@ DEFAULTS: dict[str, Any] = {
             "lag_max": 0.040,       # [s]
             "noise": 1.745e-4,      # [rad] (0.01 deg)
         },
-        "position": {"enabled": False, "rate": 2.0, "noise": 0.005},     # depth gauge: [Hz], [m]
+        "position": {"enabled": False, "rate": 2.0, "noise": 0.005,      # depth gauge: [Hz], [m]
+                     "horizontal": False},  # True: x and y too (motion capture)
         "temperature": {"enabled": False, "rate": 1.0, "noise": 0.1},   # shaft air thermometer: [Hz], [K]
     },
 }

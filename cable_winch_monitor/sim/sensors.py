@@ -5,7 +5,8 @@
   effort = what the load pin at the head sheave reads (150 N);
 - inclinometer: sensor_msgs/Imu, roll and pitch (0.01 deg; yaw not measured: covariance
   huge), by default one reading per winch sample, stamped 30-40 ms after it;
-- depth gauge: geometry_msgs/PointStamped with z only (x, y NaN), 5 mm at 2 Hz;
+- depth gauge: geometry_msgs/PointStamped with z only (x, y NaN), 5 mm at 2 Hz; or a motion
+  capture of the platform's position (x, y and z: `position.horizontal`);
 - shaft air thermometer: sensor_msgs/Temperature on /shaft/temperature, 0.1 K at 1 Hz.
 Every other stream starts at a random phase and has timing jitter, so no two are aligned.
 """
@@ -114,7 +115,11 @@ class Sensors:
     def position(self, stamp: Stamp, channels: Mapping[str, float]) -> dict[str, Any] | None:
         if "depth" not in channels:
             return None
-        depth = float(self._noisy(channels["depth"], self.config["position"]["noise"]))
+        sensor = self.config["position"]
+        if sensor["horizontal"]:
+            x, y, z = self._noisy(np.array([channels["x"], channels["y"], channels["depth"]]), sensor["noise"])
+            return {"header": header(stamp, "shaft"), "point": {"x": float(x), "y": float(y), "z": float(z)}}
+        depth = float(self._noisy(channels["depth"], sensor["noise"]))
         return {"header": header(stamp, "shaft"), "point": {"x": NAN, "y": NAN, "z": depth}}
 
     def temperature(self, stamp: Stamp, air: float) -> dict[str, Any]:

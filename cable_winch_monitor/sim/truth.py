@@ -9,7 +9,8 @@ physical order:
 
   reported lengths -> encoder_scale, encoder_offset -> rope_temperature -> true lengths
   plant -> cog_offset, payload_mass; load m (g - a) with platform_acceleration
-  ropes: rigid or rope_elasticity, with rope_weight's own-weight stretch; sheave_geometry
+  ropes: rigid or rope_elasticity, with rope_weight's own-weight stretch; sheave_geometry, or the
+         plant file's pulleys (geometry.sheaves) with pulley_geometry's radius (sim.pulleys)
   load pins: tension + rope_weight below -> sheave_friction -> tension_sensor_bending
              -> load_pin_calibration; inclinometer: roll, pitch + inclinometer_offset
 
@@ -31,6 +32,8 @@ from ..model.result import Solution, SolveStatus, failed
 from . import physics
 from .equilibrium import NoEquilibrium, Rig, State, Trajectory, imbalance
 from .hidden import hidden_effects
+from .pulleys import Pulleys
+from .scenario import ScenarioError
 
 METHOD = "truth"
 AIR_TEMPERATURE = "/shaft/temperature.temperature"  # the input key a user's effect reads the air temperature by
@@ -46,12 +49,35 @@ class Sample:
     temperature: float          # shaft air [deg C]
 
 
-def sheave_planes(plant: Plant) -> np.ndarray:
-    """Horizontal unit vectors from the shaft axis through each anchor: each sheave turns the rope
-    towards its winch outside the shaft."""
+def head_sheaves(plant: Plant, radius: float) -> Pulleys:
+    """sheave_geometry: fixed head sheaves in vertical planes pointing from the shaft axis through each
+    anchor (each turns the rope towards its winch outside the shaft); the anchor is where a vertical rope
+    leaves, and the rope runs on upwards to the winch."""
     outward = plant.anchors[:, :2] - plant.shaft_centre
     outward = outward / np.linalg.norm(outward, axis=1, keepdims=True)
-    return np.column_stack([outward, np.zeros(4)])
+    return Pulleys(np.full(4, radius), np.tile([0.0, 0.0, 1.0], (4, 1)), np.column_stack([outward, np.zeros(4)]))
+
+
+def plant_pulleys(plant: Plant, hidden: Mapping[str, float] | None) -> Pulleys | None:
+    """The pulleys of the plant file (`geometry.sheaves`), their radius replaced by pulley_geometry's where
+    it is hidden; a plant without them gets pulley_geometry's four alike: swivelling about its axis, or
+    fixed with their planes towards the shaft axis. None: no pulleys."""
+    if plant.sheaves:
+        radius = [s.radius for s in plant.sheaves] if hidden is None else [hidden["r"]] * 4
+        towards = [np.full(3, np.nan) if s.swivel else s.towards for s in plant.sheaves]
+        return Pulleys(np.array(radius, dtype=float), np.array([s.axis for s in plant.sheaves]), np.array(towards))
+    if hidden is None:
+        return None
+    axis = np.array([hidden["axis_x"], hidden["axis_y"], hidden["axis_z"]])
+    if np.linalg.norm(axis) < 1e-9:
+        raise ScenarioError("key 'effects.pulley_geometry': the axis (axis_x, axis_y, axis_z) must not be zero")
+    axis = axis / np.linalg.norm(axis)
+    towards = np.full((4, 3), np.nan)
+    if hidden["swivel"] < 0.5:
+        towards = np.column_stack([plant.shaft_centre - plant.anchors[:, :2], np.zeros(4)])
+        towards -= (towards @ axis)[:, None] * axis
+        towards /= np.linalg.norm(towards, axis=1, keepdims=True)
+    return Pulleys(np.full(4, hidden["r"]), np.tile(axis, (4, 1)), towards)
 
 
 class TruthModel:
@@ -68,8 +94,8 @@ class TruthModel:
                        weight_scale=plant.weight, lever_scale=float(np.linalg.norm(plant.attachments - cog, axis=1).max()),
                        EA=e["rope_elasticity"]["EA"] if "rope_elasticity" in e else None,
                        rope_weight=e["rope_weight"]["w"] if "rope_weight" in e else 0.0,
-                       sheave_radius=e["sheave_geometry"]["r"] if "sheave_geometry" in e else 0.0,
-                       sheave_planes=sheave_planes(plant) if "sheave_geometry" in e else None)
+                       pulleys=head_sheaves(plant, e["sheave_geometry"]["r"]) if "sheave_geometry" in e
+                       else plant_pulleys(plant, e.get("pulley_geometry")))
         self.trajectory = Trajectory(self.rig)
         self.direction = np.zeros(4)
 
