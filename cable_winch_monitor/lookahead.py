@@ -164,9 +164,7 @@ class LookaheadPipeline(MonitorPipeline):
         out: list[dict[str, float] | None] = [None] * len(solutions)
         if not solved:
             return out
-        states = States(self.model.physical, np.array([solutions[k].rotation for k in solved]),
-                        np.array([solutions[k].position for k in solved]),
-                        np.array([solutions[k].tensions for k in solved]))
+        states = States.of(self.model.physical, [solutions[k] for k in solved])
         table = self.model.predict_states(states, StackedConditions.of([conditions[k] for k in solved]))
         columns = {name: values.tolist() for name, values in table.items()}
         for row, k in enumerate(solved):

@@ -8,9 +8,9 @@ pose-dependent geometry (the plant's pulleys, sheave tangent points) by fixed-po
 `PlantModel.solve_batch` does the same for many samples along a trajectory at once
 (model/batched*.py), where nothing makes the geometry depend on the pose.
 `PlantModel.predict` gives every declared channel's reading for a solved state
-(channels.predicted, then measurement effects), `predict_states` for stacked states. The live node, replay, the analysis,
-`limits`, the command check and the wall clearance all go through this object; a model
-without effects is exactly the monitor's rigid model.
+(channels.predicted, then measurement effects), `predict_states` for stacked states.
+The live node, replay, the analysis, `limits`, the command check and the wall clearance
+all go through this object; a model without effects is exactly the monitor's rigid model.
 """
 from __future__ import annotations
 
@@ -284,9 +284,8 @@ class PlantModel:
         """What every declared channel reads for a solved state: the plain model, then measurement effects."""
         if not self._measurers:
             return channels.predicted(solution, self.physical, conditions)
-        states = States(self.physical, solution.rotation[None], solution.position[None], solution.tensions[None])
-        stacked = StackedConditions.of((conditions,))
-        return {name: float(values[0]) for name, values in self.predict_states(states, stacked).items()}
+        predicted = self.predict_states(States.of(self.physical, [solution]), StackedConditions.of((conditions,)))
+        return {name: float(values[0]) for name, values in predicted.items()}
 
     def predict_states(self, states: States, conditions: StackedConditions) -> dict[str, np.ndarray]:
         """`predict` for stacked states (row k of `conditions` is state k's): arrays (n,) by channel."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -27,14 +27,23 @@ FD_STEPS = np.array([1e-6] * 3 + [1e-8] * 3 + [1e-3] * 4)  # finite-difference s
 
 @dataclass(frozen=True)
 class States:
-    """n equilibrium states: rotation (n, 3, 3), position (n, 3) [m], tensions (n, 4) [N] of `plant`, and
-    the sample each explains (its index in a batch: a prediction may depend on the sample's conditions)."""
+    """n equilibrium states: rotation (n, 3, 3), position (n, 3) [m], tensions (n, 4) [N] of `plant`, the
+    sample each explains (its index in a batch: a prediction may depend on the sample's conditions), and
+    the solver's Solutions where the states are those (`solutions` then gives them as they are)."""
 
     plant: Plant
     rotation: np.ndarray
     position: np.ndarray
     tensions: np.ndarray
     sample: np.ndarray | None = None
+    solved: tuple[Solution, ...] | None = None
+
+    @classmethod
+    def of(cls, plant: Plant, solutions: Sequence[Solution]) -> "States":
+        """The states of solved samples, keeping their Solutions."""
+        return cls(plant, np.array([s.rotation for s in solutions]).reshape(-1, 3, 3),
+                   np.array([s.position for s in solutions]).reshape(-1, 3),
+                   np.array([s.tensions for s in solutions]).reshape(-1, 4), solved=tuple(solutions))
 
     def __len__(self) -> int:
         return len(self.position)
@@ -50,7 +59,10 @@ class States:
         return np.linalg.norm(self.points_b - self.plant.anchors, axis=2)
 
     def solutions(self) -> list[Solution]:
-        """The states as the package's Solutions (each taut where its tension is positive)."""
+        """The states as the package's Solutions: the solver's where given, else made from the states
+        (each rope taut where its tension is positive)."""
+        if self.solved is not None:
+            return list(self.solved)
         return solved_rows(self.plant, "estimate", self.spans, self.rotation, self.position, self.tensions,
                            self.tensions > 0.0, [0] * len(self))
 

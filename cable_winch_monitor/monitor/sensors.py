@@ -19,14 +19,13 @@ from .. import channels
 from ..model.estimation import Estimate
 from ..model.gate import DEFAULT_PROBABILITY, HeldGate, chi_square_threshold
 
-TENSION_CHANNELS = frozenset(channels.TENSION_CHANNELS)
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 DEFAULT_HOLD = 1.0  # [s] a sensor fails (or passes) its gate this long before it is left out (taken back)
 
 
 def sensor_of(channel: str) -> str:
     """The sensor a channel belongs to: a load pin is its own, any other channel its topic's instrument."""
-    if channel in TENSION_CHANNELS:
+    if channel in channels.TENSION_CHANNELS:
         return channel
     try:
         return channels.get(channel).topics[0]
