@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -145,6 +146,7 @@ def declare(channel: Channel) -> Channel:
     if not channel.topics or not all(t.startswith("/") for t in channel.topics):
         raise ChannelError(f"channel '{channel.name}': topics must be absolute ROS topic names, got {channel.topics}")
     _declared[channel.name] = channel
+    on_topic.cache_clear()
     return channel
 
 
@@ -166,6 +168,7 @@ def topic_types() -> dict[str, str]:
     return {topic: c.msgtype for c in _declared.values() for topic in c.topics}
 
 
+@lru_cache(maxsize=None)  # asked for every sensor message; cleared when a channel is declared
 def on_topic(topic: str) -> tuple[Channel, ...]:
     """The channels read from messages of `topic` by their own reader (not the winch merger's)."""
     return tuple(c for c in _declared.values() if topic in c.topics and c.read is not None)

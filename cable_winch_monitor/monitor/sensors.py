@@ -13,6 +13,7 @@ disagrees with the estimate beyond its Mahalanobis gate for `hold` seconds is le
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import Mapping
 
 from .. import channels
@@ -23,21 +24,35 @@ CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the s
 DEFAULT_HOLD = 1.0  # [s] a sensor fails (or passes) its gate this long before it is left out (taken back)
 
 
+_SENSORS: dict[str, str] = {}  # declared channel -> its sensor (a declared channel keeps its topics)
+
+
 def sensor_of(channel: str) -> str:
     """The sensor a channel belongs to: a load pin is its own, any other channel its topic's instrument."""
+    sensor = _SENSORS.get(channel)
+    if sensor is not None:
+        return sensor
     if channel in channels.TENSION_CHANNELS:
-        return channel
-    try:
-        return channels.get(channel).topics[0]
-    except KeyError:  # not declared: its own sensor
-        return channel
+        sensor = channel
+    else:
+        try:
+            sensor = channels.get(channel).topics[0]
+        except KeyError:  # not declared (yet): its own sensor, not remembered
+            return channel
+    _SENSORS[channel] = sensor
+    return sensor
 
 
 def sensors_used(estimate: Estimate) -> list[str]:
     """The sensors whose channels an estimate used, in the channels' declared order."""
-    used = set(estimate.used)
-    ordered = [name for name in channels.names() if name in used] + sorted(used - set(channels.names()))
-    return list(dict.fromkeys(sensor_of(name) for name in ordered))
+    return list(_sensors_used(estimate.used, channels.names()))
+
+
+@lru_cache(maxsize=256)  # every fused sample asks; a recording uses a few sets of channels
+def _sensors_used(used_names: tuple[str, ...], declared: tuple[str, ...]) -> tuple[str, ...]:
+    used = set(used_names)
+    ordered = [name for name in declared if name in used] + sorted(used - set(declared))
+    return tuple(dict.fromkeys(sensor_of(name) for name in ordered))
 
 
 class LatestReadings:
@@ -76,10 +91,13 @@ class SensorGates:
         self.hold, self.probability = hold, probability
         self.gates: dict[str, HeldGate] = {}
         self.last_chi_square: dict[str, float] = {}
+        self._refused: tuple[str, ...] = ()  # kept as the gates change: every sample asks
 
     def trusted(self, measured: Mapping[str, float]) -> dict[str, float]:
         """The measured channels of the sensors not left out."""
-        return {name: value for name, value in measured.items() if self.is_trusted(sensor_of(name))}
+        if not self._refused:
+            return dict(measured)
+        return {name: value for name, value in measured.items() if sensor_of(name) not in self._refused}
 
     def is_trusted(self, sensor: str) -> bool:
         gate = self.gates.get(sensor)
@@ -88,16 +106,27 @@ class SensorGates:
     @property
     def refused(self) -> tuple[str, ...]:
         """The sensors left out now."""
-        return tuple(sorted(s for s, gate in self.gates.items() if not gate.trusted))
+        return self._refused
 
     def update(self, stamp: float, normalised: Mapping[str, float]) -> None:
         """Each sensor's verdict at `stamp` from its channels' (measured - predicted) / sigma."""
         grouped: dict[str, list[float]] = {}
         for name, value in normalised.items():
             if math.isfinite(value):
-                grouped.setdefault(sensor_of(name), []).append(value)
+                sensor = sensor_of(name)
+                if sensor in grouped:
+                    grouped[sensor].append(value)
+                else:
+                    grouped[sensor] = [value]
+        changed = False
         for sensor, values in grouped.items():  # normalised innovations: d^2 is their sum of squares
-            chi_square = math.fsum(v * v for v in values)
+            chi_square = values[0] * values[0] if len(values) == 1 else math.fsum(v * v for v in values)
             self.last_chi_square[sensor] = chi_square
             passed = chi_square <= chi_square_threshold(len(values), self.probability)
-            self.gates.setdefault(sensor, HeldGate(self.hold)).update(stamp, passed)
+            gate = self.gates.get(sensor)
+            if gate is None:
+                gate = self.gates[sensor] = HeldGate(self.hold)
+            trusted = gate.trusted
+            changed |= gate.update(stamp, passed) != trusted
+        if changed:
+            self._refused = tuple(sorted(s for s, gate in self.gates.items() if not gate.trusted))
