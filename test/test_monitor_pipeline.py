@@ -8,7 +8,7 @@ import pytest
 
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.solve import solve
-from cable_winch_monitor.monitor.inputs import JointSample
+from cable_winch_monitor.monitor.inputs import JointSample, small_mean
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 
 
@@ -118,3 +118,15 @@ def test_measurements_give_residuals_against_the_latest_pose(plant, pipeline):
     assert set(imu.channels) == {"roll", "pitch"}
     assert pipeline.on_measurement("/platform/imu", 5.0, orientation(0.0, 0.0, 0.0, 1.0)) is None
     assert "staleness" in pipeline.stats.last_rejection
+
+
+def test_small_mean_is_numpys_mean_bit_for_bit():
+    """The payout mean the depth gauge is carried by must not move by an ulp against numpy's."""
+    rng = np.random.default_rng(7)
+    for _ in range(20_000):
+        values = (rng.normal(size=rng.integers(1, 8)) * 10.0 ** rng.uniform(-4, 4)).tolist()
+        assert small_mean(values) == float(np.mean(values))
+    assert str(small_mean([-0.0] * 4)) == str(float(np.mean([-0.0] * 4)))  # the sign of zero too
+    assert np.isnan(small_mean([1.0, float("nan"), 2.0, 3.0])) and np.isnan(small_mean([np.inf, -np.inf]))
+    with pytest.raises(ValueError, match="1 to 7 values"):
+        small_mean([1.0] * 8)

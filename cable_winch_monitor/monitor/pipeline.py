@@ -32,7 +32,8 @@ from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .clearance import Clearance, solution_clearance
-from .inputs import CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason
+from .inputs import (CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason,
+                     small_mean)
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates
 
@@ -138,17 +139,17 @@ class MonitorPipeline:
         if lengths is None:
             return None
         readings = self.merger.readings
-        speed = float(np.mean([r.velocity for r in readings]))
-        self.payout = (sample.stamp, float(np.mean(lengths)), speed if math.isfinite(speed) else 0.0)
-        complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings],
-                                  [r.velocity for r in readings])
+        speeds = [r.velocity for r in readings]
+        speed = small_mean(speeds)
+        self.payout = (sample.stamp, small_mean(lengths.tolist()), speed if math.isfinite(speed) else 0.0)
+        complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings], speeds)
         return complete._replace(sensors=self.measured(complete))
 
     def measured(self, sample: CompleteSample) -> dict[str, float]:
         """What the sensors read at a complete sample: its load pins and the latest other readings
         within the staleness limit (every sensor: the gates pick the trusted ones when it is solved)."""
         pins = {name: value for name, value in zip(channels.TENSION_CHANNELS, sample.tensions) if math.isfinite(value)}
-        return {**self.readings.at(sample.stamp, float(np.mean(sample.lengths))), **pins}
+        return {**self.readings.at(sample.stamp, small_mean(sample.lengths.tolist())), **pins}
 
     def payout_at(self, stamp: float) -> float:
         """The mean payout [m] at `stamp`, carried from the latest complete sample by its payout speed."""
