@@ -12,7 +12,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from cable_winch_monitor.bagio import records
-from cable_winch_monitor.bagio.cdr import encoder
+from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.paths import demo_bag
@@ -49,6 +49,7 @@ def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     generic, fast = (tmp_path_factory.mktemp(name) / "out" for name in ("generic", "fast"))
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(records, "encoder", generic_encoder)
+        patch.setattr(records, "scene_encoder", lambda: generic_encoder(records.OUTPUT_TYPES[records.SCENE]))
         patch.setattr(BagWriter, "_append", generic_append)
         replay(BAG, generic, progress=False)
     replay(BAG, fast, progress=False)
@@ -109,3 +110,21 @@ EDGE_CASES = [
 @pytest.mark.parametrize(("msgtype", "values"), EDGE_CASES, ids=[f"{t}-{i}" for i, (t, _) in enumerate(EDGE_CASES)])
 def test_encoder_matches_rosbags(msgtype: str, values: dict[str, Any]) -> None:
     assert encoder(msgtype)(values) == generic_encoder(msgtype)(values)
+
+
+def test_fixed_fields_give_the_bytes_of_the_full_encoder() -> None:
+    """Fields fixed at generation (numbers, NaN, strings, empty sequences, partial sub-messages) are packed
+    as the encoder packs them when it reads them, whatever the offset the variable fields leave."""
+    imu = dict(EDGE_CASES[5][1])
+    fixed = {"sensor_msgs/msg/Imu": {"orientation": {"x": NAN, "w": 1.0}, "orientation_covariance": [0.5] * 9,
+                                     "linear_acceleration": xyz(0, 0, 9.81)},
+             "std_msgs/msg/Header": {"frame_id": "x"}}
+    imu["orientation"] = {"x": NAN, "y": 0.2, "z": 0.3, "w": 1.0}
+    assert fixed_encoder("sensor_msgs/msg/Imu", fixed)(imu) == generic_encoder("sensor_msgs/msg/Imu")(imu)
+    alarm = dict(EDGE_CASES[2][1])
+    pinned = {"cable_winch_monitor_msgs/msg/CollisionAlarm": {"closest_point_name": "deck_1/p3", "sync_errors": [],
+                                                              "reason": "clearance"}}
+    for frame in ("", "a", "ab", "abc", "abcd"):  # every offset mod 8 before the fixed fields
+        alarm["header"] = header(frame_id=frame)
+        got = fixed_encoder("cable_winch_monitor_msgs/msg/CollisionAlarm", pinned)(alarm)
+        assert got == generic_encoder("cable_winch_monitor_msgs/msg/CollisionAlarm")(alarm), frame

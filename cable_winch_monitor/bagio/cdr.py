@@ -6,9 +6,15 @@
 Nested messages are inlined; runs of scalars whose alignment is known when the code is
 generated become one `struct` call, and padding is computed at run time only after
 strings and sequences, whose lengths vary.
+
+`fixed_encoder` also takes the fields that every message it encodes has alike (the
+scene's markers share a dozen empty strings, sequences and constant sub-messages): those
+are not looked up but packed when the code is generated, runs of them as one bytes
+literal.
 """
 from __future__ import annotations
 
+import math
 from array import array
 from functools import lru_cache
 from struct import Struct, pack
@@ -90,13 +96,45 @@ class Layout:
         self.rem = (self.rem + size * count) % self.base
 
 
+_RUNTIME = object()  # a pending value known only when the encoder runs
+
+
 class _EncoderSource(Layout):
-    """Source of one encoder, from the nested field mapping `v` to the bytearray `out`."""
+    """Source of one encoder, from the nested field mapping `v` to the bytearray `out`; `fixed` maps a
+    message type to the (partial, nested) field values every message of that type has."""
+
+    def __init__(self, store: Typestore, fixed: Mapping[str, Mapping[str, Any]] | None = None):
+        super().__init__(store)
+        self.fixed = fixed or {}
+        self.known: list[Any] = []  # the pending run's values, _RUNTIME where known only then
 
     def flush(self) -> None:
         if self.fmt:
-            self.emit(f"out += {self.struct()}.pack({', '.join(self.pending)})")
-            self.fmt, self.pending = "", []
+            if _RUNTIME in self.known:
+                self.emit(f"out += {self.struct()}.pack({', '.join(self.pending)})")
+            else:  # every value is fixed: the bytes are
+                self.emit(f"out += {Struct('<' + self.fmt).pack(*self.known)!r}")
+            self.fmt, self.pending, self.known = "", [], []
+
+    def scalar(self, code: str, size: int, item: str, count: int = 1, value: Any = _RUNTIME) -> None:
+        super().scalar(code, size, item, count)
+        self.known.append(value)
+
+    def constant(self, node: int, argument: Any, value: Any) -> None:
+        """A field (not a message: `message` goes through those) whose value is `value` in every message."""
+        if node == Nodetype.BASE and argument[0] == "string":
+            data = value.encode() + b"\0"
+            self.scalar("I", 4, str(len(data)), value=len(data))
+            self.fmt += f"{len(data)}s"
+            self.pending.append(repr(data))
+            self.known.append(data)
+            self.rem = (self.rem + len(data)) % self.base
+        elif node == Nodetype.BASE and argument[0] in SCALAR:
+            self.scalar(SCALAR[argument[0]], SIZE[argument[0]], f"{_literal(value)}", value=value)
+        elif node == Nodetype.SEQUENCE and not len(value):
+            self.scalar("I", 4, "0", value=0)  # no elements: no alignment either
+        else:
+            self.field(node, argument, _literal(value))
 
     def pad(self, size: int) -> str:
         return f"out += ZEROS[(4 - len(out)) % {size}]"
@@ -109,9 +147,15 @@ class _EncoderSource(Layout):
         self.emit("out.append(0)")
         self.unknown()
 
-    def message(self, msgtype: str, expr: str) -> None:
+    def message(self, msgtype: str, expr: str, fixed: Mapping[str, Any] | None = None) -> None:
+        fixed = self.fixed.get(msgtype, {}) if fixed is None else fixed
         for name, (node, argument) in self.store.fielddefs[msgtype][1]:
-            self.field(node, argument, f"{expr}[{name!r}]")
+            if name in fixed and node == Nodetype.NAME:
+                self.message(argument, f"{expr}[{name!r}]", fixed[name])
+            elif name in fixed:
+                self.constant(node, argument, fixed[name])
+            else:
+                self.field(node, argument, f"{expr}[{name!r}]")
 
     def field(self, node: int, argument: Any, expr: str) -> None:
         if node == Nodetype.NAME:
@@ -183,10 +227,28 @@ def strings(values: tuple[str, ...]) -> bytes:
     return bytes(out)
 
 
+def _literal(value: Any) -> str:
+    """Python source giving `value` (a number, string or nested mapping or list of them)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"float({str(value)!r})"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{key!r}: {_literal(item)}" for key, item in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_literal(item) for item in value) + "]"
+    return repr(value)
+
+
 @lru_cache(maxsize=None)
 def encoder(msgtype: str, store: Typestore | None = None) -> Encoder:
     """The compiled encoder of `msgtype` (values as for `records.build`)."""
-    generator = _EncoderSource(store or typestore())
+    return fixed_encoder(msgtype, {}, store)
+
+
+def fixed_encoder(msgtype: str, fixed: Mapping[str, Mapping[str, Any]], store: Typestore | None = None) -> Encoder:
+    """The compiled encoder of `msgtype` for messages whose fields in `fixed` (by message type: a partial
+    nested mapping of that type's fields) always hold the values given there; those are not read from the
+    values encoded. Gives the bytes of `encoder(msgtype)` for such messages."""
+    generator = _EncoderSource(store or typestore(), fixed)
     source = generator.source(msgtype)
     namespace: dict[str, Any] = {"pack": pack, "array": array, "strings": strings,
                                  "ZEROS": tuple(bytes(n) for n in range(8))}

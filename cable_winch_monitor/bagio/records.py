@@ -18,7 +18,7 @@ from ..model.result import Solution
 from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
-from .scene import SceneBuilder
+from .scene import SceneBuilder, scene_encoder
 from .cdr import encoder
 from .typestore import typestore
 
@@ -85,7 +85,7 @@ def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:
 def scene_cdr(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> bytes:
     """The 3-D scene of one sample as CDR bytes (the live node publishes these raw: building the rclpy
     MarkerArray instead cost four times as much)."""
-    return encoder(OUTPUT_TYPES[SCENE])(builder.scene(stamp, solution, alarm))
+    return scene_encoder()(builder.scene(stamp, solution, alarm))
 
 
 def scene_records(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> list[Record]:

@@ -12,6 +12,7 @@ with `SceneBuilder` and thin the scenes by header stamp with `SceneThrottle`.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
@@ -19,6 +20,7 @@ import numpy as np
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
 from ..monitor.alarm import Alarm, AlarmLevel
+from .cdr import Encoder, fixed_encoder
 from .fields import FRAME, Fields, Stamp, header
 from .frames import PLATFORM_FRAME
 
@@ -67,10 +69,19 @@ def _colour(c: RGBA) -> Fields:
     return {"r": c[0], "g": c[1], "b": c[2], "a": c[3]}
 
 
-# Fields no marker of the scene varies (shared, never modified).
-_CONSTANT = {"orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "lifetime": {"sec": 0, "nanosec": 0},
-             "texture": {"header": header((0, 0), ""), "format": "", "data": []},
-             "mesh_file": {"filename": "", "data": []}}
+# Fields no marker of a scene varies (shared, never modified): `marker` fills them in, and the scene's encoder
+# packs them once instead of at every scene.
+MARKER = "visualization_msgs/msg/Marker"
+SCENE_FIXED = {"pose": {"orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}, "lifetime": {"sec": 0, "nanosec": 0},
+               "frame_locked": False, "colors": [], "texture_resource": "",
+               "texture": {"header": header((0, 0), ""), "format": "", "data": []}, "uv_coordinates": [],
+               "mesh_resource": "", "mesh_file": {"filename": "", "data": []}, "mesh_use_embedded_materials": False}
+
+
+@lru_cache(maxsize=1)
+def scene_encoder() -> Encoder:
+    """The CDR encoder of a scene's MarkerArray (each marker with the SCENE_FIXED fields)."""
+    return fixed_encoder("visualization_msgs/msg/MarkerArray", {MARKER: SCENE_FIXED})
 
 
 def points(values: Sequence[Sequence[float]]) -> list[Fields]:
@@ -84,12 +95,13 @@ def marker(head: Fields, ns: str, kind: int, *, marker_id: int = 0, vertices: li
            frame_locked: bool = False) -> Fields:
     """One visualization_msgs/Marker with header `head`, every field given (no lifetime: each scene replaces the
     last); `vertices` as from `points`."""
+    fixed = SCENE_FIXED
     return {"header": head, "ns": ns, "id": marker_id, "type": kind, "action": action,
-            "pose": {"position": _xyz(position), "orientation": _CONSTANT["orientation"]},
-            "scale": _xyz(scale), "color": _colour(colour), "lifetime": _CONSTANT["lifetime"],
+            "pose": {"position": _xyz(position), "orientation": fixed["pose"]["orientation"]},
+            "scale": _xyz(scale), "color": _colour(colour), "lifetime": fixed["lifetime"],
             "frame_locked": frame_locked, "points": vertices or [], "colors": [],
-            "texture_resource": "", "texture": _CONSTANT["texture"], "uv_coordinates": [], "text": text,
-            "mesh_resource": "", "mesh_file": _CONSTANT["mesh_file"], "mesh_use_embedded_materials": False}
+            "texture_resource": "", "texture": fixed["texture"], "uv_coordinates": [], "text": text,
+            "mesh_resource": "", "mesh_file": fixed["mesh_file"], "mesh_use_embedded_materials": False}
 
 
 class SceneBuilder:
