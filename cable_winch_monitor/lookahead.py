@@ -125,17 +125,18 @@ class LookaheadPipeline(MonitorPipeline):
                 result = error
             yield item, result
 
-    def _merge_item(self, item: Any) -> Merged | Exception | None:
+    def _merge_item(self, item: Any) -> Merged | dict[str, float] | Exception | None:
         """Step 1 for one message: a winch message merged (its complete sample, if it makes one), a
-        sensor reading kept for the samples to come."""
+        sensor's readings kept for the samples to come (and returned, for step 3)."""
         if item.msgtype != fields.JOINT_STATE:
-            readers = channels.on_topic(item.topic)
-            if readers and item.topic not in self.input_specs:
+            if channels.on_topic(item.topic) and item.topic not in self.input_specs:
                 try:
                     stamp = fields.message_seconds(item.message, item.log_time)
                 except Exception:  # noqa: BLE001 - step 3 reports it with its message
                     return None
-                self.keep_reading(stamp, {c.name: c.read(item.message) for c in readers})
+                values = self.read_channels(item.topic, item.message)
+                self.keep_reading(stamp, values)
+                return values
             return None
         try:
             sample = self._merge(fields.joint_sample(item.message, item.topic)
@@ -191,7 +192,8 @@ class LookaheadPipeline(MonitorPipeline):
                 out[i] = forward_estimate(solution, lengths[i])
         return out
 
-    def _result(self, item: Any, outcome: Merged | Exception | None, solved: Solved | None) -> Result:
+    def _result(self, item: Any, outcome: Merged | dict[str, float] | Exception | None,
+                solved: Solved | None) -> Result:
         msg = item.message
         if item.msgtype == fields.JOINT_STATE:
             if isinstance(outcome, Exception):
@@ -201,4 +203,6 @@ class LookaheadPipeline(MonitorPipeline):
             return self._solve(outcome.sample, solved, outcome.conditions)
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
-        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg, keep=False)
+        values = outcome if isinstance(outcome, dict) else None
+        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg, keep=False,
+                                   values=values)

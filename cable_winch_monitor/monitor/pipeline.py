@@ -218,16 +218,18 @@ class MonitorPipeline:
                       for name, value in measured.items()}
         self.gates.update(stamp, normalised)
 
-    def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True) -> Residuals | None:
+    def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True,
+                       values: dict[str, float] | None = None) -> Residuals | None:
         """A sensor message (inclinometer, depth gauge, a declared channel's topic): its readings kept
-        for the samples to come (unless `keep` is False: replay keeps them ahead), the residuals of its
-        channels against the latest solved pose."""
+        for the samples to come (unless `keep` is False: replay keeps them ahead, with the `values` it
+        read off the message then), the residuals of its channels against the latest solved pose."""
         self.stats.messages[topic] += 1
         reason = measurement_reason(message, self.limits)
         if reason:
             self._reject(topic, reason)
             return None
-        values = {c.name: c.read(message) for c in channels.on_topic(topic)}
+        if values is None:
+            values = self.read_channels(topic, message)
         if not any(math.isfinite(v) for v in values.values()):
             self._reject(topic, "bad measurement: no finite value in " + ", ".join(values))
             return None
@@ -239,6 +241,11 @@ class MonitorPipeline:
             return None
         self.stats.used[topic] += 1
         return residuals(self.noise, stamp, values, self.last_predicted)
+
+    @staticmethod
+    def read_channels(topic: str, message: Any) -> dict[str, float]:
+        """What the channels read off a message of `topic` (NaN where a field holds no number)."""
+        return {c.name: c.read(message) for c in channels.on_topic(topic)}
 
     def on_input(self, spec: Input, stamp: float, message: Any) -> None:
         """An extra input's message (e.g. the shaft temperature): kept for the samples' conditions."""
