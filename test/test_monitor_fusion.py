@@ -13,10 +13,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from scipy.special import chdtri
 
 from cable_winch_monitor import channels
 from cable_winch_monitor.bagio import fields
 from cable_winch_monitor.lookahead import LookaheadPipeline
+from cable_winch_monitor.model.gate import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.result import check_physics
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
@@ -129,3 +131,12 @@ def test_tension_message_says_what_the_estimate_used(plant, lowering):
     exact = live(MonitorPipeline(plant.with_changes(noise={**NOISE, "length": float("nan")})), items[:40])[-1]
     values = fields.tension_distribution((100, 0), exact.solution, exact.estimate)
     assert values["sensors_used"] == [] and values["length_corrections_sigma"] == []
+
+
+def test_default_gate_thresholds_are_scipys_chi_square_quantiles():
+    """The gate's thresholds at the default probability are kept as numbers (no scipy import in a replay):
+    they must be scipy's quantiles to the bit, and other probabilities still come from scipy."""
+    for dof, threshold in enumerate(DEFAULT_THRESHOLDS, 1):
+        assert threshold == float(chdtri(dof, 1.0 - DEFAULT_PROBABILITY))
+    assert chi_square_threshold(9) == float(chdtri(9, 1.0 - DEFAULT_PROBABILITY))
+    assert chi_square_threshold(2, 0.99) == pytest.approx(-2.0 * np.log(0.01))  # two channels: exponential
