@@ -90,8 +90,9 @@ class CableLengthMerger:
         self.limits = limits or InputLimits()
         self.readings: list[CableReading | None] = [None] * 4
 
-    def _stamp_reason(self, cable: int, stamp: float, received: float, in_message: dict[int, int]) -> str:
-        """Why `stamp` is implausible for `cable` ('' if it is not)."""
+    def _stamp_reason(self, cable: int, stamp: float, received: float, others: list[float]) -> str:
+        """Why `stamp` is implausible for `cable` ('' if it is not); `others` are the stamps of the other
+        winches still reporting (`_reporting_others`)."""
         name, window = CABLE_NAMES[cable], self.window
         if math.isfinite(received):
             if stamp - received > window.ahead:
@@ -100,7 +101,6 @@ class CableLengthMerger:
             if received - stamp > window.behind:
                 return (f"stamp behind the clock: {name} at {stamp:.6f} s is {received - stamp:.6g} s before its "
                         f"arrival (window {window.behind:g} s)")
-        others = self._reporting_others(in_message, received)
         if others and stamp - max(others) > window.skew:
             return (f"stamp ahead of the other winches: {name} at {stamp:.6f} s is {stamp - max(others):.6g} s "
                     f"after their newest reading (window {window.skew:g} s)")
@@ -147,10 +147,11 @@ class CableLengthMerger:
         cables = {CABLE_INDEX[n]: k for k, n in enumerate(names) if n in CABLE_INDEX}
         ignored = [n for n in names if n not in CABLE_INDEX]
         velocities = sample.velocities if len(sample.velocities) == len(names) else None
+        others = self._reporting_others(cables, sample.received)
         for cable, k in cables.items():
             velocity = NAN if velocities is None else float(velocities[k])
             reason = (self._value_reason(cable, float(sample.positions[k]), velocity)
-                      or self._stamp_reason(cable, sample.stamp, sample.received, cables))
+                      or self._stamp_reason(cable, sample.stamp, sample.received, others))
             if reason:
                 return {}, ignored, reason
         if not cables:
