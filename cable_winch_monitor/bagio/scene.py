@@ -20,6 +20,7 @@ import numpy as np
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
 from ..monitor.alarm import Alarm, AlarmLevel
+from ..monitor.inputs import small_mean
 from .cdr import Encoder, fixed_encoder
 from .fields import FRAME, Fields, Stamp, header
 from .frames import PLATFORM_FRAME
@@ -124,7 +125,9 @@ class SceneBuilder:
                    marker(head, "sheaves", SPHERE_LIST, vertices=self.sheaves, colour=SHEAVE_COLOUR,
                           scale=(0.4, 0.4, 0.4))]
         level_colour = LEVEL_COLOURS[alarm.level]
-        bottom = -float(np.nanmean(solution.lengths)) if np.isfinite(solution.lengths).any() else 0.0
+        lengths = solution.lengths.tolist()
+        known = [length for length in lengths if not math.isnan(length)]  # np.nanmean's, the same to the bit
+        bottom = -small_mean(known) if any(map(math.isfinite, known)) else 0.0
         label_at = (*self.plant.shaft_centre.tolist(), bottom + 2.0)
         if solution.ok:
             heights = solution.position[2] + self.plant.outline_array @ solution.rotation[2]
@@ -156,11 +159,10 @@ class SceneBuilder:
         """Rope i from A_i to B_i: coloured by tension when taut, grey and dashed when slack; a label near B_i."""
         out = []
         weight = self.plant.weight
-        for i, name in enumerate(CABLE_NAMES):
-            a, b = self.plant.anchors[i], solution.points_b[i]
-            taut = (i + 1) in solution.taut_set
-            tension = float(solution.tensions[i])
-            if taut:
+        tensions = solution.tensions.tolist()
+        for i, (name, a, b) in enumerate(zip(CABLE_NAMES, self.plant.anchors, solution.points_b)):
+            tension = tensions[i]
+            if (i + 1) in solution.taut_set:
                 out.append(marker(head, "ropes", LINE_STRIP, marker_id=i, vertices=points([a.tolist(), b.tolist()]),
                                   colour=tension_colour(tension / weight), scale=(ROPE_WIDTH, 0.0, 0.0)))
                 label = f"{name} {tension / 1000.0:.1f} kN"
@@ -169,9 +171,11 @@ class SceneBuilder:
                 out.append(marker(head, "ropes", LINE_LIST, marker_id=i, vertices=dashes, colour=SLACK_COLOUR,
                                   scale=(ROPE_WIDTH, 0.0, 0.0)))
                 label = f"{name} slack, loose by {float(solution.lengths[i] - solution.spans[i]):.3f} m"
-            direction = (a - b) / max(float(np.linalg.norm(a - b)), 1e-9)
+            towards_a = a - b
+            distance = max(math.sqrt(towards_a.dot(towards_a)), 1e-9)  # np.linalg.norm's sum, without its checks
+            label_at = [p + 3.0 * (d / distance) for p, d in zip(b.tolist(), towards_a.tolist())]
             out.append(marker(head, "rope_labels", TEXT, marker_id=i, scale=(0.0, 0.0, TEXT_HEIGHT),
-                              position=(b + 3.0 * direction).tolist(), text=label))
+                              position=label_at, text=label))
         return out
 
     def _closest(self, head: Fields, alarm: Alarm, colour: RGBA) -> list[Fields]:
