@@ -71,8 +71,8 @@ def test_final_model_balances_over_its_pulleys(diagnosis):
         solution = model.solve(lengths, previous)
         assert solution.ok, solution.message
         previous = solution
-        moved, free, theta = wrap(model.physical, lengths, solution.points_b)
-        vectors = moved.anchors - solution.points_b
+        tangents, free, theta = wrap(model.physical, lengths, solution.points_b)
+        vectors = tangents - solution.points_b
         spans = np.linalg.norm(vectors, axis=1)
         pulls = (solution.tensions / spans)[:, None] * vectors
         weight = model.plant.weight
