@@ -133,6 +133,7 @@ class BatchEstimate:
     iterations: np.ndarray
     loads: np.ndarray             # (N, 6) the external wrench of each sample (model.load)
     fallback: dict[int, Estimate] = field(default_factory=dict)
+    anchors: np.ndarray | None = None  # (N, 4, 3) each sample's anchors where they move with the pose
 
     def __len__(self) -> int:
         return len(self.reported)
@@ -150,8 +151,8 @@ class BatchEstimate:
         rows = np.array([i for i in indices if i not in self.fallback], dtype=int)
         out = {i: self.fallback[i] for i in indices if i in self.fallback}
         solutions = solved_rows(self.plant, METHOD, self.corrected[rows], self.rotation[rows], self.position[rows],
-                                self.tensions[rows], self.taut[rows], self.iterations[rows],
-                                loads=self.loads[rows]) if rows.size else []
+                                self.tensions[rows], self.taut[rows], self.iterations[rows], loads=self.loads[rows],
+                                anchors=None if self.anchors is None else self.anchors[rows]) if rows.size else []
         for i, solution in zip(rows.tolist(), solutions):
             measured = np.isfinite(self.residuals[i])
             out[i] = Estimate(solution, self.reported[i], self.corrected[i] - self.reported[i], self.sigma_length,
@@ -186,18 +187,21 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
 
 def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Observation] = (),
                    sigma_length: float = 1e-3, axial_stiffness: object = None, rope_weight: float = 0.0,
-                   loads: np.ndarray | None = None, warm_starts: Sequence[Estimate | None] | None = None) \
-        -> BatchEstimate:
+                   loads: np.ndarray | None = None, warm_starts: Sequence[Estimate | None] | None = None,
+                   anchors: np.ndarray | None = None, same_samples: bool = True) -> BatchEstimate:
     """`estimate` for the rows of lengths (N, 4), observation values (N,) each, under `loads` (one
-    wrench (6,) for all, one per sample (N, 6), None: gravity): every sample starts from its warm start
-    where given (an estimate of the sample under slightly different parameters, as a fit makes them),
-    else from the batched forward kinematics of its reported lengths; the search runs on all together.
+    wrench (6,) for all, one per sample (N, 6), None: gravity), with each sample's `anchors` (N, 4, 3)
+    where the geometry depends on the pose (None: the plant's): every sample starts from its warm start
+    where given (an estimate of the sample under slightly different parameters or geometry, as a fit
+    and the pose-dependent geometry's refinement make them), else from the batched forward kinematics
+    of its reported lengths; the search runs on all together. Warm starts that are other samples'
+    states (`same_samples` False: the previous sample's, live) are searched as the live estimate is.
     ValueError names a bad argument."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
-        problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads)
-        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, True)
+        problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads, anchors)
+        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, same_samples)
 
 
 def estimate_gated(plant: Plant, lengths: object, observations: Sequence[Observation],
@@ -380,7 +384,7 @@ def _assemble(problem: Problem, best: Rows, unsolved: dict[int, Solution]) -> Ba
                         np.full(count, SolveStatus.SOLVED.value, dtype=object), np.zeros((count, 4), bool),
                         np.zeros((count, 4)), np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan),
                         np.full((count, m), np.nan), tuple(o.name for o in problem.observations),
-                        problem.sigma_length, np.zeros(count, int), problem.loads)
+                        problem.sigma_length, np.zeros(count, int), problem.loads, anchors=problem.anchors)
     rows = best.sample
     out.corrected[rows] = corrected
     out.loaded[rows] = problem.ropes.loaded(corrected, tensions)
