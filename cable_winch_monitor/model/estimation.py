@@ -337,8 +337,8 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
     for stage, search in enumerate((NEIGHBOURS, NEIGHBOURS, ALL_SETS)):
         owner, codes = _candidates(best, pending, visited, search)
         fresh = np.flatnonzero(~solved)
-        if not fresh.size and not owner.size:
-            break
+        if not fresh.size and not owner.size:  # no new neighbours: rows still doubtful go wider
+            continue
         owner = np.concatenate([fresh, owner])
         taut = np.concatenate([best.taut[fresh], (codes[:, None] & BITS) > 0])
         candidates = solve_rows(problem, best.take(owner, taut))
