@@ -316,9 +316,10 @@ def _doubtful(rows: Rows, misfit: bool = True) -> np.ndarray:
 def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> Rows:
     """The best admissible row per sample (one start row per sample in, one row per sample out).
 
-    The start's set is solved, with its neighbours where `probe` and an observation already
-    disagrees at the start (from forward kinematics: a load pin reading kilonewtons on a rope
-    the lengths have slack; a warm start is not probed, its pose is a sample old); where the best
+    The start's set is solved, and where `probe` and an observation already disagrees at the
+    start (from forward kinematics: a load pin reading kilonewtons on a rope the lengths have
+    slack; a warm start is not probed, its pose is a sample old) the set its load pins read
+    (`_pinned_sets`), or without pins its neighbours, beside it; where the best
     is doubtful, its neighbours, and the neighbours of a better set found there; where the best is
     then still inadmissible or leaves a slack rope overstretched, every other set of two or more
     ropes is solved from it (a misfit alone does not go that far: after the neighbours have not
@@ -329,13 +330,16 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
     visited = np.zeros((count, 16), bool)
     visited[np.arange(count), best.taut @ BITS] = True
     best.residuals = np.zeros((count, 4 + len(problem.observations)))
-    pending = np.zeros(0, int)
+    pending, pinned = np.zeros(0, int), (np.zeros(0, int), np.zeros(0, int))
     if probe and problem.observations:
         observed = residuals(problem, best, np.arange(count))[:, 4:]
         pending = np.flatnonzero(np.abs(observed).max(axis=1) > SEARCH_SIGMA)
+        pinned = _pinned_sets(problem, best, pending, visited)
+        if pinned is not None:
+            pending = np.zeros(0, int)
     solved = np.zeros(count, bool)
     for stage, search in enumerate((NEIGHBOURS, NEIGHBOURS, ALL_SETS)):
-        owner, codes = _candidates(best, pending, visited, search)
+        owner, codes = _candidates(best, pending, visited, search) if stage or pinned is None else pinned
         fresh = np.flatnonzero(~solved)
         if not fresh.size and not owner.size:  # no new neighbours: rows still doubtful go wider
             continue
@@ -356,6 +360,29 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         if not pending.size:
             break
     return best
+
+
+def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.ndarray) \
+        -> tuple[np.ndarray, np.ndarray] | None:
+    """Rows and taut-set codes of the sets the load pins read for the pending rows, where another than
+    the start's (marked visited): a rope is taut where its pin reads more than SEARCH_SIGMA sigma, as
+    at the start where it has none. None where no load pin is read off the state. One candidate a
+    row instead of its neighbours (seven for three taut ropes): with 1 mm of noise the forward
+    kinematics of four rigid ropes often picks the wrong three, and the pins say which."""
+    index, columns, _ = problem.read_off
+    pins = [(int(k), int(c) - 6) for k, c in zip(index, columns) if c >= 6]
+    if not pins:
+        return None
+    taut = best.taut[pending].copy()
+    values = problem.values[best.sample[pending]]
+    for k, rope in pins:
+        read = np.isfinite(values[:, k])
+        taut[read, rope] = values[read, k] > SEARCH_SIGMA * problem.sigmas[k]
+    codes = taut @ BITS
+    other = (codes != best.taut[pending] @ BITS) & (taut.sum(axis=1) >= 2)
+    owner, codes = pending[other], codes[other]
+    visited[owner, codes] = True
+    return owner, codes
 
 
 def _candidates(best: Rows, pending: np.ndarray, visited: np.ndarray, search: list[list[int]]) \
