@@ -178,7 +178,8 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
         moved = np.abs(States(model.physical, batch.rotation, batch.position, batch.tensions).points_b - previous)
         if not np.nanmax(moved, initial=0.0) >= REFINE_TOL:
             break
-    estimates = [replace(e, reported=row) for e, row in zip(batch.estimates(), lengths)]  # the free lengths' sources
+    # reported: the true lengths, not the free lengths below the tangent points that the last round fitted
+    estimates = [replace(e, reported=row) for e, row in zip(batch.estimates(), lengths)]
     for i in batch.fallback:
         estimates[i] = forward_estimate(model.solve(lengths[i], None, conditions[i]), lengths[i])
     return estimates
