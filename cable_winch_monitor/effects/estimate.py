@@ -163,17 +163,27 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
                       conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None,
                       live: bool = False) -> list[Estimate]:
     """Estimates where the geometry depends on the pose: each round estimates every sample with the
-    anchors and free lengths of its last estimate's pose, warm-started there, until no attachment
-    point moves more than REFINE_TOL (at most REFINE_STEPS rounds). A sample the estimator leaves
-    gets the model's forward kinematics, which refines its own geometry."""
-    batch = _batch(model, lengths, observations, conditions, warm_starts, live=live)
+    anchors and free lengths of its last estimate's pose (the first, of its warm start's where it has
+    one), warm-started there, until no attachment point moves more than REFINE_TOL (at most
+    REFINE_STEPS rounds). A sample the estimator leaves gets the model's forward kinematics, which
+    refines its own geometry."""
     nominal = np.broadcast_to(model.physical.anchors, (len(lengths), 4, 3))
+
+    def geometry(rotation: np.ndarray, position: np.ndarray, tensions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        anchors, free = model.refine(lengths, States(model.physical, rotation, position, tensions))
+        posed = np.isfinite(position).all(axis=1)  # where no pose is known: the nominal geometry
+        return np.where(posed[:, None, None], anchors, nominal), np.where(posed[:, None], free, lengths)
+
+    anchors, free = None, lengths
+    if warm_starts is not None and any(w is not None and w.ok for w in warm_starts):
+        warm = [w.solution if w is not None and w.ok else None for w in warm_starts]
+        anchors, free = geometry(np.array([np.eye(3) if s is None else s.rotation for s in warm]),
+                                 np.array([np.full(3, np.nan) if s is None else s.position for s in warm]),
+                                 np.array([np.zeros(4) if s is None else s.tensions for s in warm]))
+    batch = _batch(model, free, observations, conditions, warm_starts, anchors, live=live)
     for _ in range(REFINE_STEPS):
-        states = States(model.physical, batch.rotation, batch.position, batch.tensions)
-        anchors, free = model.refine(lengths, states)
-        posed = np.isfinite(batch.position).all(axis=1)  # where the estimator left a sample: nominal geometry
-        anchors, free = np.where(posed[:, None, None], anchors, nominal), np.where(posed[:, None], free, lengths)
-        previous = states.points_b
+        anchors, free = geometry(batch.rotation, batch.position, batch.tensions)
+        previous = States(model.physical, batch.rotation, batch.position, batch.tensions).points_b
         batch = _batch(model, free, observations, conditions, batch.estimates(), anchors)
         moved = np.abs(States(model.physical, batch.rotation, batch.position, batch.tensions).points_b - previous)
         if not np.nanmax(moved, initial=0.0) >= REFINE_TOL:
