@@ -4,9 +4,9 @@ and the final model's equilibria balance.
 
 The bag is the simulator's (`cable-winch-monitor simulate config/scenarios/lab_robot.yaml --out
 bags/lab_robot --seed 1`): its own equilibrium by root finding over its own pulleys (sim/pulleys.py),
-its own functions for the hidden effects, none of the package's model code. The diagnosis screens the
-effects a laboratory would suspect of a cable robot's geometry and calibration, without a time limit:
-about 7 minutes on two shared cores, so it runs with the slow tests (`make test-slow`).
+its own functions for the hidden effects, none of the package's model code. The diagnosis runs as a
+user runs it: every library effect a candidate, the default time budget (about 100 s on two shared
+cores, so it runs with the slow tests, `make test-slow`).
 """
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from cable_winch_monitor.analysis.diagnose import diagnose_bag
+from cable_winch_monitor.cli import DIAGNOSE_BUDGET
 from cable_winch_monitor.effects.pulley import wrap
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.paths import default_plant_file
@@ -23,13 +24,11 @@ from cable_winch_monitor.sim.simulate import simulate
 
 BAG = default_plant_file().parents[1] / "bags" / "lab_robot"
 PLANT = default_plant_file().parent / "lab_robot_plant.yaml"
-CANDIDATES = ["pulley_geometry", "inclinometer_offset", "load_pin_calibration", "encoder_offset", "encoder_scale",
-              "cog_offset"]
 
 
 @pytest.fixture(scope="module")
 def diagnosis():
-    return diagnose_bag(BAG, load_plant(PLANT), CANDIDATES, budget=None)
+    return diagnose_bag(BAG, load_plant(PLANT), None, budget=DIAGNOSE_BUDGET)
 
 
 def _hidden() -> dict[str, dict[str, float]]:
@@ -50,13 +49,17 @@ def test_diagnose_recovers_the_hidden_radius_mounting_and_gain(diagnosis):
     result, _ = diagnosis
     hidden = _hidden()
     assert set(hidden) == {"pulley_geometry", "inclinometer_offset", "load_pin_calibration"}
-    assert set(result.selected) >= set(hidden), [(c.name, c.score_after) for c in result.ranking]
+    assert set(result.selected) == set(hidden), [(c.name, c.score_after) for c in result.ranking]
+    assert not result.skipped
     for name, params in hidden.items():
         fitted = result.final.params(name)
         for key, true in params.items():
             assert abs(fitted[key]["value"] - true) <= 0.1 * abs(true), (name, key, true, fitted[key])
     assert PLANT.read_text().count("radius: 0.02") == 1  # the plant file says otherwise: found, not copied
     assert result.ladder[0].score_heldout > 5.0 and result.ladder[-1].score_heldout <= 1.3
+    # cable 3 hangs slack almost throughout: its load cell's gain is said to be undetermined, cell 1's is not
+    assert any(w.startswith("load_pin_calibration.gain_3: not identified") for w in result.final.warnings)
+    assert not any(w.startswith("load_pin_calibration.gain_1") for w in result.final.warnings)
 
 
 @pytest.mark.slow
@@ -71,8 +74,8 @@ def test_final_model_balances_over_its_pulleys(diagnosis):
         solution = model.solve(lengths, previous)
         assert solution.ok, solution.message
         previous = solution
-        moved, free, theta = wrap(model.physical, lengths, solution.points_b)
-        vectors = moved.anchors - solution.points_b
+        tangents, free, theta = wrap(model.physical, lengths, solution.points_b)
+        vectors = tangents - solution.points_b
         spans = np.linalg.norm(vectors, axis=1)
         pulls = (solution.tensions / spans)[:, None] * vectors
         weight = model.plant.weight

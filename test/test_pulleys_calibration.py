@@ -36,7 +36,7 @@ def test_rope_leaves_at_the_tangent_point_of_the_shortest_path(axis, swivel):
         if not swivel:
             points_b[:, 1] = lab.anchors[:, 1]  # in the fixed pulley's plane
         lengths = np.full(4, 2.0)
-        moved, spans, theta = wrap(plant, lengths, points_b)
+        tangents, spans, theta = wrap(plant, lengths, points_b)
         for i in range(4):
             if swivel:
                 offset = points_b[i] - lab.anchors[i]
@@ -45,7 +45,7 @@ def test_rope_leaves_at_the_tangent_point_of_the_shortest_path(axis, swivel):
                 plane = towards
             plane = plane / np.linalg.norm(plane)
             centre = lab.anchors[i] + RADIUS * plane
-            tangent = moved.anchors[i]
+            tangent = tangents[i]
             assert np.linalg.norm(tangent - centre) == pytest.approx(RADIUS, abs=1e-12)
             assert (points_b[i] - tangent) @ (tangent - centre) == pytest.approx(0.0, abs=1e-12)
             alpha = np.arctan2((tangent - centre) @ axis, (tangent - centre) @ plane)
@@ -66,10 +66,10 @@ def test_rope_up_a_post_wraps_half_a_turn_when_hanging_straight_down():
     lab = load_plant(LAB_FILE)
     radius = lab.sheaves[0].radius
     below_far_side = lab.anchors + np.array([[-2 * radius * np.sign(a[0]), 0.0, -1.0] for a in lab.anchors])
-    moved, spans, theta = wrap(lab, np.full(4, 1.5), below_far_side)
+    tangents, spans, theta = wrap(lab, np.full(4, 1.5), below_far_side)
     assert theta == pytest.approx(np.full(4, np.pi), abs=1e-9)
     assert spans == pytest.approx(1.5 - np.pi * radius)
-    assert np.linalg.norm(below_far_side - moved.anchors, axis=1) == pytest.approx(np.ones(4), abs=1e-9)
+    assert np.linalg.norm(below_far_side - tangents, axis=1) == pytest.approx(np.ones(4), abs=1e-9)
 
 
 def test_equilibrium_over_pulleys_balances_and_keeps_rope_lengths():
@@ -79,8 +79,8 @@ def test_equilibrium_over_pulleys_balances_and_keeps_rope_lengths():
     for lengths in ([1.2, 1.2, 1.2, 1.2], [1.0, 1.3, 1.6, 1.3], [2.5, 2.2, 2.0, 2.3]):
         solution = model.solve(np.array(lengths))
         assert solution.ok
-        moved, spans, theta = wrap(model.physical, np.array(lengths), solution.points_b)
-        vectors = moved.anchors - solution.points_b
+        tangents, spans, theta = wrap(model.physical, np.array(lengths), solution.points_b)
+        vectors = tangents - solution.points_b
         distance = np.linalg.norm(vectors, axis=1)
         taut = solution.tensions > 1e-6
         assert np.all(solution.tensions >= 0.0)

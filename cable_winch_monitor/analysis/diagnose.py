@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from ..effects import Effect, PlantModel, available
+from ..effects.model import refines
 from ..model.plant import Plant, load_plant
 from ..progress import Progress
 from .conditioning import IllConditioned, ill_conditioned
@@ -136,7 +137,7 @@ class Budget:
 def _cost(name: str) -> int:
     """Screening order: measurement effects reuse solutions, geometry that refines the pose costs most."""
     cls = available()[name]
-    return {"measurement": 0, "rope_law": 1, "load": 1}.get(cls.acts, 2) + (cls.refine is not Effect.refine)
+    return {"measurement": 0, "rope_law": 1, "load": 1}.get(cls.acts, 2) + refines(cls)
 
 
 def _screen(current: PlantModel, names: list[str], train: Evaluator, held: Evaluator, noise: np.ndarray,

@@ -27,7 +27,7 @@ from ..effects import Effect, Parameter, PlantModel
 from .evaluate import Evaluator
 
 MAX_EVALUATIONS = 60
-UNIDENTIFIED_SPREAD = 0.25  # 1-sigma uncertainty / width of the bounds
+UNIDENTIFIED_SPREAD = 0.1  # 1-sigma uncertainty / width of the bounds (a load cell on a slack cable: 0.12)
 UNIDENTIFIED_CORRELATION = 0.98
 AT_BOUND = 0.01     # a value within 1 % of a bound ended on it (bounds span decades: relative to the bound) ...
 ZERO_BOUND = 1e-4   # ... or, for a bound at zero, within 1 % of this share of the bounds' width

@@ -2,7 +2,9 @@
 
 Starts the node in its own process (DDS on loopback, a domain of its own), publishes a
 platform being lowered at 50 Hz with small synchronisation errors between the winches,
-and prints the latency percentiles and the node process's CPU share. Not a test: run
+each message with the load pins' readings (the equilibrium's tensions of the true lengths
+plus 150 N of noise), so that a plant with `noise.length` fuses every sample, and prints
+the latency percentiles and the node process's CPU share. Not a test: run
 
     .venv/bin/python -m cable_winch_monitor.bench.node_latency [--samples 2000] [--rate 50]
 """
@@ -32,21 +34,28 @@ from sensor_msgs.msg import JointState
 
 from cable_winch_monitor_msgs.msg import TensionDistribution
 
-from ..model.plant import CABLE_NAMES
+from ..effects import PlantModel
+from ..model.plant import CABLE_NAMES, load_plant
 
 LOWERING_SPEED = 0.2        # [m/s] payout speed of all four winches
 SYNC_AMPLITUDE = 2e-3       # [m] slow drift of each winch against the others
-ENCODER_NOISE = 3e-4        # [m] 1-sigma jitter of each length reading
+ENCODER_NOISE = 1e-3        # [m] 1-sigma jitter of each length reading (drum encoders at site)
+PIN_NOISE = 150.0           # [N] 1-sigma noise of each load pin
 START_LENGTH = 20.0         # [m]
 CONNECT_TIMEOUT = 20.0      # [s]
 
 
-def lowering(samples: int, rate: float, seed: int = 2) -> np.ndarray:
-    """Cable lengths (samples, 4): a steady lowering, per-winch drifts and encoder jitter."""
+def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None) -> np.ndarray:
+    """Winch readings (samples, 8): the lengths of a steady lowering with per-winch drifts and encoder
+    jitter, then the load pins of the lengths without the jitter (the plant's equilibrium, 150 N noise)."""
     rng = np.random.default_rng(seed)
     t = np.arange(samples)[:, None] / rate
     drift = SYNC_AMPLITUDE * np.sin(2 * np.pi * t / 8.0 + rng.uniform(0, 2 * np.pi, 4))
-    return START_LENGTH + LOWERING_SPEED * t + drift + rng.normal(0.0, ENCODER_NOISE, (samples, 4))
+    true = START_LENGTH + LOWERING_SPEED * t + drift
+    model = PlantModel.from_plant(load_plant(plant_file) if plant_file else load_plant())
+    tensions = np.array([solution.tensions for solution in model.solve_batch(true)])
+    return np.hstack([true + rng.normal(0.0, ENCODER_NOISE, (samples, 4)),
+                      tensions + rng.normal(0.0, PIN_NOISE, (samples, 4))])
 
 
 @contextmanager
@@ -108,9 +117,10 @@ class Probe:
         return self.publisher.get_subscription_count() > 0 and all(
             s.get_publisher_count() > 0 for s in self.subscriptions)
 
-    def publish(self, lengths: np.ndarray) -> tuple[tuple[int, int], int]:
-        """One sample stamped now; its stamp key and the send time [ns, perf_counter]."""
-        msg = JointState(name=list(CABLE_NAMES), position=[float(v) for v in lengths])
+    def publish(self, readings: np.ndarray) -> tuple[tuple[int, int], int]:
+        """One sample (lengths, then load pins) stamped now; its stamp key and the send time [ns, perf_counter]."""
+        msg = JointState(name=list(CABLE_NAMES), position=[float(v) for v in readings[:4]],
+                         effort=[float(v) for v in readings[4:]])
         now = time.time_ns()
         msg.header.stamp.sec, msg.header.stamp.nanosec = now // 1_000_000_000, now % 1_000_000_000
         msg.header.frame_id = "shaft"
@@ -124,26 +134,26 @@ class Probe:
         rclpy.try_shutdown(context=self.context)
 
 
-def connect(probe: Probe, node: subprocess.Popen) -> None:
+def connect(probe: Probe, node: subprocess.Popen, warm_up: np.ndarray) -> None:
     """Wait for matching, then warm up for 2 s (hoisting towards the benchmark's start length)."""
     deadline = time.monotonic() + CONNECT_TIMEOUT
     while not probe.connected():
         if node.poll() is not None or time.monotonic() > deadline:
             raise SystemExit("node_latency: the winch_monitor node did not come up")
         time.sleep(0.05)
-    for lengths in lowering(100, 50.0, seed=1)[::-1]:
-        probe.publish(lengths)
+    for readings in warm_up[::-1]:
+        probe.publish(readings)
         time.sleep(0.02)
     time.sleep(0.2)
     if not probe.received:
         raise SystemExit("node_latency: no pose came back during the warm-up")
 
 
-def publish_paced(probe: Probe, lengths: np.ndarray, rate: float) -> dict[tuple[int, int], int]:
+def publish_paced(probe: Probe, readings: np.ndarray, rate: float) -> dict[tuple[int, int], int]:
     """Publish one sample per 1/rate seconds from now; stamp key -> send time [ns, perf_counter]."""
     sent: dict[tuple[int, int], int] = {}
     start = time.monotonic()
-    for k, sample in enumerate(lengths):
+    for k, sample in enumerate(readings):
         time.sleep(max(0.0, start + k / rate - time.monotonic()))
         key, at = probe.publish(sample)
         sent[key] = at
@@ -172,15 +182,15 @@ class Latency:
 def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
             plant_file: Path | None = None) -> Latency:
     """Start the node, publish a lowering at `rate`, and time each pose coming back."""
-    lengths = lowering(samples, rate)
+    readings, warm_up = lowering(samples, rate, plant_file=plant_file), lowering(100, 50.0, 1, plant_file)
     with tempfile.TemporaryDirectory() as scratch:
         node = start_node(domain_id, solver, Path(scratch) / "node.log", plant_file)
         probe = Probe(domain_id)
         try:
-            connect(probe, node)
+            connect(probe, node, warm_up)
             probe.received.clear()
             cpu0, wall0 = cpu_seconds(node.pid), time.monotonic()
-            sent = publish_paced(probe, lengths, rate)
+            sent = publish_paced(probe, readings, rate)
             time.sleep(0.5)
             cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
         finally:
@@ -198,7 +208,7 @@ def run(samples: int, rate: float, domain_id: int, solver: str, plant_file: Path
     result = measure(samples, rate, domain_id, solver, plant_file)
     print(f"winch_monitor end-to-end latency ({solver} solver, {plant_file or 'bundled plant'}), {samples} samples "
           f"at {rate:g} Hz, lowering {LOWERING_SPEED} m/s, sync drift {SYNC_AMPLITUDE * 1e3:g} mm, "
-          f"jitter {ENCODER_NOISE * 1e3:g} mm")
+          f"jitter {ENCODER_NOISE * 1e3:g} mm, load pins {PIN_NOISE:g} N")
     print(f"  poses received      {result.all.size} of {samples}")
     print(f"  all samples         {percentiles(result.all)}")
     print(f"  taut set unchanged  {percentiles(result.steady)}")

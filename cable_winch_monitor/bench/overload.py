@@ -56,17 +56,17 @@ class OverloadProbe(Probe):
 
 def run(rate: float, seconds: float, domain_id: int) -> int:
     count = int(rate * seconds)
-    lengths = lowering(count, rate)
+    readings = lowering(count, rate)
     with tempfile.TemporaryDirectory() as scratch:
         node = start_node(domain_id, "energy", Path(scratch) / "node.log")
         probe = OverloadProbe(domain_id)
         try:
-            connect(probe, node)
+            connect(probe, node, lowering(100, 50.0, seed=1))
             time.sleep(SETTLE)
             before = probe.counters()
             probe.received.clear()
             cpu0, start = cpu_seconds(node.pid), time.monotonic()
-            sent = publish_paced(probe, lengths, rate)
+            sent = publish_paced(probe, readings, rate)
             duration = time.monotonic() - start
             cpu = cpu_seconds(node.pid) - cpu0
             time.sleep(SETTLE)

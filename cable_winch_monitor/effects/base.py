@@ -194,8 +194,21 @@ class Effect:
         return float(conditions.inputs.get(spec.key, np.nan))
 
     def refine(self, plant: Plant, lengths: np.ndarray, solution: Solution) -> tuple[Plant, np.ndarray] | None:
-        """geometry that depends on the pose: plant and lengths for the next solve (None: no such effect)."""
+        """geometry that depends on the pose, one solved state: plant and lengths for the next solve
+        (None: no such effect). A built-in effect writes `refine_states` instead."""
         return None
+
+    def refine_states(self, plant: Plant, anchors: np.ndarray, lengths: np.ndarray,
+                      states: States) -> tuple[np.ndarray, np.ndarray]:
+        """geometry that depends on the pose, stacked states: the anchors (n, 4, 3) and lengths (n, 4)
+        for the next solve, from this solve's (row k is state k's; `plant` the model's physical plant).
+        By default `refine` on each state, with that row's anchors."""
+        anchors, lengths = anchors.copy(), lengths.copy()
+        for k, solution in enumerate(states.solutions()):
+            refined = self.refine(plant.with_changes(anchors=anchors[k]), lengths[k], solution)
+            if refined is not None:
+                anchors[k], lengths[k] = refined[0].anchors, refined[1]
+        return anchors, lengths
 
     def measure(self, channels: dict[str, float], solution: Solution, plant: Plant, conditions: Conditions) -> None:
         """measurement, one solved state: edit the predicted sensor readings in place."""

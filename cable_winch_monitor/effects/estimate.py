@@ -9,12 +9,17 @@ depth, x, y) or by their analytic prediction (roll, pitch); a user's channel, or
 channel when measurement effects act (a load pin reading the rope's weight too), is
 predicted by `PlantModel.predict_states` for all candidate states at once, differentiated
 numerically (`ModelledChannels`).
-Pose-dependent geometry (sheave tangent points) is not estimated: such a model gives its
-forward kinematics.
+Where the geometry depends on the pose (pulleys, head-sheave tangent points), the samples
+are estimated with each sample's anchors and free lengths from the last estimate's pose,
+again until the pose settles (`PlantModel.refine`, the fixed point the per-sample solve
+iterates to). The length and force-balance Jacobians then leave out the anchors' motion: at
+the fixed point it does not change the optimum (a rope's wrapped arc plus its free span
+grows with the attachment's motion along the free span alone), only the convergence rate.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -22,10 +27,10 @@ import numpy as np
 from .. import channels
 from ..model import observations as obs
 from ..model.conditions import Conditions, StackedConditions
-from ..model.estimation import Estimate, estimate, estimate_batch
+from ..model.estimation import BatchEstimate, Estimate, estimate, estimate_batch
 from ..model.observations import Observation, States, forward_differences
 from ..model.result import Solution
-from .model import NO_CONDITIONS, PlantModel
+from .model import NO_CONDITIONS, REFINE_STEPS, REFINE_TOL, PlantModel
 
 BUILT_IN = {
     **{name: (lambda i: lambda value, sigma: obs.load_pin(i, value, sigma))(i)
@@ -96,9 +101,8 @@ def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarra
 
 
 def fuses(model: PlantModel) -> bool:
-    """Whether the model's samples are estimated (lengths with a noise, the energy solver, no
-    pose-dependent geometry)."""
-    return length_noise(model) is not None and model.solver == "energy" and not model.refining
+    """Whether the model's samples are estimated (lengths with a noise, the energy solver)."""
+    return length_noise(model) is not None and model.solver == "energy"
 
 
 def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapping[str, float],
@@ -115,6 +119,8 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
     observations = observations_for(model, measured, [conditions])
     if not observations:  # lengths alone: the forward kinematics, warm-started as the solver is
         return forward_estimate(model.solve(reported, warm, conditions), reported)
+    if model.refining:
+        return _estimate_refined(model, lengths[None], observations, [conditions], [warm_start], live=True)[0]
     return estimate(model.physical, lengths, observations, length_noise(model),
                     law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
 
@@ -135,12 +141,58 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
             out.append(forward_estimate(model.solve(row, previous, at), row))
             previous = out[-1].solution if out[-1].ok else previous
         return out
-    law = model.rope_law
     lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
-    loads = np.array([model.load(at) for at in conditions])
-    return estimate_batch(model.physical, lengths, observations_for(model, measured, conditions),
-                          length_noise(model), law.EA, law.weight if law.EA is not None else 0.0,
-                          loads=loads, warm_starts=warm_starts).estimates()
+    observations = observations_for(model, measured, conditions)
+    if model.refining:
+        return _estimate_refined(model, lengths, observations, conditions, warm_starts)
+    return _batch(model, lengths, observations, conditions, warm_starts).estimates()
+
+
+def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation],
+           conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None,
+           anchors: np.ndarray | None = None, live: bool = False) -> BatchEstimate:
+    """The estimator on true (or free) lengths (N, 4) with the model's rope law and each sample's load
+    (`live`: the warm start is the previous sample's state)."""
+    law = model.rope_law
+    return estimate_batch(model.physical, lengths, observations, length_noise(model), law.EA,
+                          law.weight if law.EA is not None else 0.0, loads=np.array([model.load(at) for at in conditions]),
+                          warm_starts=warm_starts, anchors=anchors, same_samples=not live)
+
+
+def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation],
+                      conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None,
+                      live: bool = False) -> list[Estimate]:
+    """Estimates where the geometry depends on the pose: each round estimates every sample with the
+    anchors and free lengths of its last estimate's pose (the first, of its warm start's where it has
+    one), warm-started there, until no attachment point moves more than REFINE_TOL (at most
+    REFINE_STEPS rounds). A sample the estimator leaves gets the model's forward kinematics, which
+    refines its own geometry."""
+    nominal = np.broadcast_to(model.physical.anchors, (len(lengths), 4, 3))
+
+    def geometry(rotation: np.ndarray, position: np.ndarray, tensions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        anchors, free = model.refine(lengths, States(model.physical, rotation, position, tensions))
+        posed = np.isfinite(position).all(axis=1)  # where no pose is known: the nominal geometry
+        return np.where(posed[:, None, None], anchors, nominal), np.where(posed[:, None], free, lengths)
+
+    anchors, free = None, lengths
+    if warm_starts is not None and any(w is not None and w.ok for w in warm_starts):
+        warm = [w.solution if w is not None and w.ok else None for w in warm_starts]
+        anchors, free = geometry(np.array([np.eye(3) if s is None else s.rotation for s in warm]),
+                                 np.array([np.full(3, np.nan) if s is None else s.position for s in warm]),
+                                 np.array([np.zeros(4) if s is None else s.tensions for s in warm]))
+    batch = _batch(model, free, observations, conditions, warm_starts, anchors, live=live)
+    for _ in range(REFINE_STEPS):
+        anchors, free = geometry(batch.rotation, batch.position, batch.tensions)
+        previous = States(model.physical, batch.rotation, batch.position, batch.tensions).points_b
+        batch = _batch(model, free, observations, conditions, batch.estimates(), anchors)
+        moved = np.abs(States(model.physical, batch.rotation, batch.position, batch.tensions).points_b - previous)
+        if not np.nanmax(moved, initial=0.0) >= REFINE_TOL:
+            break
+    # reported: the true lengths, not the free lengths below the tangent points that the last round fitted
+    estimates = [replace(e, reported=row) for e, row in zip(batch.estimates(), lengths)]
+    for i in batch.fallback:
+        estimates[i] = forward_estimate(model.solve(lengths[i], None, conditions[i]), lengths[i])
+    return estimates
 
 
 def forward_estimate(solution: Solution, reported: Sequence[float]) -> Estimate:

@@ -44,6 +44,11 @@ def _overrides(cls: type[Effect], hook: str) -> bool:
     return getattr(cls, hook) is not getattr(Effect, hook)
 
 
+def refines(cls: type[Effect]) -> bool:
+    """The effect makes the geometry depend on the pose (it writes a refine hook)."""
+    return _overrides(cls, "refine") or _overrides(cls, "refine_states")
+
+
 def effects_from_mapping(section: Any, where: str, plant: Plant | None = None) -> list[Effect]:
     """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}},
     their parameters resolved for `plant` (Effect)."""
@@ -132,7 +137,7 @@ class PlantModel:
 
     @cached_property
     def _refiners(self) -> tuple[Effect, ...]:
-        return tuple(e for e in self.effects if _overrides(type(e), "refine"))
+        return tuple(e for e in self.effects if refines(type(e)))
 
     @cached_property
     def _measurers(self) -> tuple[Effect, ...]:
@@ -176,7 +181,7 @@ class PlantModel:
         """Everything a solve depends on besides the sample: two models with equal keys have the same equilibria."""
         law = self.rope_law
         geometry = tuple((e.name, tuple(e.values.items())) for e in self.effects
-                         if any(_overrides(type(e), hook) for hook in ("plant", "lengths", "refine", "load")))
+                         if refines(type(e)) or any(_overrides(type(e), hook) for hook in ("plant", "lengths", "load")))
         return law.EA, law.weight if law.EA is not None else 0.0, geometry, self.solver
 
     def true_lengths(self, reported: np.ndarray, conditions: Conditions = NO_CONDITIONS) -> np.ndarray:
@@ -217,18 +222,26 @@ class PlantModel:
                 return failed(SolveStatus.INVALID_INPUT, f"cannot apply the plant's effects: {error}",
                               self.solver, np.full(4, np.nan))
         solution = self._solve_once(self.physical, lengths, warm_start, load)
-        for _ in range(REFINE_STEPS if self._refiners or self.physical.sheaves else 0):
+        for _ in range(REFINE_STEPS if self.refining else 0):
             if not solution.ok:
                 break
-            plant, refined = self.physical, lengths
-            if plant.sheaves:
-                plant, refined, _ = wrap(plant, refined, solution.points_b)
-            for effect in self._refiners:
-                plant, refined = effect.refine(plant, refined, solution)
-            previous, solution = solution, self._solve_once(plant, refined, solution, load)
+            anchors, refined = self.refine(lengths[None], States.of(self.physical, [solution]))
+            previous = solution
+            solution = self._solve_once(self.physical.with_changes(anchors=anchors[0]), refined[0], solution, load)
             if solution.ok and np.abs(solution.points_b - previous.points_b).max() < REFINE_TOL:
                 break
         return solution
+
+    def refine(self, lengths: np.ndarray, states: States) -> tuple[np.ndarray, np.ndarray]:
+        """The pose-dependent geometry at stacked states: anchors (n, 4, 3) -- the pulleys' tangent points,
+        then each refining effect's -- and the free lengths (n, 4) from there, for true lengths (n, 4)."""
+        plant = self.physical
+        anchors = np.broadcast_to(plant.anchors, (len(states), 4, 3)).copy()
+        if plant.sheaves:
+            anchors, lengths, _ = wrap(plant, lengths, states.points_b)
+        for effect in self._refiners:
+            anchors, lengths = effect.refine_states(plant, anchors, lengths, states)
+        return anchors, lengths
 
     def solve_batch(self, reported: np.ndarray, conditions: Sequence[Conditions] | None = None,
                     warm_start: Solution | None = None) -> list[Solution]:

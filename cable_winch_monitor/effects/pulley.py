@@ -27,33 +27,34 @@ AXIS_FROM_BELOW = np.array([0.0, 0.0, -1.0])  # a rope running up a post from a 
 
 
 def _in_plane(sheaves: tuple[Sheave, ...], offsets: np.ndarray) -> np.ndarray:
-    """n_i of each pulley for the attachment offsets B_i - E_i (swivelling: towards B_i)."""
-    out = np.empty((len(sheaves), 3))
-    for i, (sheave, d) in enumerate(zip(sheaves, offsets)):
-        if not sheave.swivel:
-            out[i] = sheave.towards
-            continue
-        perpendicular = d - (d @ sheave.axis) * sheave.axis
-        if np.linalg.norm(perpendicular) < 1e-12:  # the rope runs along the axis: any plane will do
-            perpendicular = np.cross(sheave.axis, [1.0, 0.0, 0.0] if abs(sheave.axis[0]) < 0.9 else [0.0, 1.0, 0.0])
-        out[i] = perpendicular / np.linalg.norm(perpendicular)
-    return out
+    """n_i of each pulley for the attachment offsets B_i - E_i (..., 4, 3) (swivelling: towards B_i)."""
+    axis = np.array([s.axis for s in sheaves])
+    perpendicular = offsets - np.sum(offsets * axis, axis=-1, keepdims=True) * axis
+    # the rope runs along the axis: any plane will do
+    fallback = np.cross(axis, np.where(np.abs(axis[:, :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]))
+    norms = np.linalg.norm(perpendicular, axis=-1, keepdims=True)
+    perpendicular = np.where(norms < 1e-12, fallback, perpendicular)
+    swivelling = perpendicular / np.linalg.norm(perpendicular, axis=-1, keepdims=True)
+    fixed = np.array([s.towards if not s.swivel else np.zeros(3) for s in sheaves])
+    return np.where(np.array([s.swivel for s in sheaves])[:, None], swivelling, fixed)
 
 
-def wrap(plant: Plant, lengths: np.ndarray, points_b: np.ndarray) -> tuple[Plant, np.ndarray, np.ndarray]:
-    """Tangent points (as the plant's anchors), free spans l - r theta and wrap angles theta [rad] of the
-    plant's pulleys for attachments at `points_b` (shaft frame); the plant's anchors are the E_i."""
+def wrap(plant: Plant, lengths: np.ndarray, points_b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tangent points T_i (..., 4, 3), free spans l - r theta (..., 4) and wrap angles theta [rad] of the
+    plant's pulleys for attachments at `points_b` (..., 4, 3) in the shaft frame and lengths (..., 4)
+    counted from the plant's anchors E_i; stacked samples along the leading axes."""
     sheaves = plant.sheaves
     radius = np.array([s.radius for s in sheaves])
     axis = np.array([s.axis for s in sheaves])
     offsets = points_b - plant.anchors
     plane = _in_plane(sheaves, offsets)
-    p_x, p_y = np.sum(offsets * plane, axis=1) - radius, np.sum(offsets * axis, axis=1)
+    p_x, p_y = np.sum(offsets * plane, axis=-1) - radius, np.sum(offsets * axis, axis=-1)
     rho, psi = np.hypot(p_x, p_y), np.arctan2(p_y, p_x)
     alpha = psi - np.arccos(np.clip(radius / np.maximum(rho, 1e-12), -1.0, 1.0))
     theta = (alpha - np.pi + np.pi / 2.0) % (2.0 * np.pi) - np.pi / 2.0
-    tangent = plant.anchors + (radius * (1.0 + np.cos(alpha)))[:, None] * plane + (radius * np.sin(alpha))[:, None] * axis
-    return plant.with_changes(anchors=tangent), lengths - radius * theta, theta
+    tangent = plant.anchors + (radius * (1.0 + np.cos(alpha)))[..., None] * plane \
+        + (radius * np.sin(alpha))[..., None] * axis
+    return tangent, lengths - radius * theta, theta
 
 
 def _default_radius(plant: Plant) -> float:

@@ -6,7 +6,6 @@ import numpy as np
 from ..model.conditions import Conditions, StackedConditions
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.observations import States
-from ..model.result import Solution
 from .base import Effect, Parameter, relative, relative_bounds, span
 
 MIN_SHARE = 0.05  # fraction of samples needed in each direction of motion to identify friction
@@ -41,19 +40,19 @@ class SheaveGeometry(Effect):
     signature = "errors that grow with tilt and swing and fall with the payout"
     source = "geometry of a rope wrapping a pulley (seed 000, Fig. 3; seed 004, eqs. 3-9)"
 
-    def refine(self, plant: Plant, lengths: np.ndarray, solution: Solution) -> tuple[Plant, np.ndarray] | None:
+    def refine_states(self, plant: Plant, anchors: np.ndarray, lengths: np.ndarray,
+                      states: States) -> tuple[np.ndarray, np.ndarray]:
         r = self["r"]
         planes = radial_planes(plant)
-        centres = plant.anchors + r * planes
-        p = solution.points_b - centres
-        p_n, p_z = np.sum(p * planes, axis=1), p[:, 2]
+        centres = anchors + r * planes
+        p = states.points_b - centres
+        p_n, p_z = np.sum(p * planes, axis=-1), p[..., 2]
         radius, psi = np.hypot(p_n, p_z), np.arctan2(p_z, p_n)
         opening = np.arccos(np.clip(-r / radius, -1.0, 1.0))
-        candidates = np.stack([psi + opening, psi - opening])
-        candidates = (candidates + np.pi) % (2.0 * np.pi) - np.pi
-        phi = candidates[np.argmin(np.abs(candidates), axis=0), np.arange(4)]
-        tangent = centres - r * (np.cos(phi)[:, None] * planes + np.sin(phi)[:, None] * np.array([0.0, 0.0, 1.0]))
-        return plant.with_changes(anchors=tangent), lengths - r * phi
+        candidates = (np.stack([psi + opening, psi - opening]) + np.pi) % (2.0 * np.pi) - np.pi
+        phi = np.where(np.abs(candidates[0]) <= np.abs(candidates[1]), candidates[0], candidates[1])
+        tangent = centres - r * (np.cos(phi)[..., None] * planes + np.sin(phi)[..., None] * np.array([0.0, 0.0, 1.0]))
+        return tangent, lengths - r * phi
 
 
 class SheaveFriction(Effect):

@@ -133,6 +133,7 @@ class BatchEstimate:
     iterations: np.ndarray
     loads: np.ndarray             # (N, 6) the external wrench of each sample (model.load)
     fallback: dict[int, Estimate] = field(default_factory=dict)
+    anchors: np.ndarray | None = None  # (N, 4, 3) each sample's anchors where they move with the pose
 
     def __len__(self) -> int:
         return len(self.reported)
@@ -150,8 +151,8 @@ class BatchEstimate:
         rows = np.array([i for i in indices if i not in self.fallback], dtype=int)
         out = {i: self.fallback[i] for i in indices if i in self.fallback}
         solutions = solved_rows(self.plant, METHOD, self.corrected[rows], self.rotation[rows], self.position[rows],
-                                self.tensions[rows], self.taut[rows], self.iterations[rows],
-                                loads=self.loads[rows]) if rows.size else []
+                                self.tensions[rows], self.taut[rows], self.iterations[rows], loads=self.loads[rows],
+                                anchors=None if self.anchors is None else self.anchors[rows]) if rows.size else []
         for i, solution in zip(rows.tolist(), solutions):
             measured = np.isfinite(self.residuals[i])
             out[i] = Estimate(solution, self.reported[i], self.corrected[i] - self.reported[i], self.sigma_length,
@@ -186,18 +187,21 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
 
 def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Observation] = (),
                    sigma_length: float = 1e-3, axial_stiffness: object = None, rope_weight: float = 0.0,
-                   loads: np.ndarray | None = None, warm_starts: Sequence[Estimate | None] | None = None) \
-        -> BatchEstimate:
+                   loads: np.ndarray | None = None, warm_starts: Sequence[Estimate | None] | None = None,
+                   anchors: np.ndarray | None = None, same_samples: bool = True) -> BatchEstimate:
     """`estimate` for the rows of lengths (N, 4), observation values (N,) each, under `loads` (one
-    wrench (6,) for all, one per sample (N, 6), None: gravity): every sample starts from its warm start
-    where given (an estimate of the sample under slightly different parameters, as a fit makes them),
-    else from the batched forward kinematics of its reported lengths; the search runs on all together.
+    wrench (6,) for all, one per sample (N, 6), None: gravity), with each sample's `anchors` (N, 4, 3)
+    where the geometry depends on the pose (None: the plant's): every sample starts from its warm start
+    where given (an estimate of the sample under slightly different parameters or geometry, as a fit
+    and the pose-dependent geometry's refinement make them), else from the batched forward kinematics
+    of its reported lengths; the search runs on all together. Warm starts that are other samples'
+    states (`same_samples` False: the previous sample's, live) are searched as the live estimate is.
     ValueError names a bad argument."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
-        problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads)
-        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, True)
+        problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads, anchors)
+        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, same_samples)
 
 
 def estimate_gated(plant: Plant, lengths: object, observations: Sequence[Observation],
@@ -312,9 +316,10 @@ def _doubtful(rows: Rows, misfit: bool = True) -> np.ndarray:
 def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> Rows:
     """The best admissible row per sample (one start row per sample in, one row per sample out).
 
-    The start's set is solved, with its neighbours where `probe` and an observation already
-    disagrees at the start (from forward kinematics: a load pin reading kilonewtons on a rope
-    the lengths have slack; a warm start is not probed, its pose is a sample old); where the best
+    The start's set is solved, and where `probe` and an observation already disagrees at the
+    start (from forward kinematics: a load pin reading kilonewtons on a rope the lengths have
+    slack; a warm start is not probed, its pose is a sample old) the set its load pins read
+    (`_pinned_sets`), or without pins its neighbours, beside it; where the best
     is doubtful, its neighbours, and the neighbours of a better set found there; where the best is
     then still inadmissible or leaves a slack rope overstretched, every other set of two or more
     ropes is solved from it (a misfit alone does not go that far: after the neighbours have not
@@ -325,16 +330,19 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
     visited = np.zeros((count, 16), bool)
     visited[np.arange(count), best.taut @ BITS] = True
     best.residuals = np.zeros((count, 4 + len(problem.observations)))
-    pending = np.zeros(0, int)
+    pending, pinned = np.zeros(0, int), (np.zeros(0, int), np.zeros(0, int))
     if probe and problem.observations:
         observed = residuals(problem, best, np.arange(count))[:, 4:]
         pending = np.flatnonzero(np.abs(observed).max(axis=1) > SEARCH_SIGMA)
+        pinned = _pinned_sets(problem, best, pending, visited)
+        if pinned is not None:
+            pending = np.zeros(0, int)
     solved = np.zeros(count, bool)
     for stage, search in enumerate((NEIGHBOURS, NEIGHBOURS, ALL_SETS)):
-        owner, codes = _candidates(best, pending, visited, search)
+        owner, codes = _candidates(best, pending, visited, search) if stage or pinned is None else pinned
         fresh = np.flatnonzero(~solved)
-        if not fresh.size and not owner.size:
-            break
+        if not fresh.size and not owner.size:  # no new neighbours: rows still doubtful go wider
+            continue
         owner = np.concatenate([fresh, owner])
         taut = np.concatenate([best.taut[fresh], (codes[:, None] & BITS) > 0])
         candidates = solve_rows(problem, best.take(owner, taut))
@@ -352,6 +360,29 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         if not pending.size:
             break
     return best
+
+
+def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.ndarray) \
+        -> tuple[np.ndarray, np.ndarray] | None:
+    """Rows and taut-set codes of the sets the load pins read for the pending rows, where another than
+    the start's (marked visited): a rope is taut where its pin reads more than SEARCH_SIGMA sigma, as
+    at the start where it has none. None where no load pin is read off the state. One candidate a
+    row instead of its neighbours (seven for three taut ropes): with 1 mm of noise the forward
+    kinematics of four rigid ropes often picks the wrong three, and the pins say which."""
+    index, columns, _ = problem.read_off
+    pins = [(int(k), int(c) - 6) for k, c in zip(index, columns) if c >= 6]
+    if not pins:
+        return None
+    taut = best.taut[pending].copy()
+    values = problem.values[best.sample[pending]]
+    for k, rope in pins:
+        read = np.isfinite(values[:, k])
+        taut[read, rope] = values[read, k] > SEARCH_SIGMA * problem.sigmas[k]
+    codes = taut @ BITS
+    other = (codes != best.taut[pending] @ BITS) & (taut.sum(axis=1) >= 2)
+    owner, codes = pending[other], codes[other]
+    visited[owner, codes] = True
+    return owner, codes
 
 
 def _candidates(best: Rows, pending: np.ndarray, visited: np.ndarray, search: list[list[int]]) \
@@ -380,7 +411,7 @@ def _assemble(problem: Problem, best: Rows, unsolved: dict[int, Solution]) -> Ba
                         np.full(count, SolveStatus.SOLVED.value, dtype=object), np.zeros((count, 4), bool),
                         np.zeros((count, 4)), np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan),
                         np.full((count, m), np.nan), tuple(o.name for o in problem.observations),
-                        problem.sigma_length, np.zeros(count, int), problem.loads)
+                        problem.sigma_length, np.zeros(count, int), problem.loads, anchors=problem.anchors)
     rows = best.sample
     out.corrected[rows] = corrected
     out.loaded[rows] = problem.ropes.loaded(corrected, tensions)

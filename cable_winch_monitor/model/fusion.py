@@ -53,12 +53,14 @@ class Problem:
     values: np.ndarray
     ropes: Ropes
     loads: np.ndarray         # external wrench of each sample (N, 6) [N, N m about C]
+    anchors: np.ndarray | None = None  # each sample's anchors (N, 4, 3) where they move with the pose
 
     @classmethod
     def build(cls, plant: Plant, lengths: np.ndarray, sigma_length: float, observations: Sequence[Observation],
-              ropes: Ropes, load: np.ndarray | None) -> "Problem":
+              ropes: Ropes, load: np.ndarray | None, anchors: np.ndarray | None = None) -> "Problem":
         """The problem of N samples under `load`: one wrench (6,) for all, one per sample (N, 6), or None
-        for gravity; ValueError names what is wrong."""
+        for gravity; with each sample's `anchors` (N, 4, 3) (None: the plant's); ValueError names what is
+        wrong."""
         if not (np.isfinite(sigma_length) and sigma_length > 0.0):
             raise ValueError(f"length noise sigma must be finite and positive, got {sigma_length!r}")
         count = len(lengths)
@@ -72,7 +74,13 @@ class Problem:
         reason = next((r for r in map(loads.check, wrenches) if r), "")
         if reason:
             raise ValueError(reason)
-        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrenches)
+        if anchors is not None and np.shape(anchors) != (count, 4, 3):
+            raise ValueError(f"anchors must have shape ({count}, 4, 3), got {np.shape(anchors)}")
+        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrenches, anchors)
+
+    def anchors_of(self, sample: np.ndarray) -> np.ndarray | None:
+        """The anchors of these samples (n, 4, 3), None where they are the plant's."""
+        return None if self.anchors is None else self.anchors[sample]
 
     @cached_property
     def scales(self) -> np.ndarray:
@@ -141,7 +149,8 @@ class Rows:
 def implied_lengths(problem: Problem, rows: Rows) -> np.ndarray:
     """The corrected lengths of each row (n, 4): a taut rope's unstretched length through the rope law;
     a slack rope's reported length, or longer where its span needs it."""
-    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scales[rows.sample, None])
+    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scales[rows.sample, None],
+                    anchors=problem.anchors_of(rows.sample))
     taut_length = problem.ropes.unstretched(states.spans, states.tensions)[0]
     slack_length = problem.ropes.unstretched(states.spans, np.zeros_like(states.spans))[0]
     return np.where(rows.taut, taut_length, np.maximum(slack_length, problem.lengths[rows.sample]))
@@ -162,7 +171,8 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     n, m = live.size, len(problem.observations)
     arms = np.matmul(plant.attachments, np.swapaxes(rotation, 1, 2))           # R b_i: (n, 4, 3)
     levers = arms - np.matmul(rotation, plant.cog)[:, None, :]
-    spans = position[:, None, :] + arms - plant.anchors
+    anchors = problem.anchors_of(sample)
+    spans = position[:, None, :] + arms - (plant.anchors if anchors is None else anchors)
     norms = np.sqrt(np.einsum("nci,nci->nc", spans, spans))
     units = spans / norms[..., None]
     moments = cross(levers, units)
@@ -184,7 +194,7 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     predicted = np.empty((n, m))
     if index.size:
         predicted[:, index] = np.concatenate([position, np.zeros((n, 3)), tensions], axis=1)[:, columns]
-    states = States(plant, rotation, position, tensions, sample) if functional.size else None
+    states = States(plant, rotation, position, tensions, sample, anchors=anchors) if functional.size else None
     for k in functional.tolist():
         predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas

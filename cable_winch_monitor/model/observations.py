@@ -28,8 +28,9 @@ FD_STEPS = np.array([1e-6] * 3 + [1e-8] * 3 + [1e-3] * 4)  # finite-difference s
 @dataclass(frozen=True)
 class States:
     """n equilibrium states: rotation (n, 3, 3), position (n, 3) [m], tensions (n, 4) [N] of `plant`, the
-    sample each explains (its index in a batch: a prediction may depend on the sample's conditions), and
-    the solver's Solutions where the states are those (`solutions` then gives them as they are)."""
+    sample each explains (its index in a batch: a prediction may depend on the sample's conditions),
+    the solver's Solutions where the states are those (`solutions` then gives them as they are), and
+    each state's anchors (n, 4, 3) where the geometry depends on the pose (None: the plant's)."""
 
     plant: Plant
     rotation: np.ndarray
@@ -37,6 +38,7 @@ class States:
     tensions: np.ndarray
     sample: np.ndarray | None = None
     solved: tuple[Solution, ...] | None = None
+    anchors: np.ndarray | None = None
 
     @classmethod
     def of(cls, plant: Plant, solutions: Sequence[Solution]) -> "States":
@@ -56,7 +58,7 @@ class States:
     @cached_property
     def spans(self) -> np.ndarray:
         """|A_i B_i|, (n, 4) [m]."""
-        return np.linalg.norm(self.points_b - self.plant.anchors, axis=2)
+        return np.linalg.norm(self.points_b - (self.plant.anchors if self.anchors is None else self.anchors), axis=2)
 
     def solutions(self) -> list[Solution]:
         """The states as the package's Solutions: the solver's where given, else made from the states
@@ -64,18 +66,20 @@ class States:
         if self.solved is not None:
             return list(self.solved)
         return solved_rows(self.plant, "estimate", self.spans, self.rotation, self.position, self.tensions,
-                           self.tensions > 0.0, [0] * len(self))
+                           self.tensions > 0.0, [0] * len(self), anchors=self.anchors)
 
     def repeated(self, times: int) -> "States":
         """The n states `times` over, stacked (times * n rows, in blocks of n)."""
         sample = None if self.sample is None else np.tile(self.sample, times)
+        anchors = None if self.anchors is None else np.tile(self.anchors, (times, 1, 1))
         return States(self.plant, np.tile(self.rotation, (times, 1, 1)), np.tile(self.position, (times, 1)),
-                      np.tile(self.tensions, (times, 1)), sample)
+                      np.tile(self.tensions, (times, 1)), sample, anchors=anchors)
 
     def moved(self, step: np.ndarray) -> "States":
         """The states moved by `step` (n, 10) in the state coordinates."""
         rotation = rotations_from_vectors(step[:, 3:6]) @ self.rotation
-        return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10], self.sample)
+        return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10], self.sample,
+                      anchors=self.anchors)
 
 
 Predict = Callable[[States], np.ndarray]

@@ -202,14 +202,16 @@ def solved(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray,
 def solved_rows(plant: Plant, method: str, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray,
                 tensions: np.ndarray, taut: np.ndarray, iterations: Sequence[int],
                 message: str = "static equilibrium found", extras: dict[str, Any] | None = None,
-                loads: np.ndarray | None = None) -> list[Solution]:
+                loads: np.ndarray | None = None, anchors: np.ndarray | None = None) -> list[Solution]:
     """`solved` for N stacked samples (lengths (N, 4), rotation (N, 3, 3), loads (N, 6) or None for
-    gravity, ...): the points, spans and residuals of all rows are computed together."""
+    gravity, anchors (N, 4, 3) where the geometry depends on the pose, else None for the plant's, ...):
+    the points, spans and residuals of all rows are computed together."""
     points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
     point_c = position + rotation @ plant.cog
     loads = np.broadcast_to(plant.wrench, (len(lengths), 6)) if loads is None else loads
-    force, moment = wrench_residuals(plant, points_b, point_c, tensions, loads)
-    spans = np.linalg.norm(points_b - plant.anchors, axis=-1)
+    geometry = plant if anchors is None else plant.with_changes(anchors=anchors)  # stacked anchors broadcast
+    force, moment = wrench_residuals(geometry, points_b, point_c, tensions, loads)
+    spans = np.linalg.norm(points_b - geometry.anchors, axis=-1)
     taut, tensions = np.asarray(taut, dtype=bool), np.asarray(tensions, dtype=float)
     return [Solution(status=SolveStatus.SOLVED, message=message, method=method, lengths=lengths[i], taut=taut[i],
                      tensions=tensions[i], rotation=rotation[i], position=position[i], points_b=points_b[i],
