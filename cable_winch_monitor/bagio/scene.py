@@ -96,13 +96,10 @@ def marker(head: Fields, ns: str, kind: int, *, marker_id: int = 0, vertices: li
            frame_locked: bool = False) -> Fields:
     """One visualization_msgs/Marker with header `head`, every field given (no lifetime: each scene replaces the
     last); `vertices` as from `points`."""
-    fixed = SCENE_FIXED
-    return {"header": head, "ns": ns, "id": marker_id, "type": kind, "action": action,
-            "pose": {"position": _xyz(position), "orientation": fixed["pose"]["orientation"]},
-            "scale": _xyz(scale), "color": _colour(colour), "lifetime": fixed["lifetime"],
-            "frame_locked": frame_locked, "points": vertices or [], "colors": [],
-            "texture_resource": "", "texture": fixed["texture"], "uv_coordinates": [], "text": text,
-            "mesh_resource": "", "mesh_file": fixed["mesh_file"], "mesh_use_embedded_materials": False}
+    return {**SCENE_FIXED, "header": head, "ns": ns, "id": marker_id, "type": kind, "action": action,
+            "pose": {"position": _xyz(position), "orientation": SCENE_FIXED["pose"]["orientation"]},
+            "scale": _xyz(scale), "color": _colour(colour), "frame_locked": frame_locked,
+            "points": vertices or [], "text": text}
 
 
 class SceneBuilder:

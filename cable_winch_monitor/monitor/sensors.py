@@ -99,10 +99,6 @@ class SensorGates:
             return dict(measured)
         return {name: value for name, value in measured.items() if sensor_of(name) not in self._refused}
 
-    def is_trusted(self, sensor: str) -> bool:
-        gate = self.gates.get(sensor)
-        return gate is None or gate.trusted
-
     @property
     def refused(self) -> tuple[str, ...]:
         """The sensors left out now."""
