@@ -164,6 +164,11 @@ class PlantModel:
         return bool(self._refiners) or bool(self.physical.sheaves)
 
     @property
+    def reads_conditions(self) -> bool:
+        """Something reads a sample's conditions: an effect, or a channel a user declared."""
+        return bool(self.effects) or any(c not in channels.BUILTIN for c in channels.declared())
+
+    @property
     def plain(self) -> bool:
         """No effect and no pulleys: the rigid model, which the batched solver serves."""
         return not self.effects and not self.plant.sheaves

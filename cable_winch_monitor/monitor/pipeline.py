@@ -25,6 +25,7 @@ import numpy as np
 from .. import channels
 from ..channels import Input
 from ..effects import PlantModel
+from ..effects.model import NO_CONDITIONS
 from ..effects.estimate import estimate_sample, fuses
 from ..model.conditions import Conditions, ConditionsTracker
 from ..model.estimation import Estimate
@@ -143,7 +144,7 @@ class MonitorPipeline:
         speed = small_mean(speeds)
         self.payout = (sample.stamp, small_mean(lengths.tolist()), speed if math.isfinite(speed) else 0.0)
         complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings], speeds)
-        return complete._replace(sensors=self.measured(complete))
+        return complete._replace(sensors=self.measured(complete)) if self.fusing else complete
 
     def measured(self, sample: CompleteSample) -> dict[str, float]:
         """What the sensors read at a complete sample: its load pins and the latest other readings
@@ -157,8 +158,10 @@ class MonitorPipeline:
         return length + speed * (stamp - taken)
 
     def keep_reading(self, stamp: float, values: dict[str, float]) -> None:
-        """A sensor's readings, kept for the samples to come."""
-        self.readings.add(stamp, values, self.payout_at(stamp))
+        """A sensor's readings, kept for the samples to come (where they are fused: the lengths taken
+        as exact, only the residuals read them)."""
+        if self.fusing:
+            self.readings.add(stamp, values, self.payout_at(stamp))
 
     def inputs_at(self, stamp: float) -> dict[str, float]:
         """The extra inputs' values at `stamp` (interpolated where later values are known, else the latest)."""
@@ -175,7 +178,10 @@ class MonitorPipeline:
         return self.last_solved.solution if self.last_solved is not None and self.solver == "energy" else None
 
     def conditions(self, sample: CompleteSample) -> Conditions:
-        """The conditions of a complete sample: its stamp, speeds, accelerations, direction and inputs."""
+        """The conditions of a complete sample: its stamp, speeds, accelerations, direction and inputs
+        (none where nothing reads them: no effect, no channel of a user's)."""
+        if not self.model.reads_conditions:
+            return NO_CONDITIONS
         return self.tracker.update(sample.stamp, sample.lengths, np.array(sample.speeds), self.inputs_at(sample.stamp))
 
     def estimate(self, sample: CompleteSample, measured: dict[str, float], conditions: Conditions) -> Estimate:
