@@ -34,7 +34,9 @@ from sensor_msgs.msg import JointState
 
 from cable_winch_monitor_msgs.msg import TensionDistribution
 
+from ..channels import TENSION_CHANNELS
 from ..effects import PlantModel
+from ..model.conditions import ConditionsTracker
 from ..model.plant import CABLE_NAMES, load_plant
 
 LOWERING_SPEED = 0.2        # [m/s] payout speed of all four winches
@@ -47,15 +49,18 @@ CONNECT_TIMEOUT = 20.0      # [s]
 
 def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None) -> np.ndarray:
     """Winch readings (samples, 8): the lengths of a steady lowering with per-winch drifts and encoder
-    jitter, then the load pins of the lengths without the jitter (the plant's equilibrium, 150 N noise)."""
+    jitter, then the load pins of the lengths without the jitter as the plant's model reads them (its
+    equilibrium and measurement effects: the rope's weight, sheave friction), with 150 N of noise."""
     rng = np.random.default_rng(seed)
     t = np.arange(samples)[:, None] / rate
     drift = SYNC_AMPLITUDE * np.sin(2 * np.pi * t / 8.0 + rng.uniform(0, 2 * np.pi, 4))
     true = START_LENGTH + LOWERING_SPEED * t + drift
     model = PlantModel.from_plant(load_plant(plant_file) if plant_file else load_plant())
-    tensions = np.array([solution.tensions for solution in model.solve_batch(true)])
-    return np.hstack([true + rng.normal(0.0, ENCODER_NOISE, (samples, 4)),
-                      tensions + rng.normal(0.0, PIN_NOISE, (samples, 4))])
+    tracker = ConditionsTracker()
+    conditions = [tracker.update(float(at), row, np.full(4, np.nan)) for at, row in zip(t[:, 0], true)]
+    pins = np.array([[model.predict(solution, at)[name] for name in TENSION_CHANNELS]
+                     for solution, at in zip(model.solve_batch(true, conditions), conditions)])
+    return np.hstack([true + rng.normal(0.0, ENCODER_NOISE, (samples, 4)), pins + rng.normal(0.0, PIN_NOISE, (samples, 4))])
 
 
 @contextmanager
