@@ -163,10 +163,11 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
                       conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None,
                       live: bool = False) -> list[Estimate]:
     """Estimates where the geometry depends on the pose: each round estimates every sample with the
-    anchors and free lengths of its last estimate's pose (the first, of its warm start's where it has
-    one), warm-started there, until no attachment point moves more than REFINE_TOL (at most
-    REFINE_STEPS rounds). A sample the estimator leaves gets the model's forward kinematics, which
-    refines its own geometry."""
+    anchors and free lengths of its last estimate's pose, warm-started there, until no attachment
+    point moves more than REFINE_TOL (at most REFINE_STEPS rounds); the first round with the plant's
+    anchors, or live with the previous sample's tangent points (a fit's warm starts may come from a
+    model without these pulleys, metres of wrapped rope away). A sample the estimator leaves gets
+    the model's forward kinematics, which refines its own geometry."""
     nominal = np.broadcast_to(model.physical.anchors, (len(lengths), 4, 3))
 
     def geometry(rotation: np.ndarray, position: np.ndarray, tensions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -175,7 +176,7 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
         return np.where(posed[:, None, None], anchors, nominal), np.where(posed[:, None], free, lengths)
 
     anchors, free = None, lengths
-    if warm_starts is not None and any(w is not None and w.ok for w in warm_starts):
+    if live and warm_starts is not None and any(w is not None and w.ok for w in warm_starts):
         warm = [w.solution if w is not None and w.ok else None for w in warm_starts]
         anchors, free = geometry(np.array([np.eye(3) if s is None else s.rotation for s in warm]),
                                  np.array([np.full(3, np.nan) if s is None else s.position for s in warm]),
