@@ -33,8 +33,7 @@ import numpy as np
 
 from .bagio import fields
 from .effects.estimate import estimate_recording, forward_estimate
-from .model.conditions import Conditions, StackedConditions
-from .model.observations import States
+from .model.conditions import Conditions
 from .model.estimation import Estimate
 from . import channels
 from .model.plant import Plant
@@ -161,16 +160,10 @@ class LookaheadPipeline(MonitorPipeline):
 
     def _predictions(self, solutions: list[Solution], conditions: list[Conditions]) -> list[dict[str, float] | None]:
         """What every channel reads at each solved state (None where not solved), all at once."""
-        solved = [k for k, solution in enumerate(solutions) if solution.ok]
-        out: list[dict[str, float] | None] = [None] * len(solutions)
-        if not solved:
-            return out
-        states = States.of(self.model.physical, [solutions[k] for k in solved])
-        table = self.model.predict_states(states, StackedConditions.of([conditions[k] for k in solved]))
-        columns = {name: values.tolist() for name, values in table.items()}
-        for row, k in enumerate(solved):
-            out[k] = {name: values[row] for name, values in columns.items()}
-        return out
+        predicted = self.model.predict_solutions(solutions, conditions)
+        columns = {name: values.tolist() for name, values in predicted.items()}
+        return [{name: values[k] for name, values in columns.items()} if solution.ok else None
+                for k, solution in enumerate(solutions)]
 
     def _estimates(self, samples: list[Merged], lengths: np.ndarray) -> list[Estimate]:
         """The window's estimates from the sensors trusted now; a sample with none is solved from its

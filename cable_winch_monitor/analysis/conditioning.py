@@ -18,8 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..effects import PlantModel
-from ..model.conditions import Conditions, StackedConditions
-from ..model.observations import States
+from ..model.conditions import Conditions
 from ..model.result import Solution
 from .data import Dataset
 from .evaluate import thin
@@ -68,14 +67,9 @@ def _changes(model: PlantModel, data: Dataset, rows: np.ndarray, steps: np.ndarr
 
 def _predictions(model: PlantModel, solutions: list[Solution], conditions: list[Conditions],
                  names: tuple[str, ...]) -> np.ndarray:
-    """What each channel reads at each solved state (NaN rows where not solved), all states at once."""
-    out = np.full((len(solutions), len(names)), np.nan)
-    solved = [k for k, solution in enumerate(solutions) if solution.ok]
-    if solved:
-        predicted = model.predict_states(States.of(model.physical, [solutions[k] for k in solved]),
-                                         StackedConditions.of([conditions[k] for k in solved]))
-        out[solved] = np.column_stack([predicted[c] for c in names])
-    return out
+    """What each channel `names` reads at each solution (n, channels), NaN rows where not solved."""
+    predicted = model.predict_solutions(solutions, conditions)
+    return np.column_stack([predicted[c] for c in names]) if names else np.zeros((len(solutions), 0))
 
 
 def ill_conditioned(model: PlantModel, data: Dataset, noise: np.ndarray) -> list[IllConditioned]:

@@ -305,6 +305,19 @@ class PlantModel:
         predicted = self.predict_states(States.of(self.physical, [solution]), StackedConditions.of((conditions,)))
         return {name: float(values[0]) for name, values in predicted.items()}
 
+    def predict_solutions(self, solutions: Sequence[Solution], conditions: Sequence[Conditions]
+                          ) -> dict[str, np.ndarray]:
+        """`predict` for each of many solutions at its conditions, all solved ones at once: arrays (n,) by
+        channel, NaN where a solution is not solved."""
+        solved = [k for k, solution in enumerate(solutions) if solution.ok]
+        out = {name: np.full(len(solutions), np.nan) for name in channels.names()}
+        if solved:
+            table = self.predict_states(States.of(self.physical, [solutions[k] for k in solved]),
+                                        StackedConditions.of([conditions[k] for k in solved]))
+            for name, values in table.items():
+                out.setdefault(name, np.full(len(solutions), np.nan))[solved] = values
+        return out
+
     def predict_states(self, states: States, conditions: StackedConditions) -> dict[str, np.ndarray]:
         """`predict` for stacked states (row k of `conditions` is state k's): arrays (n,) by channel."""
         predicted = channels.predicted_states(states, conditions)
