@@ -120,7 +120,8 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
     if not observations:  # lengths alone: the forward kinematics, warm-started as the solver is
         return forward_estimate(model.solve(reported, warm, conditions), reported)
     if model.refining:
-        return _estimate_refined(model, lengths[None], observations, [conditions], [warm_start], live=True)[0]
+        return _estimate_refined(model, lengths[None], observations, model.load(conditions)[None], [conditions],
+                                 [warm_start], live=True)[0]
     return estimate(model.physical, lengths, observations, length_noise(model),
                     law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
 
@@ -143,23 +144,24 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
         return out
     lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
     observations = observations_for(model, measured, conditions)
+    loads = np.array([model.load(at) for at in conditions])
     if model.refining:
-        return _estimate_refined(model, lengths, observations, conditions, warm_starts)
-    return _batch(model, lengths, observations, conditions, warm_starts).estimates()
+        return _estimate_refined(model, lengths, observations, loads, conditions, warm_starts)
+    return _batch(model, lengths, observations, loads, warm_starts).estimates()
 
 
-def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation],
-           conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None,
-           anchors: np.ndarray | None = None, live: bool = False) -> BatchEstimate:
-    """The estimator on true (or free) lengths (N, 4) with the model's rope law and each sample's load
-    (`live`: the warm start is the previous sample's state)."""
+def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation], loads: np.ndarray,
+           warm_starts: Sequence[Estimate | None] | None, anchors: np.ndarray | None = None,
+           live: bool = False) -> BatchEstimate:
+    """The estimator on true (or free) lengths (N, 4) with the model's rope law under each sample's load
+    (N, 6) (`live`: the warm start is the previous sample's state)."""
     law = model.rope_law
     return estimate_batch(model.physical, lengths, observations, length_noise(model), law.EA,
-                          law.weight if law.EA is not None else 0.0, loads=np.array([model.load(at) for at in conditions]),
-                          warm_starts=warm_starts, anchors=anchors, same_samples=not live)
+                          law.weight if law.EA is not None else 0.0, loads=loads, warm_starts=warm_starts,
+                          anchors=anchors, same_samples=not live)
 
 
-def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation],
+def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation], loads: np.ndarray,
                       conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None,
                       live: bool = False) -> list[Estimate]:
     """Estimates where the geometry depends on the pose: each round estimates every sample with the
@@ -170,24 +172,28 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
     the model's forward kinematics, which refines its own geometry."""
     nominal = np.broadcast_to(model.physical.anchors, (len(lengths), 4, 3))
 
-    def geometry(rotation: np.ndarray, position: np.ndarray, tensions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        anchors, free = model.refine(lengths, States(model.physical, rotation, position, tensions))
-        posed = np.isfinite(position).all(axis=1)  # where no pose is known: the nominal geometry
+    def geometry(states: States) -> tuple[np.ndarray, np.ndarray]:
+        anchors, free = model.refine(lengths, states)
+        posed = np.isfinite(states.position).all(axis=1)  # where no pose is known: the nominal geometry
         return np.where(posed[:, None, None], anchors, nominal), np.where(posed[:, None], free, lengths)
+
+    def posed(batch: BatchEstimate) -> States:
+        return States(model.physical, batch.rotation, batch.position, batch.tensions)
 
     anchors, free = None, lengths
     if live and warm_starts is not None and any(w is not None and w.ok for w in warm_starts):
         warm = [w.solution if w is not None and w.ok else None for w in warm_starts]
-        anchors, free = geometry(np.array([np.eye(3) if s is None else s.rotation for s in warm]),
-                                 np.array([np.full(3, np.nan) if s is None else s.position for s in warm]),
-                                 np.array([np.zeros(4) if s is None else s.tensions for s in warm]))
-    batch = _batch(model, free, observations, conditions, warm_starts, anchors, live=live)
+        anchors, free = geometry(States(model.physical,
+                                        np.array([np.eye(3) if s is None else s.rotation for s in warm]),
+                                        np.array([np.full(3, np.nan) if s is None else s.position for s in warm]),
+                                        np.array([np.zeros(4) if s is None else s.tensions for s in warm])))
+    batch = _batch(model, free, observations, loads, warm_starts, anchors, live=live)
+    states = posed(batch)
     for _ in range(REFINE_STEPS):
-        anchors, free = geometry(batch.rotation, batch.position, batch.tensions)
-        previous = States(model.physical, batch.rotation, batch.position, batch.tensions).points_b
-        batch = _batch(model, free, observations, conditions, batch.estimates(), anchors)
-        moved = np.abs(States(model.physical, batch.rotation, batch.position, batch.tensions).points_b - previous)
-        if not np.nanmax(moved, initial=0.0) >= REFINE_TOL:
+        anchors, free = geometry(states)
+        batch = _batch(model, free, observations, loads, batch.estimates(), anchors)
+        previous, states = states, posed(batch)
+        if not np.nanmax(np.abs(states.points_b - previous.points_b), initial=0.0) >= REFINE_TOL:
             break
     # reported: the true lengths, not the free lengths below the tangent points that the last round fitted
     estimates = [replace(e, reported=row) for e, row in zip(batch.estimates(), lengths)]
