@@ -73,11 +73,12 @@ def elastic_lowering_truths(plant, count: int, seed: int, start: float, speed: f
     return truths
 
 
-def sensed(truths, seed: int, pin_fault: tuple[int, int, float] | None = None,
+def sensed(truths, seed: int, pin_fault: tuple[object, int, float] | None = None, fault_until: int | None = None,
            reported: Callable[[np.ndarray], np.ndarray] = lambda lengths: lengths, speed: float = SPEED,
            pins: Callable[[object], np.ndarray] = lambda truth: truth.tensions) -> list[SimpleNamespace]:
     """Bag items of the truths: a merged winch message per sample, the inclinometer 30-40 ms after it,
-    the depth gauge at 2 Hz; `pin_fault` (cable, from sample, offset [N]) makes a load pin read wrong,
+    the depth gauge at 2 Hz; `pin_fault` (cable or cables, from sample, offset [N]) makes load pins read
+    wrong (until sample `fault_until`, if given),
     `reported` is what the encoders report for the true lengths, `pins` what the load pins feel of a
     truth (its rope tensions at the platform, by default)."""
     rng = np.random.default_rng(seed)
@@ -85,7 +86,7 @@ def sensed(truths, seed: int, pin_fault: tuple[int, int, float] | None = None,
     for k, truth in enumerate(truths):
         t = 100.0 + k / RATE
         efforts = pins(truth) + rng.normal(0.0, NOISE["tension"], 4)
-        if pin_fault is not None and k >= pin_fault[1]:
+        if pin_fault is not None and k >= pin_fault[1] and (fault_until is None or k < fault_until):
             efforts[pin_fault[0]] += pin_fault[2]
         winch = SimpleNamespace(header=header(t), name=list(CABLE_NAMES),
                                 position=(reported(truth.lengths) + rng.normal(0.0, NOISE["length"], 4)).tolist(),

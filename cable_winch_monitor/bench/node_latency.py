@@ -47,14 +47,15 @@ START_LENGTH = 20.0         # [m]
 CONNECT_TIMEOUT = 20.0      # [s]
 
 
-def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None) -> np.ndarray:
-    """Winch readings (samples, 8): the lengths of a steady lowering with per-winch drifts and encoder
-    jitter, then the load pins of the lengths without the jitter as the plant's model reads them (its
+def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None,
+             start: float = START_LENGTH) -> np.ndarray:
+    """Winch readings (samples, 8): the lengths of a steady lowering from `start` [m] with per-winch
+    drifts and encoder jitter, then the load pins of the lengths without the jitter as the plant's model reads them (its
     equilibrium and measurement effects: the rope's weight, sheave friction), with 150 N of noise."""
     rng = np.random.default_rng(seed)
     t = np.arange(samples)[:, None] / rate
     drift = SYNC_AMPLITUDE * np.sin(2 * np.pi * t / 8.0 + rng.uniform(0, 2 * np.pi, 4))
-    true = START_LENGTH + LOWERING_SPEED * t + drift
+    true = start + LOWERING_SPEED * t + drift
     model = PlantModel.from_plant(load_plant(plant_file) if plant_file else load_plant())
     tracker = ConditionsTracker()
     conditions = [tracker.update(float(at), row, np.full(4, np.nan)) for at, row in zip(t[:, 0], true)]
@@ -139,14 +140,20 @@ class Probe:
         rclpy.try_shutdown(context=self.context)
 
 
+def warm_up(plant_file: Path | None = None, samples: int = 100, rate: float = 50.0) -> np.ndarray:
+    """Readings of the lowering into the benchmark's start length: its load pins read as in the
+    benchmark, so that the node's gates are open when the timing starts."""
+    return lowering(samples, rate, 1, plant_file, START_LENGTH - LOWERING_SPEED * samples / rate)
+
+
 def connect(probe: Probe, node: subprocess.Popen, warm_up: np.ndarray) -> None:
-    """Wait for matching, then warm up for 2 s (hoisting towards the benchmark's start length)."""
+    """Wait for matching, then publish the warm-up readings at 50 Hz."""
     deadline = time.monotonic() + CONNECT_TIMEOUT
     while not probe.connected():
         if node.poll() is not None or time.monotonic() > deadline:
             raise SystemExit("node_latency: the winch_monitor node did not come up")
         time.sleep(0.05)
-    for readings in warm_up[::-1]:
+    for readings in warm_up:
         probe.publish(readings)
         time.sleep(0.02)
     time.sleep(0.2)
@@ -187,12 +194,12 @@ class Latency:
 def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
             plant_file: Path | None = None) -> Latency:
     """Start the node, publish a lowering at `rate`, and time each pose coming back."""
-    readings, warm_up = lowering(samples, rate, plant_file=plant_file), lowering(100, 50.0, 1, plant_file)
+    readings, first = lowering(samples, rate, plant_file=plant_file), warm_up(plant_file)
     with tempfile.TemporaryDirectory() as scratch:
         node = start_node(domain_id, solver, Path(scratch) / "node.log", plant_file)
         probe = Probe(domain_id)
         try:
-            connect(probe, node, warm_up)
+            connect(probe, node, first)
             probe.received.clear()
             cpu0, wall0 = cpu_seconds(node.pid), time.monotonic()
             sent = publish_paced(probe, readings, rate)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 
-from .node_latency import Probe, connect, cpu_seconds, lowering, percentiles, publish_paced, start_node
+from .node_latency import Probe, connect, cpu_seconds, lowering, percentiles, publish_paced, start_node, warm_up
 
 SOLVER_STATUS = "winch_monitor: solver"
 COUNTERS = ("samples", "complete samples", "skipped (a newer sample came first)", "waiting", "winch messages",
@@ -61,7 +61,7 @@ def run(rate: float, seconds: float, domain_id: int) -> int:
         node = start_node(domain_id, "energy", Path(scratch) / "node.log")
         probe = OverloadProbe(domain_id)
         try:
-            connect(probe, node, lowering(100, 50.0, seed=1))
+            connect(probe, node, warm_up())
             time.sleep(SETTLE)
             before = probe.counters()
             probe.received.clear()

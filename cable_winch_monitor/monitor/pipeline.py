@@ -28,7 +28,7 @@ from ..effects import PlantModel
 from ..effects.model import NO_CONDITIONS
 from ..effects.estimate import estimate_sample, fuses
 from ..model.conditions import Conditions, ConditionsTracker
-from ..model.estimation import Estimate
+from ..model.estimation import Estimate, gate_taken_in
 from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
@@ -204,7 +204,7 @@ class MonitorPipeline:
         pins = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
         resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
         if fused is not None and predicted is not None:
-            self._gate(sample.stamp, fused, sample.sensors, predicted)
+            self._gate(sample, fused, conditions)
         output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, self.gates.refused)
         self.stats.solved += int(solution.ok)
         self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
@@ -216,13 +216,17 @@ class MonitorPipeline:
             self.last_estimate = fused
         return output
 
-    def _gate(self, stamp: float, fused: Estimate, measured: dict[str, float], predicted: dict[str, float]) -> None:
-        """Each sensor's verdict: a used channel by its residual in the estimate, one left out by its
-        innovation against the estimate's prediction."""
-        normalised = {name: fused.residuals[name] if name in fused.residuals
-                      else (value - predicted.get(name, math.nan)) / self.noise.get(name, math.nan)
-                      for name, value in measured.items()}
-        self.gates.update(stamp, normalised)
+    def _gate(self, sample: CompleteSample, fused: Estimate, conditions: Conditions) -> None:
+        """Each sensor's verdict: a used one by its channels' residuals in the estimate, one left out by
+        what taking it back in would cost (the sample estimated again with it: `gate_taken_in`)."""
+        taken_in = {}
+        for sensor, readings in self.gates.left_out(sample.sensors).items():
+            trial = estimate_sample(self.model, sample.lengths, {**self.gates.trusted(sample.sensors), **readings},
+                                    conditions, fused)
+            gate = gate_taken_in(fused, trial, list(readings), self.gates.probability)
+            if gate is not None:
+                taken_in[sensor] = gate
+        self.gates.update(sample.stamp, fused.residuals, taken_in)
 
     def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True,
                        values: dict[str, float] | None = None) -> Residuals | None:

@@ -8,7 +8,9 @@ first carried to the sample's stamp by the payout since it was taken (the platfo
 on vertical ropes: its depth follows the mean payout), as a stale depth reading of a
 moving platform would otherwise be centimetres off. A sensor whose reading
 disagrees with the estimate beyond its Mahalanobis gate for `hold` seconds is left out
-(`model.gate.HeldGate`), and taken back once it has agreed as long.
+(`model.gate.HeldGate`), and taken back once it has agreed as long: while left out, it is
+judged by what taking it in would cost the estimate (`gate_taken_in`), not by its reading
+against a prediction from the others as if that prediction were exact.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ from typing import Mapping
 
 from .. import channels
 from ..model.estimation import Estimate
-from ..model.gate import DEFAULT_PROBABILITY, HeldGate, chi_square_threshold
+from ..model.gate import DEFAULT_PROBABILITY, GateResult, HeldGate, chi_square_threshold
 
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 DEFAULT_HOLD = 1.0  # [s] a sensor fails (or passes) its gate this long before it is left out (taken back)
@@ -104,8 +106,10 @@ class SensorGates:
         """The sensors left out now."""
         return self._refused
 
-    def update(self, stamp: float, normalised: Mapping[str, float]) -> None:
-        """Each sensor's verdict at `stamp` from its channels' (measured - predicted) / sigma."""
+    def update(self, stamp: float, normalised: Mapping[str, float],
+               taken_in: Mapping[str, GateResult] | None = None) -> None:
+        """Each sensor's verdict at `stamp`: a sensor the estimate used by its channels' (measured -
+        predicted) / sigma, one left out by its gate from `taken_in` (`gate_taken_in`)."""
         grouped: dict[str, list[float]] = {}
         for name, value in normalised.items():
             if math.isfinite(value):
@@ -114,11 +118,15 @@ class SensorGates:
                     grouped[sensor].append(value)
                 else:
                     grouped[sensor] = [value]
-        changed = False
-        for sensor, values in grouped.items():  # normalised innovations: d^2 is their sum of squares
+        verdicts: dict[str, tuple[float, bool]] = {}
+        for sensor, values in grouped.items():  # normalised residuals: d^2 is their sum of squares
             chi_square = values[0] * values[0] if len(values) == 1 else math.fsum(v * v for v in values)
+            verdicts[sensor] = chi_square, chi_square <= chi_square_threshold(len(values), self.probability)
+        for sensor, gate in (taken_in or {}).items():
+            verdicts[sensor] = gate.chi_square, gate.passed
+        changed = False
+        for sensor, (chi_square, passed) in verdicts.items():
             self.last_chi_square[sensor] = chi_square
-            passed = chi_square <= chi_square_threshold(len(values), self.probability)
             gate = self.gates.get(sensor)
             if gate is None:
                 gate = self.gates[sensor] = HeldGate(self.hold)
@@ -126,3 +134,12 @@ class SensorGates:
             changed |= gate.update(stamp, passed) != trusted
         if changed:
             self._refused = tuple(sorted(s for s, gate in self.gates.items() if not gate.trusted))
+
+    def left_out(self, measured: Mapping[str, float]) -> dict[str, dict[str, float]]:
+        """The measured channels of each sensor left out now, by sensor."""
+        out: dict[str, dict[str, float]] = {}
+        for name, value in measured.items():
+            sensor = sensor_of(name)
+            if sensor in self._refused:
+                out.setdefault(sensor, {})[name] = value
+        return out
