@@ -36,7 +36,7 @@ from .clearance import Clearance, solution_clearance
 from .inputs import (CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason,
                      small_mean)
 from .residuals import Residuals, noise_levels, residuals
-from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates
+from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates, sensor_of
 
 
 @dataclass(frozen=True)
@@ -217,15 +217,17 @@ class MonitorPipeline:
         return output
 
     def _gate(self, sample: CompleteSample, fused: Estimate, conditions: Conditions) -> None:
-        """Each sensor's verdict: a used one by its channels' residuals in the estimate, one left out by
-        what taking it back in would cost (the sample estimated again with it: `gate_taken_in`)."""
+        """Each sensor's verdict: a used one by its channels' residuals in the estimate, a left-out one
+        when its turn comes (`SensorGates.trial`) by what taking it back in would cost (the sample
+        estimated again with it: `gate_taken_in`)."""
         taken_in = {}
-        for sensor, readings in self.gates.left_out(sample.sensors).items():
+        readings = self.gates.trial(sample.stamp, sample.sensors)
+        if readings is not None:
             trial = estimate_sample(self.model, sample.lengths, {**self.gates.trusted(sample.sensors), **readings},
                                     conditions, fused)
             gate = gate_taken_in(fused, trial, list(readings), self.gates.probability)
             if gate is not None:
-                taken_in[sensor] = gate
+                taken_in[sensor_of(next(iter(readings)))] = gate
         self.gates.update(sample.stamp, fused.residuals, taken_in)
 
     def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True,

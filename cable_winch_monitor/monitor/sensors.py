@@ -24,6 +24,7 @@ from ..model.gate import DEFAULT_PROBABILITY, GateResult, HeldGate, chi_square_t
 
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 DEFAULT_HOLD = 1.0  # [s] a sensor fails (or passes) its gate this long before it is left out (taken back)
+TRIALS_PER_HOLD = 4  # a left-out sensor is tried this often per hold time (one sensor at a time)
 
 
 _SENSORS: dict[str, str] = {}  # declared channel -> its sensor (a declared channel keeps its topics)
@@ -94,6 +95,8 @@ class SensorGates:
         self.gates: dict[str, HeldGate] = {}
         self.last_chi_square: dict[str, float] = {}
         self._refused: tuple[str, ...] = ()  # kept as the gates change: every sample asks
+        self._slot: int | None = None  # the last trial's TRIALS_PER_HOLD-th of a hold time
+        self._turn = 0  # trials so far: the left-out sensors take turns
 
     def trusted(self, measured: Mapping[str, float]) -> dict[str, float]:
         """The measured channels of the sensors not left out."""
@@ -135,11 +138,19 @@ class SensorGates:
         if changed:
             self._refused = tuple(sorted(s for s, gate in self.gates.items() if not gate.trusted))
 
-    def left_out(self, measured: Mapping[str, float]) -> dict[str, dict[str, float]]:
-        """The measured channels of each sensor left out now, by sensor."""
-        out: dict[str, dict[str, float]] = {}
+    def trial(self, stamp: float, measured: Mapping[str, float]) -> dict[str, float] | None:
+        """The readings of the left-out sensor to try taking back in at `stamp` (None: none now). A trial
+        estimates the sample again, so the sensors take turns, TRIALS_PER_HOLD times per hold time:
+        a sensor of k left out is tried every k / TRIALS_PER_HOLD hold times."""
+        if not self._refused:
+            return None
+        left_out: dict[str, dict[str, float]] = {}
         for name, value in measured.items():
             sensor = sensor_of(name)
             if sensor in self._refused:
-                out.setdefault(sensor, {})[name] = value
-        return out
+                left_out.setdefault(sensor, {})[name] = value
+        slot = math.floor(stamp * TRIALS_PER_HOLD / self.hold) if self.hold > 0.0 else None
+        if not left_out or (slot is not None and slot == self._slot):
+            return None
+        self._slot, self._turn = slot, self._turn + 1
+        return left_out[sorted(left_out)[self._turn % len(left_out)]]
