@@ -36,7 +36,7 @@ from .clearance import Clearance, solution_clearance
 from .inputs import (CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason,
                      small_mean)
 from .residuals import Residuals, noise_levels, residuals
-from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates, sensor_of
+from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates
 
 
 @dataclass(frozen=True)
@@ -221,13 +221,14 @@ class MonitorPipeline:
         when its turn comes (`SensorGates.trial`) by what taking it back in would cost (the sample
         estimated again with it: `gate_taken_in`)."""
         taken_in = {}
-        readings = self.gates.trial(sample.stamp, sample.sensors)
-        if readings is not None:
+        tried = self.gates.trial(sample.stamp, sample.sensors)
+        if tried is not None:
+            sensor, readings = tried
             trial = estimate_sample(self.model, sample.lengths, {**self.gates.trusted(sample.sensors), **readings},
                                     conditions, fused)
             gate = gate_taken_in(fused, trial, list(readings), self.gates.probability)
             if gate is not None:
-                taken_in[sensor_of(next(iter(readings)))] = gate
+                taken_in[sensor] = gate
         self.gates.update(sample.stamp, fused.residuals, taken_in)
 
     def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True,

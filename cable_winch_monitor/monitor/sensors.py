@@ -138,8 +138,8 @@ class SensorGates:
         if changed:
             self._refused = tuple(sorted(s for s, gate in self.gates.items() if not gate.trusted))
 
-    def trial(self, stamp: float, measured: Mapping[str, float]) -> dict[str, float] | None:
-        """The readings of the left-out sensor to try taking back in at `stamp` (None: none now). A trial
+    def trial(self, stamp: float, measured: Mapping[str, float]) -> tuple[str, dict[str, float]] | None:
+        """The left-out sensor to try taking back in at `stamp`, with its readings (None: none now). A trial
         estimates the sample again, so the sensors take turns, TRIALS_PER_HOLD times per hold time:
         a sensor of k left out is tried every k / TRIALS_PER_HOLD hold times."""
         if not self._refused:
@@ -153,4 +153,5 @@ class SensorGates:
         if not left_out or (slot is not None and slot == self._slot):
             return None
         self._slot, self._turn = slot, self._turn + 1
-        return left_out[sorted(left_out)[self._turn % len(left_out)]]
+        sensor = sorted(left_out)[self._turn % len(left_out)]
+        return sensor, left_out[sensor]
