@@ -50,8 +50,9 @@ CONNECT_TIMEOUT = 20.0      # [s]
 def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None,
              start: float = START_LENGTH) -> np.ndarray:
     """Winch readings (samples, 8): the lengths of a steady lowering from `start` [m] with per-winch
-    drifts and encoder jitter, then the load pins of the lengths without the jitter as the plant's model reads them (its
-    equilibrium and measurement effects: the rope's weight, sheave friction), with 150 N of noise."""
+    drifts and encoder jitter, then the load pins of the lengths without the jitter as the plant's
+    model reads them (its equilibrium and measurement effects: the rope's weight, sheave friction),
+    with 150 N of noise."""
     rng = np.random.default_rng(seed)
     t = np.arange(samples)[:, None] / rate
     drift = SYNC_AMPLITUDE * np.sin(2 * np.pi * t / 8.0 + rng.uniform(0, 2 * np.pi, 4))
@@ -59,9 +60,10 @@ def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None =
     model = PlantModel.from_plant(load_plant(plant_file) if plant_file else load_plant())
     tracker = ConditionsTracker()
     conditions = [tracker.update(float(at), row, np.full(4, np.nan)) for at, row in zip(t[:, 0], true)]
-    pins = np.array([[model.predict(solution, at)[name] for name in TENSION_CHANNELS]
-                     for solution, at in zip(model.solve_batch(true, conditions), conditions)])
-    return np.hstack([true + rng.normal(0.0, ENCODER_NOISE, (samples, 4)), pins + rng.normal(0.0, PIN_NOISE, (samples, 4))])
+    predicted = model.predict_solutions(model.solve_batch(true, conditions), conditions)
+    pins = np.column_stack([predicted[name] for name in TENSION_CHANNELS])
+    return np.hstack([true + rng.normal(0.0, ENCODER_NOISE, (samples, 4)),
+                      pins + rng.normal(0.0, PIN_NOISE, (samples, 4))])
 
 
 @contextmanager
