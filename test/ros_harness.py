@@ -133,6 +133,11 @@ class StampClock:
         self.last_ns = max(time.time_ns(), self.last_ns + 1_000_000 + int(advance * 1e9))
         return stamp_from_ns(self.last_ns)
 
+    def catch_up(self) -> None:
+        """Wait until the wall clock has passed the last stamp, so that stamps advanced from here on stay
+        within the node's `stamp_ahead` window however far earlier tests ran ahead."""
+        time.sleep(max(0.0, (self.last_ns - time.time_ns()) * 1e-9))
+
 
 def stamp_from_ns(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)

@@ -60,7 +60,8 @@ def test_tf_and_scene_of_a_solved_sample(live, plant):
 
 def test_scene_rate_is_bounded_by_the_stamps(live):
     node, collectors = live
-    first = node.client.stamps.next(advance=1.0)
+    node.client.stamps.catch_up()  # 0.2 s + 40 stamps at 50 Hz lead the clock by about 1 s, inside stamp_ahead
+    first = node.client.stamps.next(advance=1.0 / SCENE_RATE)  # a scene is due
     stamps = [first] + [node.client.stamps.next(advance=0.02) for _ in range(39)]  # 50 Hz of stamps for 0.8 s
     for k, stamp in enumerate(stamps):
         node.client.publish((20.0 + 0.01 * k,) * 4, stamp=stamp)
