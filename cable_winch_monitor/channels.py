@@ -135,7 +135,8 @@ BUILTIN = (
               predict_states=(lambda k: lambda states: states.position[:, k])(k))
       for k, (name, axis) in enumerate(zip(("x", "y", "depth"), "xyz"))),
 )
-_declared: dict[str, Channel] = {c.name: c for c in BUILTIN}
+_BUILTIN_BY_NAME: dict[str, Channel] = {c.name: c for c in BUILTIN}
+_declared: dict[str, Channel] = dict(_BUILTIN_BY_NAME)
 
 
 def declare(channel: Channel) -> Channel:
@@ -148,6 +149,11 @@ def declare(channel: Channel) -> Channel:
     _declared[channel.name] = channel
     on_topic.cache_clear()
     return channel
+
+
+def user_declared() -> bool:
+    """Some channel is a user's: declared beside the built-ins, or in place of one."""
+    return any(c is not _BUILTIN_BY_NAME.get(c.name) for c in _declared.values())
 
 
 def declared() -> tuple[Channel, ...]:

@@ -129,6 +129,8 @@ def test_a_user_channel_takes_part_in_compare_and_in_the_residuals(tmp_path):
     module.write_text(textwrap.dedent(CAGE_CHANNEL))
     load_module_or_channels(module)
     assert "cage_load" in channels.names()
+    assert channels.user_declared()
+    assert PlantModel.from_plant(load_plant()).reads_conditions  # no effect: the user's channel reads them
     plant = plant_from_mapping({"plant": {**load_plant().raw["plant"], "noise": {
         **load_plant().noise, "cage_load": 200.0}}})
     data = read_bag(write_bag(tmp_path / "cage", cage=True))

@@ -166,7 +166,7 @@ class PlantModel:
     @property
     def reads_conditions(self) -> bool:
         """Something reads a sample's conditions: an effect, or a channel a user declared."""
-        return bool(self.effects) or any(c not in channels.BUILTIN for c in channels.declared())
+        return bool(self.effects) or channels.user_declared()
 
     @property
     def plain(self) -> bool:
