@@ -1,15 +1,19 @@
 """The fast output path (compiled CDR encoders, direct MCAP append) gives the generic path's bytes.
 
-The generic path is rosbags' own: `records.build` -> `Typestore.serialize_cdr` -> `Writer.write`.
+The generic path is rosbags' own: `records.build` -> `Typestore.serialize_cdr` -> `Writer.write`, and
+`McapWriter.close_chunk` with the chunk's CRC written in afterwards.
 """
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 from typing import Any
 
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from rosbags.rosbag2.storage_mcap import McapWriter
 
 from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
@@ -34,6 +38,18 @@ def generic_append(self: BagWriter, channel: int, time: int, data: bytes) -> Non
     writer.write(next(c for c in writer.connections if c.id == channel), time, data)
 
 
+def generic_close_chunk(self: BagWriter) -> None:
+    """rosbags' own close_chunk, then the CRC-32 of the chunk's data written into the chunk record."""
+    storage = self._storage
+    crc = zlib.crc32(storage.chunk.bio.getbuffer())
+    start = storage.bio.tell()
+    McapWriter.close_chunk(storage)
+    end = storage.bio.tell()
+    storage.bio.seek(start + 1 + 8 + 8 + 8 + 8)  # opcode, record length, start time, end time, uncompressed size
+    storage.bio.write(struct.pack("<I", crc))
+    storage.bio.seek(end)
+
+
 def mcap_messages(bag: Path) -> list[tuple[str, int, bytes]]:
     """(topic, log time, CDR bytes) of every message, read with mcap; each one decoded by mcap-ros2."""
     (file,) = bag.glob("*.mcap")
@@ -51,6 +67,7 @@ def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
         patch.setattr(records, "encoder", generic_encoder)
         patch.setattr(records, "scene_encoder", lambda: generic_encoder(records.OUTPUT_TYPES[records.SCENE]))
         patch.setattr(BagWriter, "_append", generic_append)
+        patch.setattr(BagWriter, "_close_chunk", generic_close_chunk)
         replay(BAG, generic, progress=False)
     replay(BAG, fast, progress=False)
     return generic, fast

@@ -13,15 +13,17 @@ for the same reason.
 """
 from __future__ import annotations
 
+import itertools
 import struct
 import zlib
-from collections import Counter
+from collections import Counter, defaultdict
+from io import BytesIO
 from pathlib import Path
 from typing import Any
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
 from rosbags.rosbag2.errors import WriterError
 from rosbags.typesys.store import Typestore
 
@@ -35,7 +37,9 @@ _FOREVER = QosTime(0x7FFFFFFF, 0xFFFFFFFF)  # rosbag2's "infinite" deadline, lif
 LATCHED = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
               QosLiveliness.AUTOMATIC, _FOREVER, False)
 CHUNK_SPAN = 1_000_000_000  # [ns] of log time in one chunk at most
-CHUNK_CRC_OFFSET = 1 + 8 + 8 + 8 + 8  # opcode, record length, start time, end time, uncompressed size
+# opcode 0x06, record length, start and end time, uncompressed size and CRC, compression ('': length 0), compressed size
+CHUNK = struct.Struct("<BQQQQIIQ")
+MESSAGE_INDEX = struct.Struct("<BQHI")  # opcode 0x07, record length, channel, byte length of the (time, offset) pairs
 FOOTER = struct.Struct("<BQQQI")  # opcode 0x02, record length, summary start, summary offset start, summary CRC
 FOOTER_OPCODE = 0x02
 MAGIC = b"\x89MCAP0\r\n"
@@ -57,24 +61,37 @@ class BagWriter:
         except (WriterError, OSError) as error:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
         self._storage: McapWriter = self._writer.storage
-        self._close_chunk_without_crc = self._storage.close_chunk
         self._storage.close_chunk = self._close_chunk  # rosbags' own close() ends the last chunk through it too
 
     def _close_chunk(self) -> None:
-        """rosbags' close_chunk, then the CRC-32 of the chunk's data written into the chunk record."""
+        """End the open chunk: what rosbags' McapWriter.close_chunk writes for an uncompressed chunk (the
+        chunk, its message indexes, its entry of the chunk index), packed a record at a time rather than
+        a field at a time, and with the CRC-32 of the chunk's data where rosbags writes 0 ("no CRC")."""
         storage = self._storage
-        crc = zlib.crc32(storage.chunk.bio.getbuffer())
-        start = storage.bio.tell()
-        self._close_chunk_without_crc()
-        end = storage.bio.tell()
-        storage.bio.seek(start + CHUNK_CRC_OFFSET)
-        storage.bio.write(struct.pack("<I", crc))
-        storage.bio.seek(end)
+        chunk, out = storage.chunk, storage.bio
+        data = chunk.bio.getvalue()
+        start_time, end_time = chunk.message_start_time, chunk.message_end_time
+        chunk_start = out.tell()
+        out.write(CHUNK.pack(0x06, CHUNK.size - 9 + len(data), start_time, end_time, len(data), zlib.crc32(data), 0,
+                             len(data)))
+        out.write(data)
+        chunk_end = out.tell()
+        offsets = []
+        for channel, entries in chunk.msgs.items():  # (log time, offset in the chunk) of each message
+            offsets.append((channel, out.tell()))
+            out.write(MESSAGE_INDEX.pack(0x07, MESSAGE_INDEX.size - 9 + 16 * len(entries), channel, 16 * len(entries)))
+            out.write(struct.pack(f"<{2 * len(entries)}Q", *itertools.chain.from_iterable(entries)))
+        entry = BytesIO()
+        entry.write(struct.pack("<QQQQI", start_time, end_time, chunk_start, chunk_end - chunk_start, 10 * len(offsets)))
+        entry.write(b"".join(struct.pack("<HQ", *offset) for offset in offsets))
+        entry.write(struct.pack("<QIQQ", out.tell() - chunk_end, 0, len(data), len(data)))
+        storage.chunks.append(entry)
+        storage.chunk = PendingChunk(2 ** 63 - 1, 0, BytesIO(), defaultdict(list))
 
     def close_spanning_chunk(self, time: int) -> None:
         """End the open chunk if a message at `time` [ns] would make it span more than CHUNK_SPAN."""
         chunk = self._storage.chunk
-        if chunk.msgs and max(time, chunk.message_end_time) - min(time, chunk.message_start_time) > CHUNK_SPAN:
+        if chunk.msgs and (time - chunk.message_start_time > CHUNK_SPAN or chunk.message_end_time - time > CHUNK_SPAN):
             self._close_chunk()
 
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes, latched: bool = False) -> None:
