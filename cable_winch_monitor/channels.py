@@ -148,9 +148,11 @@ def declare(channel: Channel) -> Channel:
         raise ChannelError(f"channel '{channel.name}': topics must be absolute ROS topic names, got {channel.topics}")
     _declared[channel.name] = channel
     on_topic.cache_clear()
+    user_declared.cache_clear()
     return channel
 
 
+@lru_cache(maxsize=None)  # asked for every sample; cleared when a channel is declared
 def user_declared() -> bool:
     """Some channel is a user's: declared beside the built-ins, or in place of one."""
     return any(c is not _BUILTIN_BY_NAME.get(c.name) for c in _declared.values())
