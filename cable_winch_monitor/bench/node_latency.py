@@ -148,14 +148,14 @@ def warm_up(plant_file: Path | None = None, samples: int = 100, rate: float = 50
     return lowering(samples, rate, 1, plant_file, START_LENGTH - LOWERING_SPEED * samples / rate)
 
 
-def connect(probe: Probe, node: subprocess.Popen, warm_up: np.ndarray) -> None:
-    """Wait for matching, then publish the warm-up readings at 50 Hz."""
+def connect(probe: Probe, node: subprocess.Popen, warming: np.ndarray) -> None:
+    """Wait for matching, then publish the `warming` readings (`warm_up`) at 50 Hz."""
     deadline = time.monotonic() + CONNECT_TIMEOUT
     while not probe.connected():
         if node.poll() is not None or time.monotonic() > deadline:
             raise SystemExit("node_latency: the winch_monitor node did not come up")
         time.sleep(0.05)
-    for readings in warm_up:
+    for readings in warming:
         probe.publish(readings)
         time.sleep(0.02)
     time.sleep(0.2)
@@ -196,12 +196,12 @@ class Latency:
 def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
             plant_file: Path | None = None) -> Latency:
     """Start the node, publish a lowering at `rate`, and time each pose coming back."""
-    readings, first = lowering(samples, rate, plant_file=plant_file), warm_up(plant_file)
+    readings, warming = lowering(samples, rate, plant_file=plant_file), warm_up(plant_file)
     with tempfile.TemporaryDirectory() as scratch:
         node = start_node(domain_id, solver, Path(scratch) / "node.log", plant_file)
         probe = Probe(domain_id)
         try:
-            connect(probe, node, first)
+            connect(probe, node, warming)
             probe.received.clear()
             cpu0, wall0 = cpu_seconds(node.pid), time.monotonic()
             sent = publish_paced(probe, readings, rate)
