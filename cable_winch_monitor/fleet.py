@@ -11,7 +11,6 @@ from __future__ import annotations
 import functools
 import json
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -146,6 +145,8 @@ def run_fleet(bags: Sequence[Path], out_dir: str | Path, job: Job, workers: int 
             rows = client.gather(client.map(job, list(bags), targets, pure=False))
         where = f"Dask cluster {scheduler}"
     elif workers > 1:
+        from concurrent.futures import ProcessPoolExecutor  # only a fleet with workers starts processes
+
         with ProcessPoolExecutor(max_workers=workers) as pool:
             rows = list(pool.map(job, bags, targets))
         where = f"{workers} worker processes"

@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from .typestore import typestore
+from .typestore import knows, typestore
 
 HEADER = b"\x00\x01\x00\x00"  # CDR_LE encapsulation
 SCALAR = {"bool": "?", "byte": "b", "char": "B", "int8": "b", "uint8": "B", "int16": "h", "uint16": "H",
@@ -248,7 +248,9 @@ def fixed_encoder(msgtype: str, fixed: Mapping[str, Mapping[str, Any]], store: T
     """The compiled encoder of `msgtype` for messages whose fields in `fixed` (by message type: a partial
     nested mapping of that type's fields) always hold the values given there; those are not read from the
     values encoded. Gives the bytes of `encoder(msgtype)` for such messages."""
-    generator = _EncoderSource(store or typestore(), fixed)
+    store = store or typestore()
+    knows(store, msgtype)
+    generator = _EncoderSource(store, fixed)
     source = generator.source(msgtype)
     namespace: dict[str, Any] = {"pack": pack, "array": array, "strings": strings,
                                  "ZEROS": tuple(bytes(n) for n in range(8))}

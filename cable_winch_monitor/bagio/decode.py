@@ -19,6 +19,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
 from .cdr import SCALAR, SIZE, Layout
+from .typestore import knows
 
 LITTLE_ENDIAN = b"\x00\x01"  # CDR_LE encapsulation
 NUMBERS = {name: code for name, code in SCALAR.items() if name not in ("byte", "char")}
@@ -150,6 +151,7 @@ class _DecoderSource(Layout):
 @lru_cache(maxsize=None)
 def decoder(msgtype: str, store: Typestore) -> Decoder | None:
     """The compiled little-endian decoder of `msgtype`, or None where rosbags must decode it."""
+    knows(store, msgtype)
     generator = _DecoderSource(store)
     try:
         source = generator.source(msgtype)
@@ -171,7 +173,7 @@ def decode(data: bytes, msgtype: str, store: Typestore) -> Any:
 
 def decodes_as(data: bytes, msgtype: str, store: Typestore) -> bool:
     """True if `data` decodes as `msgtype` (False too for a type the store does not know)."""
-    if msgtype not in store.types:
+    if not knows(store, msgtype):
         return False
     try:
         decode(data, msgtype, store)

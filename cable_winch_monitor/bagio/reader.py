@@ -17,7 +17,7 @@ from rosbags.typesys.store import Typestore
 from ..model.safe_yaml import YamlLimitError, load_yaml_file
 from .decode import decode, decodes_as
 from .mcapfile import McapError, McapFile
-from .typestore import typestore
+from .typestore import knows, typestore
 
 
 class BagError(Exception):
@@ -132,7 +132,7 @@ class BagReader:
                 return "not an input topic"
             if msgtype != self.topics[topic]:
                 return f"type {msgtype}, expected {self.topics[topic]}"
-        if msgtype not in self.store.types:
+        if not knows(self.store, msgtype):
             return f"unknown type {msgtype}"
         return ""
 

@@ -20,7 +20,7 @@ from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from .scene import SceneBuilder, scene_encoder
 from .cdr import encoder
-from .typestore import typestore
+from .typestore import knows, typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
 POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
@@ -37,6 +37,7 @@ Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
 def build(msgtype: str, values: Mapping[str, Any], store: Typestore | None = None) -> Any:
     """A message of `msgtype` from a nested mapping with a value for every field."""
     store = store or typestore()
+    knows(store, msgtype)
     _, field_defs = store.fielddefs[msgtype]
     try:
         return store.types[msgtype](**{name: _value(kind, values[name], store) for name, kind in field_defs})

@@ -28,7 +28,7 @@ from rosbags.rosbag2.errors import WriterError
 from rosbags.typesys.store import Typestore
 
 from .reader import BagError
-from .typestore import typestore
+from .typestore import knows, typestore
 
 MESSAGE = struct.Struct("<BQHIQQ")  # opcode 0x05, record length, channel, sequence, log time, publish time
 CHUNK_SIZE = 2 ** 20  # rosbags closes a chunk past this many bytes
@@ -99,6 +99,7 @@ class BagWriter:
         (its first message decides)."""
         connection = self._connections.get(topic)
         if connection is None:
+            knows(self.store, msgtype)
             connection = self._connections[topic] = self._writer.add_connection(
                 topic, msgtype, typestore=self.store, offered_qos_profiles=[LATCHED] if latched else ())
         self._append(connection.id, log_time if log_time > 0 else 0, data)

@@ -20,6 +20,7 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..bagio.reader import BagError
+from ..bagio.typestore import knows
 from ..bagio.writer import BagWriter
 from ..bagio.fields import input_topics
 
@@ -51,7 +52,7 @@ class Recorder(Node):
         for topic in [t for t in self.waiting if t in graph]:
             self.waiting.remove(topic)
             msgtype = graph[topic][0]
-            if msgtype not in self.writer.store.types:
+            if not knows(self.writer.store, msgtype):
                 self.refused[topic] = f"type {msgtype} unknown to the type store"
             else:
                 self._subscribe(topic, msgtype)
