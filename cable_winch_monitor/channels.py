@@ -111,11 +111,16 @@ def _tension(cable: int) -> Prediction:
 def _roll_pitch(which: int) -> Callable[[Any], float]:
     def read(message: Any) -> float:
         q = message.orientation
-        quaternion = (q.x, q.y, q.z, q.w)
-        if not all(math.isfinite(v) for v in quaternion) or math.hypot(*quaternion) < 1e-9:
-            return NAN  # not an orientation
-        return roll_pitch_of_quaternion(quaternion)[which]
+        return _inclination((q.x, q.y, q.z, q.w))[which]
     return read
+
+
+@lru_cache(maxsize=2)  # the roll and the pitch channel read each message in turn: its angles are worked out once
+def _inclination(quaternion: tuple[float, float, float, float]) -> tuple[float, float]:
+    """Roll and pitch [rad] of an inclinometer's orientation (NaN where it holds none)."""
+    if not all(math.isfinite(v) for v in quaternion) or math.hypot(*quaternion) < 1e-9:
+        return NAN, NAN  # not an orientation
+    return roll_pitch_of_quaternion(quaternion)
 
 
 def _position(axis: int) -> Prediction:

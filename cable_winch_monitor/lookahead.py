@@ -138,8 +138,7 @@ class LookaheadPipeline(MonitorPipeline):
                 return values
             return None
         try:
-            sample = self._merge(fields.joint_sample(item.message, item.topic)
-                                 ._replace(received=item.log_time * 1e-9))  # arrival: the log time
+            sample = self._merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival: log time
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
         return None if sample is None else Merged(sample, self.conditions(sample))
@@ -161,9 +160,9 @@ class LookaheadPipeline(MonitorPipeline):
     def _predictions(self, solutions: list[Solution], conditions: list[Conditions]) -> list[dict[str, float] | None]:
         """What every channel reads at each solved state (None where not solved), all at once."""
         predicted = self.model.predict_solutions(solutions, conditions)
-        columns = {name: values.tolist() for name, values in predicted.items()}
-        return [{name: values[k] for name, values in columns.items()} if solution.ok else None
-                for k, solution in enumerate(solutions)]
+        names = list(predicted)
+        rows = zip(*(values.tolist() for values in predicted.values()))
+        return [dict(zip(names, row)) if solution.ok else None for row, solution in zip(rows, solutions)]
 
     def _estimates(self, samples: list[Merged], lengths: np.ndarray) -> list[Estimate]:
         """The window's estimates from the sensors trusted now; a sample with none is solved from its

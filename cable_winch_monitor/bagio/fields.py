@@ -65,9 +65,10 @@ def stamp_ns(stamp: Stamp) -> int:
     return stamp[0] * 1_000_000_000 + stamp[1]
 
 
-def joint_sample(msg: Any, topic: str) -> JointSample:
-    """A sensor_msgs/JointState as plain values (arrays are passed through, not copied)."""
-    return JointSample(seconds(msg.header.stamp), msg.name, msg.position, msg.velocity, msg.effort, topic)
+def joint_sample(msg: Any, topic: str, received: float = NAN) -> JointSample:
+    """A sensor_msgs/JointState as plain values (arrays are passed through, not copied), arrived at
+    `received` [s] (NaN: not known)."""
+    return JointSample(seconds(msg.header.stamp), msg.name, msg.position, msg.velocity, msg.effort, topic, received)
 
 
 def header(stamp: Stamp, frame_id: str = FRAME) -> Fields:

@@ -214,7 +214,7 @@ class WinchMonitorNode(Node):
             self.pipeline.unseen = sum(w.unseen for w in self.winch_inputs)
             for message in messages:
                 before = list(self.pipeline.merger.readings)
-                self.pipeline.offer(fields.joint_sample(message, winch.topic)._replace(received=now),
+                self.pipeline.offer(fields.joint_sample(message, winch.topic, now),
                                     fields.stamp_of(message))
                 accepted = [i for i, reading in enumerate(self.pipeline.merger.readings) if reading is not before[i]]
                 self.reporter.note_readings(accepted, now)
