@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any, NamedTuple, Sequence
 
 import numpy as np
@@ -136,16 +137,15 @@ class CableLengthMerger:
 
     def _check(self, sample: JointSample) -> tuple[dict[int, int], list[str], str]:
         """Cable -> index in the message, ignored names, and the reason to refuse ('' if none)."""
-        names = list(sample.names)
+        names = tuple(sample.names)
         if len(sample.positions) != len(names):
             return {}, [], f"malformed message: {len(sample.positions)} positions for {len(names)} names"
-        if len(set(names)) != len(names):
-            repeated = sorted({n for n in names if names.count(n) > 1})
+        where, not_cables, repeated = _layout(names)
+        if repeated:
             return {}, [], f"duplicate cable names: {', '.join(repeated)} in one message"
         if not math.isfinite(sample.stamp):
             return {}, [], f"bad stamp: {sample.stamp}"
-        cables = {CABLE_INDEX[n]: k for k, n in enumerate(names) if n in CABLE_INDEX}
-        ignored = [n for n in names if n not in CABLE_INDEX]
+        cables, ignored = dict(where), list(not_cables)
         velocities = sample.velocities if len(sample.velocities) == len(names) else None
         others = self._reporting_others(cables, sample.received)
         for cable, k in cables.items():
@@ -224,6 +224,15 @@ def position_reason(xyz: Sequence[float], limits: InputLimits) -> str:
     if not math.isfinite(xyz[2]) or any(math.isinf(v) or abs(v) > reach for v in xyz):
         return f"bad measurement: position {tuple(xyz)} not finite or beyond {reach:g} m"
     return ""
+
+
+@lru_cache(maxsize=64)  # a winch names its joints alike in every message
+def _layout(names: tuple[str, ...]) -> tuple[tuple[tuple[int, int], ...], tuple[str, ...], tuple[str, ...]]:
+    """Where a message's cables are ((cable, index in the message), ...), the names that are not cables,
+    and the names given more than once."""
+    repeated = tuple(sorted({n for n in names if names.count(n) > 1}))
+    return (tuple((CABLE_INDEX[n], k) for k, n in enumerate(names) if n in CABLE_INDEX),
+            tuple(n for n in names if n not in CABLE_INDEX), repeated)
 
 
 def small_mean(values: Sequence[float]) -> float:
