@@ -51,8 +51,7 @@ class BagWriter:
     def __init__(self, path: str | Path, store: Typestore | None = None):
         self.path = Path(path)
         self.store = store or typestore()
-        self.counts: Counter[str] = Counter()
-        self._connections: dict[str, Any] = {}
+        self._channels: dict[str, int] = {}  # topic -> channel id
         if self.path.exists():
             raise BagError(f"{self.path} exists already: give a new output path (a bag is never overwritten)")
         self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
@@ -61,6 +60,7 @@ class BagWriter:
         except (WriterError, OSError) as error:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
         self._storage: McapWriter = self._writer.storage
+        self._written: dict[int, int] = self._writer.counts  # rosbags' count per channel, kept after close
         self._storage.close_chunk = self._close_chunk  # rosbags' own close() ends the last chunk through it too
 
     def _close_chunk(self) -> None:
@@ -97,13 +97,22 @@ class BagWriter:
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes, latched: bool = False) -> None:
         """CDR bytes as they are, at `log_time` [ns]; a `latched` topic is recorded as offered transient-local
         (its first message decides)."""
-        connection = self._connections.get(topic)
-        if connection is None:
-            knows(self.store, msgtype)
-            connection = self._connections[topic] = self._writer.add_connection(
-                topic, msgtype, typestore=self.store, offered_qos_profiles=[LATCHED] if latched else ())
-        self._append(connection.id, log_time if log_time > 0 else 0, data)
-        self.counts[topic] += 1
+        channel = self._channels.get(topic)
+        if channel is None:
+            channel = self._connect(topic, msgtype, latched)
+        self._append(channel, log_time if log_time > 0 else 0, data)
+
+    def _connect(self, topic: str, msgtype: str, latched: bool) -> int:
+        knows(self.store, msgtype)
+        connection = self._writer.add_connection(topic, msgtype, typestore=self.store,
+                                                 offered_qos_profiles=[LATCHED] if latched else ())
+        self._channels[topic] = connection.id
+        return connection.id
+
+    @property
+    def counts(self) -> Counter[str]:
+        """Messages written per topic."""
+        return Counter({topic: self._written[channel] for topic, channel in self._channels.items()})
 
     def _append(self, channel: int, time: int, data: bytes) -> None:
         """rosbags' Writer.write and McapWriter.write (rosbags 0.11.9, no compression) in one step."""
