@@ -2,7 +2,7 @@
 the monitor reads and writes, and of the types they use.
 
 The bag tools start with these alone (building rosbags' whole Jazzy store imports every older
-distribution's store: a twentieth of a short replay); other types are taken from the whole
+distribution's store: 55 ms at every start); other types are taken from the whole
 store when a bag or a user's channel first needs one. Run this after upgrading rosbags if
 test/test_typestore.py says the definitions differ:
 

@@ -5,8 +5,8 @@ definitions, and writes the definitions into every bag it makes.
 
 The store starts with the types the monitor reads and writes (`COMMON_TYPES`, in rosbags'
 own Jazzy definitions, kept in jazzy_types.py) and this package's messages: building
-rosbags' whole Jazzy store imports every older distribution's store, a twentieth of a
-short replay. `knows` adds any other Jazzy type (a user's channel, a vendor topic in
+rosbags' whole Jazzy store imports every older distribution's store (55 ms at every start,
+against 15 ms for this one). `knows` adds any other Jazzy type (a user's channel, a vendor topic in
 `compare`'s bag fields) from the whole store the first time it is asked for.
 """
 from __future__ import annotations
