@@ -16,6 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rosbags.interfaces import Nodetype  # noqa: E402
+
 from cable_winch_monitor.bagio.typestore import COMMON_TYPES, jazzy_store, with_dependencies  # noqa: E402
 
 TARGET = ROOT / "cable_winch_monitor" / "bagio" / "jazzy_types.py"
@@ -34,7 +36,7 @@ def _node(value: object) -> str:
     """Python source of a field description, with rosbags' Nodetype by name."""
     if isinstance(value, tuple):
         return "(" + ", ".join(_node(item) for item in value) + ("," if len(value) == 1 else "") + ")"
-    if type(value).__name__ == "Nodetype":
+    if isinstance(value, Nodetype):
         return f"T.{value.name}"
     return repr(value)
 

@@ -3,10 +3,12 @@ from __future__ import annotations
 
 from rosbags.typesys import Stores, get_typestore
 
+from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.decode import decode
+from cable_winch_monitor.bagio.fields import input_topics
 from cable_winch_monitor.bagio.jazzy_types import FIELDDEFS
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.bagio.typestore import COMMON_TYPES, knows, with_dependencies
+from cable_winch_monitor.bagio.typestore import COMMON_TYPES, MSG_PACKAGE, knows, msg_dir, with_dependencies
 from cable_winch_monitor.bagio.typestore import typestore as monitor_store
 from cable_winch_monitor.bagio.writer import BagWriter
 
@@ -18,6 +20,13 @@ def test_common_types_are_rosbags_jazzy_definitions():
     assert set(FIELDDEFS) == with_dependencies(jazzy, COMMON_TYPES)
     for name, definition in FIELDDEFS.items():
         assert definition == jazzy.fielddefs[name], f"{name} differs from rosbags' Jazzy store"
+
+
+def test_every_type_the_monitor_reads_and_writes_is_in_the_store_it_starts_with():
+    """No input or output topic's type waits for rosbags' whole store (COMMON_TYPES lists them all)."""
+    starting = set(FIELDDEFS) | {path.stem for path in msg_dir().glob("*.msg")}
+    used = {*input_topics().values(), *records.OUTPUT_TYPES.values()}
+    assert {name.rsplit("/", 1)[-1] if name.startswith(MSG_PACKAGE) else name for name in used} <= starting
 
 
 def test_the_message_definitions_written_into_bags_are_jazzys():

@@ -103,6 +103,8 @@ class BagWriter:
         self._append(channel, log_time if log_time > 0 else 0, data)
 
     def _connect(self, topic: str, msgtype: str, latched: bool) -> int:
+        """The channel id of a new connection for `topic` (a Jazzy type the store starts without is added
+        first; rosbags refuses a type it cannot define)."""
         knows(self.store, msgtype)
         connection = self._writer.add_connection(topic, msgtype, typestore=self.store,
                                                  offered_qos_profiles=[LATCHED] if latched else ())
