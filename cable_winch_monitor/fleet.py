@@ -45,7 +45,8 @@ def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, stalenes
     from .replay import replay
 
     try:
-        summary = replay(bag, out, plant, solver, staleness, progress=False, scene_rate=scene_rate)
+        summary = replay(bag, out, plant, solver, staleness, progress=False, scene_rate=scene_rate,
+                         second_process=False)  # the fleet's workers share the cores
     except BagError as error:
         return {"bag": bag.name, "error": str(error)}
     stats = summary.stats

@@ -27,10 +27,13 @@ None, or the exception the pipeline raised on it (counted like the node's callba
 """
 from __future__ import annotations
 
+from concurrent.futures import Future
+from contextlib import contextmanager
 from typing import Any, Iterable, Iterator, NamedTuple, Union
 
 import numpy as np
 
+from .ahead import AheadEstimator
 from .bagio import fields
 from .effects.estimate import estimate_recording, forward_estimate
 from .model.conditions import Conditions
@@ -57,15 +60,44 @@ class Merged(NamedTuple):
     conditions: Conditions
 
 
+class FusedJob(NamedTuple):
+    """The samples of a chunk that have trusted sensors (their indices in it), and the estimator's input."""
+
+    fused: list[int]
+    lengths: np.ndarray
+    measured: dict[str, np.ndarray]
+    conditions: list[Conditions]
+
+
+class Speculated(NamedTuple):
+    """A chunk's estimates started in the second process before the window's turn, under the sensors
+    trusted then (`refused` left out): used only if the chunk and the gates are the same at its turn."""
+
+    stop: int
+    refused: tuple[str, ...]
+    future: Future
+
+
+class Prepared(NamedTuple):
+    """A window after step 1: its messages, what merging made of each, its samples, its speculated chunks."""
+
+    window: list[Any]
+    merged: list["Merged | dict[str, float] | Exception | None"]
+    samples: list[Merged]
+    speculated: dict[int, Speculated]
+
+
 class Presolved:
     """Step 2 for a window's samples, a chunk at a time: each chunk is solved together under the
     sensors trusted when it starts. Where a gate opens or closes, the rest of the chunk is solved
     again from that sample on under the new trusted set, in a chunk of CHUNKS[0] samples, each
     following chunk twice as long up to CHUNKS[1] (a gate that flaps costs a few small chunks, a
-    steady one runs in long chunks, neither a per-sample solve)."""
+    steady one runs in long chunks, neither a per-sample solve). A chunk speculated in the second
+    process (by its start) is taken from there if the gates have not changed since."""
 
-    def __init__(self, pipeline: "LookaheadPipeline"):
+    def __init__(self, pipeline: "LookaheadPipeline", speculated: dict[int, Speculated]):
         self.pipeline = pipeline
+        self.speculated = speculated
         self.start = self.stop = 0
         self.size = CHUNKS[1]
         self.solved: list[Solved | None] = []
@@ -79,7 +111,9 @@ class Presolved:
         if index >= self.stop or changed:
             self.size = CHUNKS[0] if changed else min(2 * self.size, CHUNKS[1])
             self.start, self.stop = index, min(index + self.size, len(samples))
-            self.solved = self.pipeline._presolve(samples[self.start:self.stop])
+            ahead = self.speculated.pop(self.start, None)
+            taken = ahead is not None and ahead.stop == self.stop and ahead.refused == refused
+            self.solved = self.pipeline._presolve(samples[self.start:self.stop], ahead.future if taken else None)
             self.refused = refused
         return self.solved[index - self.start]
 
@@ -88,30 +122,66 @@ class LookaheadPipeline(MonitorPipeline):
     """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
-                 window: int = WINDOW, stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD):
+                 window: int = WINDOW, stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD,
+                 second_process: bool = False):
         super().__init__(plant, solver, staleness, stamp_window, gate_hold)
         self.window = window
         self.batched = batched and (self.fusing or self.model.batchable)  # else solved in step 3, as the node does
         self.input_specs = {spec.topic: spec for spec in self.model.inputs}
+        self.second_process = second_process and self.batched and self.fusing and not self.model.refining \
+            and AheadEstimator.available()
+        self.ahead: AheadEstimator | None = None
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
-        """Every item in order, with what the pipeline made of it."""
-        window: list[Any] = []
-        for item in items:
-            window.append(item)
-            if len(window) == self.window:
-                yield from self._run_window(window)
-                window = []
-        yield from self._run_window(window)
+        """Every item in order, with what the pipeline made of it. Each window is merged (step 1) before
+        the previous one is taken in order (step 3): with `second_process`, its estimates are computed
+        there meanwhile."""
+        with self._second_process():
+            prepared: Prepared | None = None
+            window: list[Any] = []
+            for item in items:
+                window.append(item)
+                if len(window) == self.window:
+                    prepared, previous = self._prepare(window), prepared
+                    window = []
+                    if previous is not None:
+                        yield from self._run_window(previous)
+            last = self._prepare(window)
+            if prepared is not None:
+                yield from self._run_window(prepared)
+            yield from self._run_window(last)
 
-    def _run_window(self, window: list[Any]) -> Iterator[tuple[Any, Result]]:
+    @contextmanager
+    def _second_process(self) -> Iterator[None]:
+        self.ahead = AheadEstimator(self.model) if self.second_process else None
+        try:
+            yield
+        finally:
+            if self.ahead is not None:
+                self.ahead.close()
+                self.ahead = None
+
+    def _prepare(self, window: list[Any]) -> Prepared:
+        """Step 1 for a window, and its chunks' estimates started in the second process."""
         for item in window:
             spec = self.input_specs.get(item.topic)
             if spec is not None:
                 self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
         merged = [self._merge_item(item) for item in window]
         samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
-        ahead = Presolved(self)
+        speculated = {}
+        if self.ahead is not None:
+            for start in range(0, len(samples), CHUNKS[1]):
+                stop = min(start + CHUNKS[1], len(samples))
+                job = self._fused_job(samples[start:stop])
+                future = self.ahead.submit(*job[1:]) if job.fused else None
+                if future is not None:
+                    speculated[start] = Speculated(stop, self.gates.refused, future)
+        return Prepared(window, merged, samples, speculated)
+
+    def _run_window(self, prepared: Prepared) -> Iterator[tuple[Any, Result]]:
+        window, merged, samples, speculated = prepared
+        ahead = Presolved(self, speculated)
         index = 0
         for item, outcome in zip(window, merged):
             solved = None
@@ -143,13 +213,14 @@ class LookaheadPipeline(MonitorPipeline):
             return error
         return None if sample is None else Merged(sample, self.conditions(sample))
 
-    def _presolve(self, samples: list[Merged]) -> list[Solved | None]:
-        """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched)."""
+    def _presolve(self, samples: list[Merged], speculated: Future | None = None) -> list[Solved | None]:
+        """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched);
+        the fused estimates from the second process where `speculated` there under today's gates."""
         if not self.batched or not samples:
             return [None] * len(samples)
         lengths = np.array([s.sample.lengths for s in samples])
         if self.fusing:
-            estimates = self._estimates(samples, lengths)
+            estimates = self._estimates(samples, lengths, speculated)
             solutions = [e.solution for e in estimates]
         else:
             solutions = self.model.solve_batch(lengths, [s.conditions for s in samples], self._warm_start())
@@ -164,19 +235,28 @@ class LookaheadPipeline(MonitorPipeline):
         rows = zip(*(values.tolist() for values in predicted.values()))
         return [dict(zip(names, row)) if solution.ok else None for row, solution in zip(rows, solutions)]
 
-    def _estimates(self, samples: list[Merged], lengths: np.ndarray) -> list[Estimate]:
-        """The window's estimates from the sensors trusted now; a sample with none is solved from its
-        lengths alone (batched), as the node solves it."""
+    def _fused_job(self, samples: list[Merged]) -> FusedJob:
+        """The samples with sensors trusted now, and what the estimator needs of them."""
         trusted = [self.gates.trusted(s.sample.sensors) for s in samples]
-        conditions = [s.conditions for s in samples]
         fused = [i for i, row in enumerate(trusted) if row]
-        alone = [i for i, row in enumerate(trusted) if not row]
+        names = sorted({name for i in fused for name in trusted[i]})
+        return FusedJob(fused, np.array([samples[i].sample.lengths for i in fused]).reshape(-1, 4),
+                        {name: np.array([trusted[i].get(name, np.nan) for i in fused]) for name in names},
+                        [samples[i].conditions for i in fused])
+
+    def _estimates(self, samples: list[Merged], lengths: np.ndarray, speculated: Future | None = None) \
+            -> list[Estimate]:
+        """The window's estimates from the sensors trusted now (computed in the second process where
+        `speculated`); a sample with none is solved from its lengths alone (batched), as the node solves it."""
+        job = self._fused_job(samples)
+        fused = set(job.fused)
+        alone = [i for i in range(len(samples)) if i not in fused]
+        conditions = [s.conditions for s in samples]
         out: list[Estimate | None] = [None] * len(samples)
-        if fused:
-            names = sorted({name for i in fused for name in trusted[i]})
-            measured = {name: np.array([trusted[i].get(name, np.nan) for i in fused]) for name in names}
-            for i, estimate in zip(fused, estimate_recording(self.model, lengths[fused], measured,
-                                                             [conditions[i] for i in fused])):
+        if job.fused:
+            estimates = estimate_recording(self.model, *job[1:]) if speculated is None or self.ahead is None \
+                else self.ahead.estimates(speculated, *job[1:])
+            for i, estimate in zip(job.fused, estimates):
                 out[i] = estimate
         if alone:
             solutions = self.model.solve_batch(lengths[alone], [conditions[i] for i in alone], self._warm_start())

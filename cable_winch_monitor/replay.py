@@ -150,18 +150,22 @@ def _fewer_collections(threshold: int = 20_000) -> Iterator[None]:
 
 def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
            staleness: float = 0.5, progress: bool = True, batched: bool = True,
-           scene_rate: float = REPLAY_RATE, stamp_window: StampWindow | None = None) -> ReplaySummary:
+           scene_rate: float = REPLAY_RATE, stamp_window: StampWindow | None = None,
+           second_process: bool = True) -> ReplaySummary:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
-    solved at once (lookahead.py); the outputs are the per-sample pipeline's.
+    solved at once (lookahead.py); the outputs are the per-sample pipeline's. Where the plant
+    fuses its sensors, `second_process` estimates the next window in a second process
+    (ahead.py) meanwhile: the same outputs, on two cores (a fleet of bags keeps each replay to one).
 
     Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
     while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
     plant = plant or load_plant()
-    pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window)
+    pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window,
+                                 second_process=second_process)
     scenes = _Scenes(plant, scene_rate)
     inputs = fields.input_topics(pipeline.model.inputs)
     reader = BagReader(bag, inputs)

@@ -142,12 +142,22 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
             out.append(forward_estimate(model.solve(row, previous, at), row))
             previous = out[-1].solution if out[-1].ok else previous
         return out
+    if not model.refining:
+        return recording_batch(model, reported, measured, conditions, warm_starts).estimates()
     lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
     observations = observations_for(model, measured, conditions)
     loads = np.array([model.load(at) for at in conditions])
-    if model.refining:
-        return _estimate_refined(model, lengths, observations, loads, conditions, warm_starts)
-    return _batch(model, lengths, observations, loads, warm_starts).estimates()
+    return _estimate_refined(model, lengths, observations, loads, conditions, warm_starts)
+
+
+def recording_batch(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
+                    conditions: Sequence[Conditions],
+                    warm_starts: Sequence[Estimate | None] | None = None) -> BatchEstimate:
+    """`estimate_recording`'s estimates as arrays, for a model that fuses and whose geometry does not
+    depend on the pose (not `refining`): what a second process can compute and send back cheaply."""
+    lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
+    loads = np.array([model.load(at) for at in conditions])
+    return _batch(model, lengths, observations_for(model, measured, conditions), loads, warm_starts)
 
 
 def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation], loads: np.ndarray,
