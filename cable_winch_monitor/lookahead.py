@@ -75,6 +75,7 @@ class Speculated(NamedTuple):
 
     stop: int
     refused: tuple[str, ...]
+    job: FusedJob
     future: Future
 
 
@@ -113,7 +114,7 @@ class Presolved:
             self.start, self.stop = index, min(index + self.size, len(samples))
             ahead = self.speculated.pop(self.start, None)
             taken = ahead is not None and ahead.stop == self.stop and ahead.refused == refused
-            self.solved = self.pipeline._presolve(samples[self.start:self.stop], ahead.future if taken else None)
+            self.solved = self.pipeline._presolve(samples[self.start:self.stop], ahead if taken else None)
             self.refused = refused
         return self.solved[index - self.start]
 
@@ -176,7 +177,7 @@ class LookaheadPipeline(MonitorPipeline):
                 job = self._fused_job(samples[start:stop])
                 future = self.ahead.submit(*job[1:]) if job.fused else None
                 if future is not None:
-                    speculated[start] = Speculated(stop, self.gates.refused, future)
+                    speculated[start] = Speculated(stop, self.gates.refused, job, future)
         return Prepared(window, merged, samples, speculated)
 
     def _run_window(self, prepared: Prepared) -> Iterator[tuple[Any, Result]]:
@@ -213,7 +214,7 @@ class LookaheadPipeline(MonitorPipeline):
             return error
         return None if sample is None else Merged(sample, self.conditions(sample))
 
-    def _presolve(self, samples: list[Merged], speculated: Future | None = None) -> list[Solved | None]:
+    def _presolve(self, samples: list[Merged], speculated: Speculated | None = None) -> list[Solved | None]:
         """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched);
         the fused estimates from the second process where `speculated` there under today's gates."""
         if not self.batched or not samples:
@@ -244,18 +245,19 @@ class LookaheadPipeline(MonitorPipeline):
                         {name: np.array([trusted[i].get(name, np.nan) for i in fused]) for name in names},
                         [samples[i].conditions for i in fused])
 
-    def _estimates(self, samples: list[Merged], lengths: np.ndarray, speculated: Future | None = None) \
+    def _estimates(self, samples: list[Merged], lengths: np.ndarray, speculated: Speculated | None = None) \
             -> list[Estimate]:
         """The window's estimates from the sensors trusted now (computed in the second process where
-        `speculated`); a sample with none is solved from its lengths alone (batched), as the node solves it."""
-        job = self._fused_job(samples)
+        `speculated` there under the same gates); a sample with none is solved from its lengths alone
+        (batched), as the node solves it."""
+        job = self._fused_job(samples) if speculated is None else speculated.job
         fused = set(job.fused)
         alone = [i for i in range(len(samples)) if i not in fused]
         conditions = [s.conditions for s in samples]
         out: list[Estimate | None] = [None] * len(samples)
         if job.fused:
             estimates = estimate_recording(self.model, *job[1:]) if speculated is None or self.ahead is None \
-                else self.ahead.estimates(speculated, *job[1:])
+                else self.ahead.estimates(speculated.future, *job[1:])
             for i, estimate in zip(job.fused, estimates):
                 out[i] = estimate
         if alone:

@@ -11,6 +11,7 @@ window ends at the sample; over a recording (`conditions_along`) it is centred o
 """
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Iterator, Mapping, Sequence
@@ -85,10 +86,12 @@ class StackedConditions:
 
 
 def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """+1 paying out, -1 hauling in; within the dead band the last direction holds (static friction
-    keeps the slip state the rope had when it stopped)."""
-    speeds = np.asarray(speeds, dtype=float)  # NaN compares false both ways: the last direction holds
-    return np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, previous))
+    """+1 paying out, -1 hauling in, for each winch; within the dead band the last direction holds
+    (static friction keeps the slip state the rope had when it stopped). Python floats: a sample has
+    four winches, and numpy's calls would cost more than the comparisons."""
+    # NaN compares false both ways: the last direction holds
+    return np.array([1.0 if speed > DEADBAND else -1.0 if speed < -DEADBAND else last for speed, last in
+                     zip(np.asarray(speeds, dtype=float).tolist(), np.asarray(previous, dtype=float).tolist())])
 
 
 def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
@@ -142,7 +145,9 @@ def _window_slope(times: np.ndarray, values: np.ndarray) -> np.ndarray:
     if tt <= 0.0:
         return np.zeros(values.shape[1])
     slope = t @ values / tt  # t sums to zero: the values' mean drops out
-    return slope if np.isfinite(slope).all() else t @ np.nan_to_num(values - np.nanmean(values, axis=0)) / tt
+    if all(map(math.isfinite, slope.tolist())):
+        return slope
+    return t @ np.nan_to_num(values - np.nanmean(values, axis=0)) / tt
 
 
 class ConditionsTracker:
@@ -164,7 +169,7 @@ class ConditionsTracker:
         while history[0][0] < time - self.window:
             history.popleft()
         times = np.fromiter((h[0] for h in history), float, len(history))
-        if not np.all(np.isfinite(speeds)):  # a winch without velocity: its lengths' slope
+        if not all(map(math.isfinite, speeds.tolist())):  # a winch without velocity: its lengths' slope
             speeds = np.where(np.isfinite(speeds), speeds, _window_slope(times, np.array([h[1] for h in history])))
             history[-1] = (time, lengths, speeds)
         acceleration = _window_slope(times, np.array([h[2] for h in history]))
