@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cable_winch_monitor.bench.node_latency import lowering
 from cable_winch_monitor.bench.solvers import lowering_samples
-from cable_winch_monitor.model import observations as obs
+from cable_winch_monitor.model import estimation, observations as obs
 from cable_winch_monitor.model.elastic import solve_elastic
 from cable_winch_monitor.model.energy import solve_energy
 from cable_winch_monitor.model.estimation import estimate, estimate_batch, estimate_gated
@@ -154,6 +155,42 @@ def test_batched_estimate_is_the_per_sample_one(plant, weak_mode):
         assert ("depth" in got.used) == (i % 5 == 0)
         assert np.abs(got.solution.tensions - truth.tensions).max() <= 3.0 * PIN
         assert got.chi_square == pytest.approx(one.chi_square, rel=1e-6, abs=1e-9)
+
+
+def test_sets_the_load_pins_rule_out_are_not_solved_and_nothing_else_changes(plant, monkeypatch):
+    """A set that leaves a rope slack whose pin reads kilonewtons costs at least (reading / sigma)^2
+    whatever the pose: the search does not solve it where the best so far costs less. Live (each
+    sample warm-started from the last) along the node benchmark's lowering, whose winches drift 2 mm
+    against each other so that the taut set switches between three and four ropes, the estimates are
+    those of the search that solves every such set, to the bit, with far fewer candidates solved."""
+    readings = lowering(400, 50.0)
+    solved_rows = []
+    solve = estimation.solve_rows
+
+    def counting(problem, rows):
+        solved_rows.append(len(rows.sample))
+        return solve(problem, rows)
+
+    def along():
+        solved_rows.clear()
+        out, previous = [], None
+        for row in readings:
+            pins = [obs.load_pin(i, value, PIN) for i, value in enumerate(row[4:])]
+            previous = estimate(plant, row[:4], pins, sigma_length=ENCODER, warm_start=previous)
+            out.append(previous)
+        return out, sum(solved_rows)
+
+    monkeypatch.setattr(estimation, "solve_rows", counting)
+    pruned, pruned_rows = along()
+    monkeypatch.setattr(estimation, "_pinned_cost", lambda problem, samples, codes: np.zeros(len(samples)))
+    every, every_rows = along()
+    assert len({e.solution.taut_set for e in every}) >= 3
+    for got, want in zip(pruned, every):
+        assert got.fused and got.solution.taut_set == want.solution.taut_set
+        assert got.solution.tensions.tobytes() == want.solution.tensions.tobytes()
+        assert got.solution.points_b.tobytes() == want.solution.points_b.tobytes()
+        assert check_physics(plant, got.solution).passes()
+    assert pruned_rows < 0.75 * every_rows
 
 
 def test_equal_lengths_with_load_pins_do_not_depend_on_history(plant):

@@ -352,13 +352,16 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
     for stage, search in enumerate((NEIGHBOURS, NEIGHBOURS, ALL_SETS)):
         owner, codes = _candidates(best, pending, visited, search) if stage or pinned is None else pinned
         fresh = np.flatnonzero(~solved)
+        listed = np.concatenate([fresh, owner])
+        current = np.where(solved & _admissible(best), best.cost, np.inf)
+        hopeful = _pinned_cost(problem, best.sample[owner], codes) <= current[owner] * (1.0 + 1e-9)
+        owner, codes = owner[hopeful], codes[hopeful]
         if not fresh.size and not owner.size:  # no new neighbours: rows still doubtful go wider
             continue
         owner = np.concatenate([fresh, owner])
         taut = np.concatenate([best.taut[fresh], (codes[:, None] & BITS) > 0])
         candidates = solve_rows(problem, best.take(owner, taut))
         key = np.where(_admissible(candidates), candidates.cost, np.inf)
-        current = np.where(solved & _admissible(best), best.cost, np.inf)
         order = np.lexsort((key, owner))
         first = order[np.r_[True, owner[order][1:] != owner[order][:-1]]]   # cheapest candidate per row
         better = first[(key[first] < current[owner[first]]) | ~solved[owner[first]]]
@@ -366,7 +369,7 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         for name in ("taut", "rotation", "position", "mu", "converged", "cost", "residuals", "steps"):
             getattr(best, name)[replaced] = getattr(candidates, name)[better]
         solved[:] = True
-        searched = np.unique(owner)
+        searched = np.unique(listed)  # with the rows whose every candidate was hopeless
         pending = searched[_doubtful(best.take(searched), misfit=misfit and stage == 0)]
         if not pending.size:
             break
@@ -394,6 +397,20 @@ def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.
     owner, codes = pending[other], codes[other]
     visited[owner, codes] = True
     return owner, codes
+
+
+def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """A lower bound of the cost of each candidate (its sample and taut-set code) whatever its pose: a
+    rope it leaves slack carries nothing, so a load pin read off that rope's tension adds (value /
+    sigma)^2. A candidate whose bound exceeds its row's admissible best cannot replace it and is not
+    solved: where the pins read kilonewtons on three ropes, the sets that slacken one of them."""
+    index, columns, _ = problem.read_off
+    bound = np.zeros(len(samples))
+    for k, column in zip(index.tolist(), columns.tolist()):
+        if column >= 6:
+            slack = (codes >> (column - 6) & 1) == 0
+            bound += np.where(slack, np.nan_to_num((problem.values[samples, k] / problem.sigmas[k]) ** 2), 0.0)
+    return bound
 
 
 def _candidates(best: Rows, pending: np.ndarray, visited: np.ndarray, search: list[list[int]]) \
