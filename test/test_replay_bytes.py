@@ -65,6 +65,7 @@ def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     generic, fast = (tmp_path_factory.mktemp(name) / "out" for name in ("generic", "fast"))
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(records, "encoder", generic_encoder)
+        patch.setattr(records, "sample_encoder", generic_encoder)
         patch.setattr(records, "scene_encoder", lambda: generic_encoder(records.OUTPUT_TYPES[records.SCENE]))
         patch.setattr(BagWriter, "_append", generic_append)
         patch.setattr(BagWriter, "_close_chunk", generic_close_chunk)

@@ -82,6 +82,11 @@ def point(xyz: np.ndarray | None) -> Fields:
     return {"x": x, "y": y, "z": z}
 
 
+def _larger(a: float, b: float) -> float:
+    """np.fmax of two floats (the larger; the other where one is NaN) without numpy's call."""
+    return b if a != a or b > a else a
+
+
 def _floats(values: np.ndarray | None) -> list[float]:
     """Four per-cable values as floats (NaN when the solve has none)."""
     return [NAN] * 4 if values is None else values.tolist()
@@ -108,7 +113,7 @@ def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | 
                   CABLE_NAMES, _floats(solution.lengths), _floats(solution.spans), _floats(solution.tensions)))]
     return {"header": header(stamp), "status": STATUS_NUMBERS[solution.status],
             "tension_state": solution.tension_state, "cables": cables,
-            "equilibrium_residual": float(np.fmax(solution.force_residual, solution.moment_residual)),
+            "equilibrium_residual": _larger(float(solution.force_residual), float(solution.moment_residual)),
             "solver": solution.method, "iterations": int(solution.iterations),
             "sensors_used": sensors_used(estimate) if fused else [],
             "length_corrections_sigma": _floats(estimate.corrections_sigma) if fused else []}

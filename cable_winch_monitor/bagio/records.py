@@ -7,6 +7,7 @@ that lives in bagio/fields.py, shared with the live node.
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any, Mapping
 
 import numpy as np
@@ -19,7 +20,7 @@ from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from .scene import SceneBuilder, scene_encoder
-from .cdr import encoder
+from .cdr import Encoder, encoder, fixed_encoder
 from .typestore import knows, typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
@@ -32,6 +33,9 @@ OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/Tension
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
 Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
+# What every per-sample output has alike: its header in `shaft`, the transform's child `platform`.
+SAMPLE_FRAMES = {"std_msgs/msg/Header": {"frame_id": fields.FRAME},
+                 "geometry_msgs/msg/TransformStamped": {"child_frame_id": frames.PLATFORM_FRAME}}
 
 
 def build(msgtype: str, values: Mapping[str, Any], store: Typestore | None = None) -> Any:
@@ -58,9 +62,16 @@ def _value(kind: tuple[Any, Any], value: Any, store: Typestore) -> Any:
     return value
 
 
+@lru_cache(maxsize=None)
+def sample_encoder(msgtype: str) -> Encoder:
+    """The encoder of a per-sample output, its SAMPLE_FRAMES packed once instead of at every sample."""
+    return fixed_encoder(msgtype, SAMPLE_FRAMES)
+
+
 def _record(topic: str, values: Mapping[str, Any]) -> Record:
+    """A per-sample output (its frames those of SAMPLE_FRAMES, as `fields` and `frames` give them)."""
     msgtype = OUTPUT_TYPES[topic]
-    return topic, msgtype, encoder(msgtype)(values)
+    return topic, msgtype, sample_encoder(msgtype)(values)
 
 
 def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[Record]:
@@ -80,7 +91,8 @@ def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
 
 def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:
     """What does not change, once per bag (latched): the head-sheave frames and the deck outlines."""
-    return [_record(TF_STATIC, frames.static_tf(stamp, builder.plant)), _record(OUTLINE, builder.outline(stamp))]
+    return [(topic, OUTPUT_TYPES[topic], encoder(OUTPUT_TYPES[topic])(values))
+            for topic, values in ((TF_STATIC, frames.static_tf(stamp, builder.plant)), (OUTLINE, builder.outline(stamp)))]
 
 
 def scene_cdr(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> bytes:
