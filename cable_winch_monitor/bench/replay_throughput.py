@@ -20,9 +20,10 @@ from ..sim.simulate import simulate
 CLI = Path(sys.executable).parent / "cable-winch-monitor"
 
 
-def replay_child(bag: Path, out: Path, plant_file: Path | None = None) -> tuple[int, float, float, float]:
+def replay_child(bag: Path, out: Path, plant_file: Path | None = None) -> tuple[int, float, float, float, float]:
     """Samples, wall time [s], peak RSS [MiB] of `cable-winch-monitor replay` (on `plant_file`, else the
-    bundled plant) in a child process, and the replay's own wall time [s] (without interpreter start-up)."""
+    bundled plant) in a child process, the replay's own wall time [s] (without interpreter start-up), and
+    the CPU time [s] of the child and its estimating process."""
     started = time.perf_counter()
     config = ["--config", str(plant_file)] if plant_file else []
     child = subprocess.Popen([str(CLI), "replay", str(bag), "--out", str(out), "--quiet", *config],
@@ -36,7 +37,7 @@ def replay_child(bag: Path, out: Path, plant_file: Path | None = None) -> tuple[
         raise RuntimeError(f"replay of {bag} failed:\n{stdout}")
     samples = int(re.search(r"^samples: (\d+)", stdout, re.M).group(1))
     replay_wall = float(re.search(r"^wall time ([\d.]+) s", stdout, re.M).group(1))
-    return samples, wall, usage.ru_maxrss / 1024.0, replay_wall
+    return samples, wall, usage.ru_maxrss / 1024.0, replay_wall, usage.ru_utime + usage.ru_stime
 
 
 def main() -> None:
@@ -49,7 +50,7 @@ def main() -> None:
             result = simulate(config, directory / name)
             simulated = time.perf_counter() - started
             size = sum(f.stat().st_size for f in (directory / name).glob("*.mcap")) / 2 ** 20
-            samples, wall, rss, replay_wall = replay_child(directory / name, directory / f"{name}_out")
+            samples, wall, rss, replay_wall, _ = replay_child(directory / name, directory / f"{name}_out")
             rows.append((name, sum(result.messages.values()), size, simulated, samples, replay_wall, wall, rss))
     print("replay throughput (cable-winch-monitor replay, one core; seed-002 plant, energy solver)")
     print(f"{'bag':<8}{'messages':>10}{'MiB':>7}{'simulate [s]':>14}{'samples':>9}{'replay [s]':>12}"
