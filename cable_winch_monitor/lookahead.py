@@ -22,6 +22,11 @@ ahead. For each window of messages:
 Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
 a sample's value is interpolated between the readings around its stamp.
 
+Step 1 of a window runs before step 3 of the window before it (step 3 reads nothing step 1
+writes), so that with `second_process` the next window's estimates are computed in a
+second process (ahead.py) while this one takes the current window in order; they are used
+where the gates have not changed in between, the same estimates as here.
+
 Each message comes out with its result: the solved sample (MonitorOutput), residuals,
 None, or the exception the pipeline raised on it (counted like the node's callback errors).
 """
