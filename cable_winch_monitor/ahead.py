@@ -9,7 +9,7 @@ not one object per sample: pickling those would cost as much as the estimate.
 
 Only a fork can start it (the process inherits the plant model as it is, effects from a
 user's module included, without pickling it); where the platform has none, or the worker
-process is lost, the window is estimated here as before. The worker ignores Ctrl-C:
+process is lost, the window is estimated in the replaying process as before. The worker ignores Ctrl-C:
 replay stops it when it stops.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .effects import PlantModel
-from .effects.estimate import estimate_recording, recording_batch
+from .effects.estimate import recording_batch
 from .model.conditions import Conditions
 from .model.estimation import BatchEstimate, Estimate
 
@@ -66,15 +66,14 @@ class AheadEstimator:
             self.pool = None
             return None
 
-    def estimates(self, future: Future, reported: np.ndarray, measured: Mapping[str, np.ndarray],
-                  conditions: Sequence[Conditions]) -> list[Estimate]:
-        """The estimates `future` was started for (the same arguments again), computed here if the worker
-        was lost; the estimator's own errors are raised as they would be here."""
+    def estimates(self, future: Future) -> list[Estimate] | None:
+        """The estimates `future` was started for; None where the worker was lost (the caller estimates
+        them itself). The estimator's own errors are raised as they would be in the caller's process."""
         try:
             batch = future.result()
         except BrokenProcessPool:
             self.pool = None
-            return estimate_recording(self.model, reported, measured, conditions)
+            return None
         batch.plant = self.model.physical
         return batch.estimates()
 

@@ -261,8 +261,9 @@ class LookaheadPipeline(MonitorPipeline):
         conditions = [s.conditions for s in samples]
         out: list[Estimate | None] = [None] * len(samples)
         if job.fused:
-            estimates = estimate_recording(self.model, *job[1:]) if speculated is None or self.ahead is None \
-                else self.ahead.estimates(speculated.future, *job[1:])
+            estimates = None if speculated is None or self.ahead is None else self.ahead.estimates(speculated.future)
+            if estimates is None:
+                estimates = estimate_recording(self.model, *job[1:])
             for i, estimate in zip(job.fused, estimates):
                 out[i] = estimate
         if alone:

@@ -68,10 +68,10 @@ def sample_encoder(msgtype: str) -> Encoder:
     return fixed_encoder(msgtype, SAMPLE_FRAMES)
 
 
-def _record(topic: str, values: Mapping[str, Any]) -> Record:
-    """A per-sample output (its frames those of SAMPLE_FRAMES, as `fields` and `frames` give them)."""
+def _record(topic: str, values: Mapping[str, Any], per_sample: bool = True) -> Record:
+    """An output (a per-sample one's frames those of SAMPLE_FRAMES, as `fields` and `frames` give them)."""
     msgtype = OUTPUT_TYPES[topic]
-    return topic, msgtype, sample_encoder(msgtype)(values)
+    return topic, msgtype, (sample_encoder if per_sample else encoder)(msgtype)(values)
 
 
 def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[Record]:
@@ -91,8 +91,8 @@ def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
 
 def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:
     """What does not change, once per bag (latched): the head-sheave frames and the deck outlines."""
-    return [(topic, OUTPUT_TYPES[topic], encoder(OUTPUT_TYPES[topic])(values))
-            for topic, values in ((TF_STATIC, frames.static_tf(stamp, builder.plant)), (OUTLINE, builder.outline(stamp)))]
+    return [_record(TF_STATIC, frames.static_tf(stamp, builder.plant), per_sample=False),
+            _record(OUTLINE, builder.outline(stamp), per_sample=False)]
 
 
 def scene_cdr(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> bytes:

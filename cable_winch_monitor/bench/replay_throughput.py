@@ -52,7 +52,8 @@ def main() -> None:
             size = sum(f.stat().st_size for f in (directory / name).glob("*.mcap")) / 2 ** 20
             samples, wall, rss, replay_wall, _ = replay_child(directory / name, directory / f"{name}_out")
             rows.append((name, sum(result.messages.values()), size, simulated, samples, replay_wall, wall, rss))
-    print("replay throughput (cable-winch-monitor replay, one core; seed-002 plant, energy solver)")
+    print("replay throughput (cable-winch-monitor replay: estimating in a second process where the plant fuses; "
+          "seed-002 plant, energy solver)")
     print(f"{'bag':<8}{'messages':>10}{'MiB':>7}{'simulate [s]':>14}{'samples':>9}{'replay [s]':>12}"
           f"{'samples/s':>11}{'with start-up [s]':>19}{'peak RSS [MiB]':>16}")
     for name, messages, size, simulated, samples, replay_wall, wall, rss in rows:

@@ -383,13 +383,11 @@ def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.
     at the start where it has none. None where no load pin is read off the state. One candidate a
     row instead of its neighbours (seven for three taut ropes): with 1 mm of noise the forward
     kinematics of four rigid ropes often picks the wrong three, and the pins say which."""
-    index, columns, _ = problem.read_off
-    pins = [(int(k), int(c) - 6) for k, c in zip(index, columns) if c >= 6]
-    if not pins:
+    if not problem.pins:
         return None
     taut = best.taut[pending].copy()
     values = problem.values[best.sample[pending]]
-    for k, rope in pins:
+    for k, rope in problem.pins:
         read = np.isfinite(values[:, k])
         taut[read, rope] = values[read, k] > SEARCH_SIGMA * problem.sigmas[k]
     codes = taut @ BITS
@@ -404,12 +402,10 @@ def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np
     rope it leaves slack carries nothing, so a load pin read off that rope's tension adds (value /
     sigma)^2. A candidate whose bound exceeds its row's admissible best cannot replace it and is not
     solved: where the pins read kilonewtons on three ropes, the sets that slacken one of them."""
-    index, columns, _ = problem.read_off
     bound = np.zeros(len(samples))
-    for k, column in zip(index.tolist(), columns.tolist()):
-        if column >= 6:
-            slack = (codes >> (column - 6) & 1) == 0
-            bound += np.where(slack, np.nan_to_num((problem.values[samples, k] / problem.sigmas[k]) ** 2), 0.0)
+    for k, rope in problem.pins:
+        slack = (codes >> rope & 1) == 0
+        bound += np.where(slack, np.nan_to_num((problem.values[samples, k] / problem.sigmas[k]) ** 2), 0.0)
     return bound
 
 

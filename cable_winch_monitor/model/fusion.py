@@ -102,6 +102,12 @@ class Problem:
         return index, columns, jacobian / self.sigmas[index, None] if index.size else jacobian
 
     @cached_property
+    def pins(self) -> list[tuple[int, int]]:
+        """(observation index, rope) of each load pin read off the state (a rope's tension coordinate)."""
+        index, columns, _ = self.read_off
+        return [(int(k), int(c) - 6) for k, c in zip(index, columns) if c >= 6]
+
+    @cached_property
     def predicted_by_function(self) -> np.ndarray:
         return np.array([k for k, o in enumerate(self.observations) if o.coordinate is None], dtype=int)
 
