@@ -5,7 +5,10 @@ the rest in work that must run in log order: the alarms, the sensor gates, the o
 records and the writing. The estimator of a window needs only the window's merged samples
 and the sensors trusted when it starts, so a forked process estimates window k+1 while
 this one publishes window k. What comes back are the estimator's arrays (`BatchEstimate`),
-not one object per sample: pickling those would cost as much as the estimate.
+not one object per sample: pickling those would cost as much as the estimate; and each
+sample's pose, /tf and tension records (`records.solution_records`), which its solution
+alone decides, as the bytes the replay writes. What goes there are arrays too: the samples'
+conditions packed (`PackedConditions`).
 
 Only a fork can start it (the process inherits the plant model as it is, effects from a
 user's module included, without pickling it); where the platform has none, or the worker
@@ -19,10 +22,12 @@ import signal
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
-from typing import Mapping, Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
+from .bagio.fields import Stamp
+from .bagio.records import Record, solution_records
 from .effects import PlantModel
 from .effects.estimate import recording_batch
 from .model.conditions import Conditions
@@ -37,10 +42,44 @@ def _start(model: PlantModel) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _estimate(reported: np.ndarray, measured: Mapping[str, np.ndarray],
-              conditions: Sequence[Conditions]) -> BatchEstimate:
+class PackedConditions(NamedTuple):
+    """Samples' conditions as arrays, to send to the worker: pickling a `Conditions` costs more than
+    estimating its sample (its three small arrays). Unpacked, the same values (inputs as they were:
+    a NaN input stays in, where `StackedConditions` leaves it out)."""
+
+    time: np.ndarray          # (N,)
+    speeds: np.ndarray        # (N, 4)
+    accelerations: np.ndarray  # (N, 4)
+    direction: np.ndarray     # (N, 4)
+    inputs: list[Mapping[str, float]]
+
+    @classmethod
+    def of(cls, conditions: Sequence[Conditions]) -> "PackedConditions":
+        return cls(np.array([c.time for c in conditions], dtype=float),
+                   *(np.array([getattr(c, name) for c in conditions], dtype=float).reshape(-1, 4)
+                     for name in ("speeds", "accelerations", "direction")),
+                   [c.inputs for c in conditions])
+
+    def unpacked(self) -> list[Conditions]:
+        return [Conditions(*row) for row in zip(self.time.tolist(), self.speeds, self.accelerations, self.direction,
+                                                self.inputs)]
+
+
+class Ahead(NamedTuple):
+    """What the worker sends back for a chunk: the estimator's arrays (without the plant: the caller has
+    it), and each sample's `records.solution_records` at its header stamp."""
+
+    batch: BatchEstimate
+    published: list[list[Record]]
+
+
+def _estimate(reported: np.ndarray, measured: Mapping[str, np.ndarray], conditions: PackedConditions,
+              stamps: Sequence[Stamp]) -> Ahead:
     assert _model is not None, "the worker was started without a model"
-    return replace(recording_batch(_model, reported, measured, conditions), plant=None)  # the caller has it
+    batch = recording_batch(_model, reported, measured, conditions.unpacked())
+    published = [solution_records(stamp, estimate.solution, estimate)
+                 for stamp, estimate in zip(stamps, batch.estimates())]
+    return Ahead(replace(batch, plant=None), published)
 
 
 class AheadEstimator:
@@ -55,27 +94,29 @@ class AheadEstimator:
     def available() -> bool:
         return "fork" in multiprocessing.get_all_start_methods()
 
-    def submit(self, reported: np.ndarray, measured: Mapping[str, np.ndarray],
-               conditions: Sequence[Conditions]) -> Future | None:
-        """Start estimating these samples in the worker; None where it is gone."""
+    def submit(self, reported: np.ndarray, measured: Mapping[str, np.ndarray], conditions: Sequence[Conditions],
+               stamps: Sequence[Stamp]) -> Future | None:
+        """Start estimating these samples (their winch messages' header `stamps`) in the worker; None where
+        it is gone."""
         if self.pool is None:
             return None
         try:
-            return self.pool.submit(_estimate, reported, measured, list(conditions))
+            return self.pool.submit(_estimate, reported, measured, PackedConditions.of(conditions), list(stamps))
         except BrokenProcessPool:
             self.pool = None
             return None
 
-    def estimates(self, future: Future) -> list[Estimate] | None:
-        """The estimates `future` was started for; None where the worker was lost (the caller estimates
-        them itself). The estimator's own errors are raised as they would be in the caller's process."""
+    def estimates(self, future: Future) -> tuple[list[Estimate], list[list[Record]]] | None:
+        """The estimates `future` was started for, and their samples' solution records; None where the
+        worker was lost (the caller estimates them itself). The estimator's own errors are raised as they
+        would be in the caller's process."""
         try:
-            batch = future.result()
+            batch, published = future.result()
         except BrokenProcessPool:
             self.pool = None
             return None
         batch.plant = self.model.physical
-        return batch.estimates()
+        return batch.estimates(), published
 
     def close(self) -> None:
         if self.pool is not None:

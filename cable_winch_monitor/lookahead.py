@@ -39,7 +39,7 @@ from typing import Any, Iterable, Iterator, NamedTuple, Union
 import numpy as np
 
 from .ahead import AheadEstimator
-from .bagio import fields
+from .bagio import fields, records
 from .effects.estimate import estimate_recording, forward_estimate
 from .model.conditions import Conditions
 from .model.estimation import Estimate
@@ -59,10 +59,11 @@ Result = Union[MonitorOutput, Residuals, None, Exception]
 
 
 class Merged(NamedTuple):
-    """A complete sample with its conditions."""
+    """A complete sample with its conditions and its winch message's header stamp."""
 
     sample: CompleteSample
     conditions: Conditions
+    header: fields.Stamp
 
 
 class FusedJob(NamedTuple):
@@ -72,6 +73,7 @@ class FusedJob(NamedTuple):
     lengths: np.ndarray
     measured: dict[str, np.ndarray]
     conditions: list[Conditions]
+    stamps: list[fields.Stamp]
 
 
 class Speculated(NamedTuple):
@@ -107,10 +109,12 @@ class Presolved:
         self.start = self.stop = 0
         self.size = CHUNKS[1]
         self.solved: list[Solved | None] = []
+        self.published: list[list[records.Record] | None] = []
         self.refused: tuple[str, ...] | None = None
 
-    def at(self, index: int, samples: list[Merged]) -> Solved | None:
-        """The presolved equilibrium, clearance, estimate and predictions of sample `index` of the window."""
+    def at(self, index: int, samples: list[Merged]) -> tuple[Solved | None, list[records.Record] | None]:
+        """The presolved equilibrium, clearance, estimate and predictions of sample `index` of the window,
+        and its solution records where the second process encoded them."""
         refused = self.pipeline.gates.refused
         changed = index < self.stop and refused != self.refused and self.solved[index - self.start] is not None \
             and self.solved[index - self.start].estimate is not None
@@ -119,9 +123,10 @@ class Presolved:
             self.start, self.stop = index, min(index + self.size, len(samples))
             ahead = self.speculated.pop(self.start, None)
             taken = ahead is not None and ahead.stop == self.stop and ahead.refused == refused
-            self.solved = self.pipeline._presolve(samples[self.start:self.stop], ahead if taken else None)
+            self.solved, self.published = self.pipeline._presolve(samples[self.start:self.stop],
+                                                                  ahead if taken else None)
             self.refused = refused
-        return self.solved[index - self.start]
+        return self.solved[index - self.start], self.published[index - self.start]
 
 
 class LookaheadPipeline(MonitorPipeline):
@@ -139,9 +144,15 @@ class LookaheadPipeline(MonitorPipeline):
         self.ahead: AheadEstimator | None = None
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
-        """Every item in order, with what the pipeline made of it. Each window is merged (step 1) before
-        the previous one is taken in order (step 3): with `second_process`, its estimates are computed
-        there meanwhile."""
+        """Every item in order, with what the pipeline made of it."""
+        for item, result, _ in self.run_published(items):
+            yield item, result
+
+    def run_published(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, list[records.Record] | None]]:
+        """`run`, each solved sample with its solution records where the second process encoded them
+        (`records.solution_records`; None: not encoded). Each window is merged (step 1) before the
+        previous one is taken in order (step 3): with `second_process`, its estimates are computed there
+        meanwhile."""
         with self._second_process():
             prepared: Prepared | None = None
             window: list[Any] = []
@@ -185,20 +196,20 @@ class LookaheadPipeline(MonitorPipeline):
                     speculated[start] = Speculated(stop, self.gates.refused, job, future)
         return Prepared(window, merged, samples, speculated)
 
-    def _run_window(self, prepared: Prepared) -> Iterator[tuple[Any, Result]]:
+    def _run_window(self, prepared: Prepared) -> Iterator[tuple[Any, Result, list[records.Record] | None]]:
         window, merged, samples, speculated = prepared
         ahead = Presolved(self, speculated)
         index = 0
         for item, outcome in zip(window, merged):
-            solved = None
+            solved = published = None
             if isinstance(outcome, Merged):
-                solved = ahead.at(index, samples)
+                solved, published = ahead.at(index, samples)
                 index += 1
             try:
                 result = self._result(item, outcome, solved)
             except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
                 result = error
-            yield item, result
+            yield item, result, published
 
     def _merge_item(self, item: Any) -> Merged | dict[str, float] | Exception | None:
         """Step 1 for one message: a winch message merged (its complete sample, if it makes one), a
@@ -217,22 +228,25 @@ class LookaheadPipeline(MonitorPipeline):
             sample = self._merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival: log time
         except Exception as error:  # noqa: BLE001 - returned with its message in step 3
             return error
-        return None if sample is None else Merged(sample, self.conditions(sample))
+        return None if sample is None else Merged(sample, self.conditions(sample), fields.stamp_of(item.message))
 
-    def _presolve(self, samples: list[Merged], speculated: Speculated | None = None) -> list[Solved | None]:
-        """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched);
-        the fused estimates from the second process where `speculated` there under today's gates."""
+    def _presolve(self, samples: list[Merged], speculated: Speculated | None = None) \
+            -> tuple[list[Solved | None], list[list[records.Record] | None]]:
+        """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched),
+        and the solution records the second process encoded; the fused estimates from there where
+        `speculated` there under today's gates."""
+        published: list[list[records.Record] | None] = [None] * len(samples)
         if not self.batched or not samples:
-            return [None] * len(samples)
+            return [None] * len(samples), published
         lengths = np.array([s.sample.lengths for s in samples])
         if self.fusing:
-            estimates = self._estimates(samples, lengths, speculated)
+            estimates = self._estimates(samples, lengths, published, speculated)
             solutions = [e.solution for e in estimates]
         else:
             solutions = self.model.solve_batch(lengths, [s.conditions for s in samples], self._warm_start())
             estimates = [None] * len(samples)
         return [Solved(*row) for row in zip(solutions, solution_clearances(self.model.physical, solutions), estimates,
-                                            self._predictions(solutions, [s.conditions for s in samples]))]
+                                            self._predictions(solutions, [s.conditions for s in samples]))], published
 
     def _predictions(self, solutions: list[Solution], conditions: list[Conditions]) -> list[dict[str, float] | None]:
         """What every channel reads at each solved state (None where not solved), all at once."""
@@ -248,22 +262,26 @@ class LookaheadPipeline(MonitorPipeline):
         names = sorted({name for i in fused for name in trusted[i]})
         return FusedJob(fused, np.array([samples[i].sample.lengths for i in fused]).reshape(-1, 4),
                         {name: np.array([trusted[i].get(name, np.nan) for i in fused]) for name in names},
-                        [samples[i].conditions for i in fused])
+                        [samples[i].conditions for i in fused], [samples[i].header for i in fused])
 
-    def _estimates(self, samples: list[Merged], lengths: np.ndarray, speculated: Speculated | None = None) \
-            -> list[Estimate]:
+    def _estimates(self, samples: list[Merged], lengths: np.ndarray, published: list[list[records.Record] | None],
+                   speculated: Speculated | None = None) -> list[Estimate]:
         """The window's estimates from the sensors trusted now (computed in the second process where
-        `speculated` there under the same gates); a sample with none is solved from its lengths alone
-        (batched), as the node solves it."""
+        `speculated` there under the same gates, their solution records into `published`); a sample with
+        none is solved from its lengths alone (batched), as the node solves it."""
         job = self._fused_job(samples) if speculated is None else speculated.job
         fused = set(job.fused)
         alone = [i for i in range(len(samples)) if i not in fused]
         conditions = [s.conditions for s in samples]
         out: list[Estimate | None] = [None] * len(samples)
         if job.fused:
-            estimates = None if speculated is None or self.ahead is None else self.ahead.estimates(speculated.future)
-            if estimates is None:
-                estimates = estimate_recording(self.model, *job[1:])
+            ahead = None if speculated is None or self.ahead is None else self.ahead.estimates(speculated.future)
+            if ahead is None:
+                estimates = estimate_recording(self.model, *job[1:-1])
+            else:
+                estimates, encoded = ahead
+                for i, sample_records in zip(job.fused, encoded):
+                    published[i] = sample_records
             for i, estimate in zip(job.fused, estimates):
                 out[i] = estimate
         if alone:

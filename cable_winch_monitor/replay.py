@@ -121,10 +121,12 @@ class _Scenes:
 
 
 def _records(item: BagMessage, stamp: fields.Stamp, result: MonitorOutput | Residuals | None,
-             scenes: _Scenes) -> list[records.Record]:
-    """What the node publishes for one input message (header `stamp`) and the pipeline's result for it."""
+             published: list[records.Record] | None, scenes: _Scenes) -> list[records.Record]:
+    """What the node publishes for one input message (header `stamp`) and the pipeline's result for it
+    (`published`: its solution records, encoded ahead)."""
     if item.msgtype == fields.JOINT_STATE:
-        return [] if result is None else records.output_records(stamp, result) + scenes.records(stamp, result)
+        return [] if result is None else \
+            records.output_records(stamp, result, published) + scenes.records(stamp, result)
     return records.residual_records(stamp, result)
 
 
@@ -173,7 +175,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():
         try:
-            for count, (item, result) in enumerate(pipeline.run(reader), 1):
+            for count, (item, result, published) in enumerate(pipeline.run_published(reader), 1):
                 if count == 1:
                     first = divmod(item.log_time, 1_000_000_000)
                     for topic, msgtype, data in records.static_records(first, scenes.builder):
@@ -183,7 +185,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                     if isinstance(result, Exception):
                         raise result
                     stamp = fields.message_stamp(item.message, item.log_time)
-                    outputs = _records(item, stamp, result, scenes)
+                    outputs = _records(item, stamp, result, published, scenes)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue

@@ -15,6 +15,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
 from . import fields, frames
+from ..model.estimation import Estimate
 from ..model.result import Solution
 from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
@@ -79,13 +80,20 @@ def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[R
     return [] if residuals is None else [_record(RESIDUALS, fields.model_residuals(stamp, residuals))]
 
 
-def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
+def solution_records(stamp: fields.Stamp, solution: Solution, estimate: Estimate | None) -> list[Record]:
+    """What a sample's solution (and its fused estimate) alone decides, whatever the monitor's state:
+    pose and /tf (only if solved), tension distribution."""
+    records = [_record(POSE, fields.pose_stamped(stamp, solution)),
+               _record(TF, frames.platform_tf(stamp, solution))] if solution.ok else []
+    return records + [_record(TENSION, fields.tension_distribution(stamp, solution, estimate))]
+
+
+def output_records(stamp: fields.Stamp, output: MonitorOutput, solved: list[Record] | None = None) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: pose and /tf (only if solved),
-    tension distribution, collision alarm, residuals (if any)."""
-    records = [_record(POSE, fields.pose_stamped(stamp, output.solution)),
-               _record(TF, frames.platform_tf(stamp, output.solution))] if output.solution.ok else []
-    records += [_record(TENSION, fields.tension_distribution(stamp, output.solution, output.estimate)),
-                _record(ALARM, fields.collision_alarm(stamp, output.alarm))]
+    tension distribution, collision alarm, residuals (if any). `solved`: the first three as
+    `solution_records` gave them for the output's solution already (replay encodes them ahead)."""
+    records = solution_records(stamp, output.solution, output.estimate) if solved is None else list(solved)
+    records.append(_record(ALARM, fields.collision_alarm(stamp, output.alarm)))
     return records + residual_records(stamp, output.residuals)
 
 
