@@ -4,11 +4,13 @@ A fused replay spends about a third of its time in the estimator (`recording_bat
 the rest in work that must run in log order: the alarms, the sensor gates, the output
 records and the writing. The estimator of a window needs only the window's merged samples
 and the sensors trusted when it starts, so a forked process estimates window k+1 while
-this one publishes window k. What comes back are the estimator's arrays (`BatchEstimate`),
-not one object per sample: pickling those would cost as much as the estimate; and each
-sample's pose, /tf and tension records (`records.solution_records`), which its solution
-alone decides, as the bytes the replay writes. What goes there are arrays too: the samples'
-conditions packed (`PackedConditions`).
+this one publishes window k. What comes back are arrays (`BatchEstimate`, the clearances,
+what each channel reads), not one object per sample: pickling those would cost as much as
+the estimate; and each sample's records as the bytes the replay writes (`Published`): the
+pose, /tf and tension, which its solution alone decides, and the collision alarm and the
+scene, which the worker encodes with an alarm tracker and a scene throttle of its own and
+the replay takes where it raises the same alarm there (else it encodes its own). What goes
+there are arrays too: the samples' conditions packed (`PackedConditions`).
 
 Only a fork can start it (the process inherits the plant model as it is, effects from a
 user's module included, without pickling it); where the platform has none, or the worker
@@ -27,18 +29,22 @@ from typing import Mapping, NamedTuple, Sequence
 import numpy as np
 
 from .bagio.fields import Stamp
-from .bagio.records import Record, solution_records
+from .bagio.records import Record, alarm_record, scene_records, solution_records
+from .bagio.scene import SceneBuilder, SceneThrottle
 from .effects import PlantModel
 from .effects.estimate import recording_batch
 from .model.conditions import Conditions
 from .model.estimation import BatchEstimate, Estimate
+from .model.plant import Plant
+from .monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
+from .monitor.clearance import Clearance, solution_clearances
 
-_model: PlantModel | None = None  # the worker's copy of the plant model, inherited at the fork
+_worker: "Publisher | None" = None  # the worker's state, made at the fork from the replay's
 
 
-def _start(model: PlantModel) -> None:
-    global _model
-    _model = model
+def _start(worker: "Publisher") -> None:
+    global _worker
+    _worker = worker
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
@@ -65,58 +71,128 @@ class PackedConditions(NamedTuple):
                                                 self.inputs)]
 
 
+class PackedClearances(NamedTuple):
+    """Samples' clearances as arrays, to send back: each posed sample's value, outline point and that
+    point in `shaft`; the others' (a single-cable swing, none) as they are. Unpacked, the same values."""
+
+    values: np.ndarray  # (N,)
+    points: list[int]   # index in the plant's outline
+    shaft: np.ndarray   # (N, 3)
+    others: dict[int, Clearance | None]
+
+    @classmethod
+    def of(cls, plant: Plant, clearances: Sequence[Clearance | None], posed: Sequence[bool]) -> "PackedClearances":
+        index = {point.name: k for k, point in enumerate(plant.outline)}
+        rows = [(c.value, index[c.point_name], c.point_shaft) if ok else (np.nan, -1, np.full(3, np.nan))
+                for c, ok in zip(clearances, posed)]
+        values, points, shaft = zip(*rows) if rows else ((), (), ())
+        return cls(np.array(values, dtype=float), list(points), np.array(shaft, dtype=float).reshape(-1, 3),
+                   {i: c for i, (c, ok) in enumerate(zip(clearances, posed)) if not ok})
+
+    def unpacked(self, plant: Plant) -> list[Clearance | None]:
+        names, body = [point.name for point in plant.outline], plant.outline_array
+        return [self.others[i] if k < 0 else Clearance(value, names[k], body[k], shaft)
+                for i, (value, k, shaft) in enumerate(zip(self.values.tolist(), self.points, self.shaft))]
+
+
+class Published(NamedTuple):
+    """A sample's records as the worker encoded them: those its solution alone decides (pose, /tf,
+    tension), and those the alarm decides (the collision alarm, the scene where one was due there):
+    valid where the replay raises the same `alarm` (level, reason) at the sample."""
+
+    solution: list[Record]
+    alarm: tuple[AlarmLevel, str]
+    alarm_record: Record
+    scene: list[Record] | None  # None: no scene was due there
+
+
 class Ahead(NamedTuple):
     """What the worker sends back for a chunk: the estimator's arrays (without the plant: the caller has
-    it), and each sample's `records.solution_records` at its header stamp."""
+    it), the clearances, what each channel reads at each state, and each sample's records."""
 
     batch: BatchEstimate
-    published: list[list[Record]]
+    clearances: PackedClearances
+    predicted: dict[str, np.ndarray]
+    published: list[Published]
 
 
-def _estimate(reported: np.ndarray, measured: Mapping[str, np.ndarray], conditions: PackedConditions,
-              stamps: Sequence[Stamp]) -> Ahead:
-    assert _model is not None, "the worker was started without a model"
-    batch = recording_batch(_model, reported, measured, conditions.unpacked())
-    published = [solution_records(stamp, estimate.solution, estimate)
-                 for stamp, estimate in zip(stamps, batch.estimates())]
-    return Ahead(replace(batch, plant=None), published)
+class Estimated(NamedTuple):
+    """A chunk's estimates from the worker, with their clearances, predictions and records."""
+
+    estimates: list[Estimate]
+    clearances: list[Clearance | None]
+    predicted: dict[str, np.ndarray]
+    published: list[Published]
+
+
+class Publisher:
+    """The worker: estimates a chunk, and encodes its samples' records with an alarm tracker and a scene
+    throttle of its own, which follow the samples it sees in order as the replay's follow them all."""
+
+    def __init__(self, model: PlantModel, plant: Plant, scene_rate: float):
+        self.model = model
+        self.alarms = AlarmTracker(AlarmPolicy.from_plant(plant))
+        self.builder, self.throttle = SceneBuilder(plant), SceneThrottle(scene_rate)
+
+    def chunk(self, reported: np.ndarray, measured: Mapping[str, np.ndarray], packed: PackedConditions,
+              stamps: Sequence[Stamp], times: Sequence[float]) -> Ahead:
+        conditions = packed.unpacked()
+        batch = recording_batch(self.model, reported, measured, conditions)
+        estimates = batch.estimates()
+        solutions = [e.solution for e in estimates]
+        clearances = solution_clearances(self.model.physical, solutions)
+        published = []
+        for stamp, time, estimate, clearance in zip(stamps, times, estimates, clearances):
+            alarm = self.alarms.update(estimate.solution, clearance)
+            scene = scene_records(stamp, self.builder, estimate.solution, alarm) if self.throttle.due(time) else None
+            published.append(Published(solution_records(stamp, estimate.solution, estimate), (alarm.level, alarm.reason),
+                                       alarm_record(stamp, alarm), scene))
+        return Ahead(replace(batch, plant=None),
+                     PackedClearances.of(self.model.physical, clearances, [s.ok for s in solutions]),
+                     self.model.predict_solutions(solutions, conditions), published)
+
+
+def _chunk(*job: object) -> Ahead:
+    assert _worker is not None, "the worker was started without its state"
+    return _worker.chunk(*job)
 
 
 class AheadEstimator:
     """One worker process estimating windows for `model` (it must fuse, and not refine its geometry)."""
 
-    def __init__(self, model: PlantModel):
+    def __init__(self, model: PlantModel, plant: Plant, scene_rate: float):
         self.model = model
         self.pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
-            1, mp_context=multiprocessing.get_context("fork"), initializer=_start, initargs=(model,))
+            1, mp_context=multiprocessing.get_context("fork"), initializer=_start,
+            initargs=(Publisher(model, plant, scene_rate),))
 
     @staticmethod
     def available() -> bool:
         return "fork" in multiprocessing.get_all_start_methods()
 
     def submit(self, reported: np.ndarray, measured: Mapping[str, np.ndarray], conditions: Sequence[Conditions],
-               stamps: Sequence[Stamp]) -> Future | None:
-        """Start estimating these samples (their winch messages' header `stamps`) in the worker; None where
-        it is gone."""
+               stamps: Sequence[Stamp], times: Sequence[float]) -> Future | None:
+        """Start estimating these samples (their winch messages' header `stamps`, in seconds `times`) in
+        the worker; None where it is gone."""
         if self.pool is None:
             return None
         try:
-            return self.pool.submit(_estimate, reported, measured, PackedConditions.of(conditions), list(stamps))
+            return self.pool.submit(_chunk, reported, measured, PackedConditions.of(conditions), list(stamps),
+                                    list(times))
         except BrokenProcessPool:
             self.pool = None
             return None
 
-    def estimates(self, future: Future) -> tuple[list[Estimate], list[list[Record]]] | None:
-        """The estimates `future` was started for, and their samples' solution records; None where the
-        worker was lost (the caller estimates them itself). The estimator's own errors are raised as they
-        would be in the caller's process."""
+    def estimates(self, future: Future) -> Estimated | None:
+        """What `future` was started for; None where the worker was lost (the caller estimates them itself).
+        The estimator's own errors are raised as they would be in the caller's process."""
         try:
-            batch, published = future.result()
+            batch, clearances, predicted, published = future.result()
         except BrokenProcessPool:
             self.pool = None
             return None
         batch.plant = self.model.physical
-        return batch.estimates(), published
+        return Estimated(batch.estimates(), clearances.unpacked(self.model.physical), predicted, published)
 
     def close(self) -> None:
         if self.pool is not None:

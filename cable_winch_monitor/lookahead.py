@@ -25,7 +25,8 @@ a sample's value is interpolated between the readings around its stamp.
 Step 1 of a window runs before step 3 of the window before it (step 3 reads nothing step 1
 writes), so that with `second_process` the next window's estimates are computed in a
 second process (ahead.py) while this one takes the current window in order; they are used
-where the gates have not changed in between, the same estimates as here.
+where the gates have not changed in between, the same estimates as here, with the records
+encoded there (`run_published`).
 
 Each message comes out with its result: the solved sample (MonitorOutput), residuals,
 None, or the exception the pipeline raised on it (counted like the node's callback errors).
@@ -38,15 +39,16 @@ from typing import Any, Iterable, Iterator, NamedTuple, Union
 
 import numpy as np
 
-from .ahead import AheadEstimator
-from .bagio import fields, records
+from .ahead import AheadEstimator, Published
+from .bagio import fields
 from .effects.estimate import estimate_recording, forward_estimate
 from .model.conditions import Conditions
 from .model.estimation import Estimate
 from . import channels
 from .model.plant import Plant
 from .model.result import Solution
-from .monitor.clearance import solution_clearances
+from .bagio.scene import REPLAY_RATE
+from .monitor.clearance import Clearance, solution_clearances
 from .monitor.inputs import StampWindow
 from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Solved
 from .monitor.residuals import Residuals
@@ -74,6 +76,7 @@ class FusedJob(NamedTuple):
     measured: dict[str, np.ndarray]
     conditions: list[Conditions]
     stamps: list[fields.Stamp]
+    times: list[float]
 
 
 class Speculated(NamedTuple):
@@ -109,12 +112,12 @@ class Presolved:
         self.start = self.stop = 0
         self.size = CHUNKS[1]
         self.solved: list[Solved | None] = []
-        self.published: list[list[records.Record] | None] = []
+        self.published: list[Published | None] = []
         self.refused: tuple[str, ...] | None = None
 
-    def at(self, index: int, samples: list[Merged]) -> tuple[Solved | None, list[records.Record] | None]:
+    def at(self, index: int, samples: list[Merged]) -> tuple[Solved | None, Published | None]:
         """The presolved equilibrium, clearance, estimate and predictions of sample `index` of the window,
-        and its solution records where the second process encoded them."""
+        and its records where the second process encoded them."""
         refused = self.pipeline.gates.refused
         changed = index < self.stop and refused != self.refused and self.solved[index - self.start] is not None \
             and self.solved[index - self.start].estimate is not None
@@ -134,7 +137,7 @@ class LookaheadPipeline(MonitorPipeline):
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
                  window: int = WINDOW, stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD,
-                 second_process: bool = False):
+                 second_process: bool = False, scene_rate: float = REPLAY_RATE):
         super().__init__(plant, solver, staleness, stamp_window, gate_hold)
         self.window = window
         self.batched = batched and (self.fusing or self.model.batchable)  # else solved in step 3, as the node does
@@ -142,17 +145,17 @@ class LookaheadPipeline(MonitorPipeline):
         self.second_process = second_process and self.batched and self.fusing and not self.model.refining \
             and AheadEstimator.available()
         self.ahead: AheadEstimator | None = None
+        self.scene_rate = scene_rate
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
         """Every item in order, with what the pipeline made of it."""
         for item, result, _ in self.run_published(items):
             yield item, result
 
-    def run_published(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, list[records.Record] | None]]:
-        """`run`, each solved sample with its solution records where the second process encoded them
-        (`records.solution_records`; None: not encoded). Each window is merged (step 1) before the
-        previous one is taken in order (step 3): with `second_process`, its estimates are computed there
-        meanwhile."""
+    def run_published(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, Published | None]]:
+        """`run`, each solved sample with its records where the second process encoded them (None: not
+        encoded; scenes there at `scene_rate`). Each window is merged (step 1) before the previous one is
+        taken in order (step 3): with `second_process`, its estimates are computed there meanwhile."""
         with self._second_process():
             prepared: Prepared | None = None
             window: list[Any] = []
@@ -170,7 +173,7 @@ class LookaheadPipeline(MonitorPipeline):
 
     @contextmanager
     def _second_process(self) -> Iterator[None]:
-        self.ahead = AheadEstimator(self.model) if self.second_process else None
+        self.ahead = AheadEstimator(self.model, self.plant, self.scene_rate) if self.second_process else None
         try:
             yield
         finally:
@@ -196,7 +199,7 @@ class LookaheadPipeline(MonitorPipeline):
                     speculated[start] = Speculated(stop, self.gates.refused, job, future)
         return Prepared(window, merged, samples, speculated)
 
-    def _run_window(self, prepared: Prepared) -> Iterator[tuple[Any, Result, list[records.Record] | None]]:
+    def _run_window(self, prepared: Prepared) -> Iterator[tuple[Any, Result, Published | None]]:
         window, merged, samples, speculated = prepared
         ahead = Presolved(self, speculated)
         index = 0
@@ -231,29 +234,55 @@ class LookaheadPipeline(MonitorPipeline):
         return None if sample is None else Merged(sample, self.conditions(sample), fields.stamp_of(item.message))
 
     def _presolve(self, samples: list[Merged], speculated: Speculated | None = None) \
-            -> tuple[list[Solved | None], list[list[records.Record] | None]]:
+            -> tuple[list[Solved | None], list[Published | None]]:
         """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched),
-        and the solution records the second process encoded; the fused estimates from there where
-        `speculated` there under today's gates."""
-        published: list[list[records.Record] | None] = [None] * len(samples)
+        and the records the second process encoded. Where the plant fuses: the estimates from the sensors
+        trusted now (from the second process where `speculated` there under the same gates); a sample
+        with none is solved from its lengths alone (batched), as the node solves it."""
+        published: list[Published | None] = [None] * len(samples)
         if not self.batched or not samples:
             return [None] * len(samples), published
         lengths = np.array([s.sample.lengths for s in samples])
-        if self.fusing:
-            estimates = self._estimates(samples, lengths, published, speculated)
-            solutions = [e.solution for e in estimates]
-        else:
-            solutions = self.model.solve_batch(lengths, [s.conditions for s in samples], self._warm_start())
-            estimates = [None] * len(samples)
-        return [Solved(*row) for row in zip(solutions, solution_clearances(self.model.physical, solutions), estimates,
-                                            self._predictions(solutions, [s.conditions for s in samples]))], published
+        conditions = [s.conditions for s in samples]
+        if not self.fusing:
+            solutions = self.model.solve_batch(lengths, conditions, self._warm_start())
+            return self._solved(solutions, [None] * len(samples), conditions), published
+        job = self._fused_job(samples) if speculated is None else speculated.job
+        out: list[Solved | None] = [None] * len(samples)
+        if job.fused:
+            ahead = None if speculated is None or self.ahead is None else self.ahead.estimates(speculated.future)
+            if ahead is None:
+                estimates = estimate_recording(self.model, *job[1:4])
+                solved = self._solved([e.solution for e in estimates], estimates, job.conditions)
+            else:
+                solved = self._solved([e.solution for e in ahead.estimates], ahead.estimates, job.conditions,
+                                      ahead.clearances, ahead.predicted)
+                for i, encoded in zip(job.fused, ahead.published):
+                    published[i] = encoded
+            for i, row in zip(job.fused, solved):
+                out[i] = row
+        fused = set(job.fused)
+        alone = [i for i in range(len(samples)) if i not in fused]
+        if alone:
+            solutions = self.model.solve_batch(lengths[alone], [conditions[i] for i in alone], self._warm_start())
+            estimates = [forward_estimate(solution, lengths[i]) for i, solution in zip(alone, solutions)]
+            for i, row in zip(alone, self._solved(solutions, estimates, [conditions[i] for i in alone])):
+                out[i] = row
+        return out, published
 
-    def _predictions(self, solutions: list[Solution], conditions: list[Conditions]) -> list[dict[str, float] | None]:
-        """What every channel reads at each solved state (None where not solved), all at once."""
-        predicted = self.model.predict_solutions(solutions, conditions)
+    def _solved(self, solutions: list[Solution], estimates: list[Estimate | None], conditions: list[Conditions],
+                clearances: list[Clearance | None] | None = None,
+                predicted: dict[str, np.ndarray] | None = None) -> list[Solved]:
+        """Each solution with its clearance, estimate and what every channel reads there (None where not
+        solved): clearances and predictions computed together here, unless given (the second process's)."""
+        if clearances is None:
+            clearances = solution_clearances(self.model.physical, solutions)
+        if predicted is None:
+            predicted = self.model.predict_solutions(solutions, conditions)
         names = list(predicted)
         rows = zip(*(values.tolist() for values in predicted.values()))
-        return [dict(zip(names, row)) if solution.ok else None for row, solution in zip(rows, solutions)]
+        return [Solved(solution, clearance, estimate, dict(zip(names, row)) if solution.ok else None)
+                for solution, clearance, estimate, row in zip(solutions, clearances, estimates, rows)]
 
     def _fused_job(self, samples: list[Merged]) -> FusedJob:
         """The samples with sensors trusted now, and what the estimator needs of them."""
@@ -262,33 +291,8 @@ class LookaheadPipeline(MonitorPipeline):
         names = sorted({name for i in fused for name in trusted[i]})
         return FusedJob(fused, np.array([samples[i].sample.lengths for i in fused]).reshape(-1, 4),
                         {name: np.array([trusted[i].get(name, np.nan) for i in fused]) for name in names},
-                        [samples[i].conditions for i in fused], [samples[i].header for i in fused])
-
-    def _estimates(self, samples: list[Merged], lengths: np.ndarray, published: list[list[records.Record] | None],
-                   speculated: Speculated | None = None) -> list[Estimate]:
-        """The window's estimates from the sensors trusted now (computed in the second process where
-        `speculated` there under the same gates, their solution records into `published`); a sample with
-        none is solved from its lengths alone (batched), as the node solves it."""
-        job = self._fused_job(samples) if speculated is None else speculated.job
-        fused = set(job.fused)
-        alone = [i for i in range(len(samples)) if i not in fused]
-        conditions = [s.conditions for s in samples]
-        out: list[Estimate | None] = [None] * len(samples)
-        if job.fused:
-            ahead = None if speculated is None or self.ahead is None else self.ahead.estimates(speculated.future)
-            if ahead is None:
-                estimates = estimate_recording(self.model, *job[1:-1])
-            else:
-                estimates, encoded = ahead
-                for i, sample_records in zip(job.fused, encoded):
-                    published[i] = sample_records
-            for i, estimate in zip(job.fused, estimates):
-                out[i] = estimate
-        if alone:
-            solutions = self.model.solve_batch(lengths[alone], [conditions[i] for i in alone], self._warm_start())
-            for i, solution in zip(alone, solutions):
-                out[i] = forward_estimate(solution, lengths[i])
-        return out
+                        [samples[i].conditions for i in fused], [samples[i].header for i in fused],
+                        [samples[i].sample.stamp for i in fused])
 
     def _result(self, item: Any, outcome: Merged | dict[str, float] | Exception | None,
                 solved: Solved | None) -> Result:

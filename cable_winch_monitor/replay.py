@@ -23,6 +23,7 @@ from .bagio import fields, records
 from .bagio.reader import BagMessage, BagReader, ReadReport
 from .bagio.scene import REPLAY_RATE, SceneBuilder, SceneThrottle
 from .bagio.writer import BagWriter
+from .ahead import Published
 from .lookahead import LookaheadPipeline
 from .model.plant import Plant, load_plant
 from .monitor.alarm import AlarmLevel
@@ -114,19 +115,28 @@ class _Scenes:
     def __init__(self, plant: Plant, rate: float):
         self.builder, self.throttle = SceneBuilder(plant), SceneThrottle(rate)
 
-    def records(self, stamp: fields.Stamp, output: MonitorOutput) -> list[records.Record]:
+    def records(self, stamp: fields.Stamp, output: MonitorOutput,
+                encoded: list[records.Record] | None = None) -> list[records.Record]:
+        """The scene if one is due (`encoded`: as it was encoded already, if it was)."""
         if not self.throttle.due(output.stamp):
             return []
-        return records.scene_records(stamp, self.builder, output.solution, output.alarm)
+        return encoded if encoded is not None else \
+            records.scene_records(stamp, self.builder, output.solution, output.alarm)
 
 
 def _records(item: BagMessage, stamp: fields.Stamp, result: MonitorOutput | Residuals | None,
-             published: list[records.Record] | None, scenes: _Scenes) -> list[records.Record]:
+             published: Published | None, scenes: _Scenes) -> list[records.Record]:
     """What the node publishes for one input message (header `stamp`) and the pipeline's result for it
-    (`published`: its solution records, encoded ahead)."""
+    (`published`: its records as the second process encoded them, used where it raised the same alarm)."""
     if item.msgtype == fields.JOINT_STATE:
-        return [] if result is None else \
-            records.output_records(stamp, result, published) + scenes.records(stamp, result)
+        if result is None:
+            return []
+        if published is None:
+            return records.output_records(stamp, result) + scenes.records(stamp, result)
+        if published.alarm != (result.alarm.level, result.alarm.reason):
+            return records.output_records(stamp, result, published.solution) + scenes.records(stamp, result)
+        return records.output_records(stamp, result, published.solution, published.alarm_record) + \
+            scenes.records(stamp, result, published.scene)
     return records.residual_records(stamp, result)
 
 
@@ -167,7 +177,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     started = time.perf_counter()
     plant = plant or load_plant()
     pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window,
-                                 second_process=second_process)
+                                 second_process=second_process, scene_rate=scene_rate)
     scenes = _Scenes(plant, scene_rate)
     inputs = fields.input_topics(pipeline.model.inputs)
     reader = BagReader(bag, inputs)

@@ -10,10 +10,12 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
+from cable_winch_monitor import ahead
+from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.records import (ALARM, OUTLINE, OUTPUT_TYPES, POSE, RESIDUALS, SCENE, TENSION, TF,
                                                TF_STATIC)
 from cable_winch_monitor.bagio.typestore import typestore
-from cable_winch_monitor.monitor.alarm import AlarmPolicy
+from cable_winch_monitor.monitor.alarm import AlarmPolicy, AlarmTracker
 from cable_winch_monitor.bagio.fields import input_topics
 from cable_winch_monitor.replay import replay
 from simbags import assert_clean, messages, run_cli, simulated, truth
@@ -159,3 +161,22 @@ def test_nominal_lowering_stays_ok(tmp_path):
     bag = simulated(tmp_path, "nominal_lowering", "duration=15")
     summary = replay(bag, tmp_path / "out", progress=False)
     assert summary.stats.levels.keys() == {"OK"} and summary.samples == summary.stats.solved == 150
+
+
+def test_records_encoded_for_another_alarm_are_encoded_again(tmp_path, monkeypatch):
+    """The second process encodes each sample's alarm and scene with an alarm tracker of its own; where
+    the replay raises another alarm (hysteresis after a window estimated again here), its own alarm is
+    encoded. Here the worker's tracker warns 10 m from the wall, so that it disagrees nearly everywhere:
+    the bag written is still the one a single process writes, byte for byte."""
+    bag = simulated(tmp_path, "sync_critical", "duration=20")
+    one = replay(bag, tmp_path / "one" / "out", progress=False, second_process=False)
+    anxious = AlarmPolicy(warning_margin=10.0, critical_margin=5.0)
+    monkeypatch.setattr(ahead, "AlarmTracker", lambda policy: AlarmTracker(anxious))  # the worker's only
+    encoded_here = []
+    alarm_record = records.alarm_record
+    monkeypatch.setattr(records, "alarm_record", lambda *args: encoded_here.append(1) or alarm_record(*args))
+    two = replay(bag, tmp_path / "two" / "out", progress=False)
+    assert one.stats.levels == two.stats.levels and two.stats.levels["OK"] > 0
+    assert len(encoded_here) >= two.stats.levels["OK"]  # the worker warned at each of these
+    files = [sorted((tmp_path / name / "out").glob("*.mcap")) for name in ("one", "two")]
+    assert [f.read_bytes() for f in files[0]] == [f.read_bytes() for f in files[1]]

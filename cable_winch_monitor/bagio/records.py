@@ -88,12 +88,18 @@ def solution_records(stamp: fields.Stamp, solution: Solution, estimate: Estimate
     return records + [_record(TENSION, fields.tension_distribution(stamp, solution, estimate))]
 
 
-def output_records(stamp: fields.Stamp, output: MonitorOutput, solved: list[Record] | None = None) -> list[Record]:
+def alarm_record(stamp: fields.Stamp, alarm: Alarm) -> Record:
+    return _record(ALARM, fields.collision_alarm(stamp, alarm))
+
+
+def output_records(stamp: fields.Stamp, output: MonitorOutput, solved: list[Record] | None = None,
+                   alarmed: Record | None = None) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: pose and /tf (only if solved),
-    tension distribution, collision alarm, residuals (if any). `solved`: the first three as
-    `solution_records` gave them for the output's solution already (replay encodes them ahead)."""
+    tension distribution, collision alarm, residuals (if any). `solved` and `alarmed`: the first three
+    as `solution_records` gave them for the output's solution, the alarm's as `alarm_record` gave it,
+    where they were encoded already (replay encodes them ahead)."""
     records = solution_records(stamp, output.solution, output.estimate) if solved is None else list(solved)
-    records.append(_record(ALARM, fields.collision_alarm(stamp, output.alarm)))
+    records.append(alarm_record(stamp, output.alarm) if alarmed is None else alarmed)
     return records + residual_records(stamp, output.residuals)
 
 
