@@ -23,8 +23,9 @@ Extra inputs the plant's effects read (a shaft temperature) are taken in first, 
 a sample's value is interpolated between the readings around its stamp.
 
 Step 1 of a window runs before step 3 of the window before it (step 3 reads nothing step 1
-writes), so that with `second_process` the next window's estimates are computed in a
-second process (ahead.py) while this one takes the current window in order; they are used
+writes), so that with `second_process` the next windows' estimates are computed in a
+second process (ahead.py) while this one takes the current window in order (MERGED_AHEAD
+windows ahead: the second process has the time to estimate its first); they are used
 where the gates have not changed in between, the same estimates as here, with the records
 encoded there (`run_published`).
 
@@ -33,6 +34,7 @@ None, or the exception the pipeline raised on it (counted like the node's callba
 """
 from __future__ import annotations
 
+from collections import deque
 from concurrent.futures import Future
 from contextlib import contextmanager
 from typing import Any, Iterable, Iterator, NamedTuple, Union
@@ -56,6 +58,7 @@ from .monitor.sensors import DEFAULT_HOLD
 
 WINDOW = 2000  # messages read ahead
 CHUNKS = (16, 1024)  # fewest and most samples solved together under one set of trusted sensors
+MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a second process
 
 Result = Union[MonitorOutput, Residuals, None, Exception]
 
@@ -154,22 +157,23 @@ class LookaheadPipeline(MonitorPipeline):
 
     def run_published(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, Published | None]]:
         """`run`, each solved sample with its records where the second process encoded them (None: not
-        encoded; scenes there at `scene_rate`). Each window is merged (step 1) before the previous one is
-        taken in order (step 3): with `second_process`, its estimates are computed there meanwhile."""
+        encoded; scenes there at `scene_rate`). Each window is merged (step 1) before the one before it
+        is taken in order (step 3); with `second_process`, MERGED_AHEAD windows are, so that the
+        second process has estimated a window by its turn (its first one included)."""
         with self._second_process():
-            prepared: Prepared | None = None
+            depth = MERGED_AHEAD if self.ahead is not None else 1
+            prepared: deque[Prepared] = deque()
             window: list[Any] = []
             for item in items:
                 window.append(item)
                 if len(window) == self.window:
-                    prepared, previous = self._prepare(window), prepared
+                    prepared.append(self._prepare(window))
                     window = []
-                    if previous is not None:
-                        yield from self._run_window(previous)
-            last = self._prepare(window)
-            if prepared is not None:
-                yield from self._run_window(prepared)
-            yield from self._run_window(last)
+                    if len(prepared) > depth:
+                        yield from self._run_window(prepared.popleft())
+            prepared.append(self._prepare(window))
+            while prepared:
+                yield from self._run_window(prepared.popleft())
 
     @contextmanager
     def _second_process(self) -> Iterator[None]:

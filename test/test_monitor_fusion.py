@@ -122,7 +122,7 @@ def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowerin
     two = [r for _, r, _ in run if isinstance(r, MonitorOutput)]
     assert pipeline.ahead is None  # stopped with the replay
     encoded = [(fields.stamp_of(item.message), r, published) for item, r, published in run if published is not None]
-    assert len(encoded) >= len(two) // 2  # the pose, /tf and tension records of most samples come from there
+    assert len(encoded) >= len(two) // 3  # the records of the windows the gate left alone come from there
     for stamp, output, published in encoded:
         assert published.solution == records.solution_records(stamp, output.solution, output.estimate)
         if published.alarm == (output.alarm.level, output.alarm.reason):
