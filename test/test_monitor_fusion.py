@@ -127,7 +127,7 @@ def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowerin
         assert published.solution == records.solution_records(stamp, output.solution, output.estimate)
         if published.alarm == (output.alarm.level, output.alarm.reason):
             assert published.alarm_record == records.alarm_record(stamp, output.alarm)
-    assert sum(taken) >= 4 and not all(taken)  # most windows from there, the one where the gate closed not
+    assert sum(taken) >= 2 and not all(taken)  # the windows before the gate closed from there, those merged ahead of it not
     assert [o.refused for o in two] == [o.refused for o in one] and any(o.refused for o in one)
     for got, want in zip(two, one):
         assert got.stamp == want.stamp and got.estimate.used == want.estimate.used
