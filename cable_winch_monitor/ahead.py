@@ -36,7 +36,7 @@ from .effects.estimate import recording_batch
 from .model.conditions import Conditions
 from .model.estimation import BatchEstimate, Estimate
 from .model.plant import Plant
-from .monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
+from .monitor.alarm import Alarm, AlarmLevel, AlarmPolicy, AlarmTracker
 from .monitor.clearance import Clearance, solution_clearances
 
 _worker: "Publisher | None" = None  # the worker's state, made at the fork from the replay's
@@ -105,6 +105,15 @@ class Published(NamedTuple):
     alarm_record: Record
     scene: list[Record] | None  # None: no scene was due there
 
+    @staticmethod
+    def key(alarm: Alarm) -> tuple[AlarmLevel, str]:
+        """What of an alarm its records depend on beyond the sample's solution and clearance."""
+        return alarm.level, alarm.reason
+
+    def encoded_for(self, alarm: Alarm) -> bool:
+        """Whether the alarm and scene records were encoded for `alarm`."""
+        return self.alarm == self.key(alarm)
+
 
 class Ahead(NamedTuple):
     """What the worker sends back for a chunk: the estimator's arrays (without the plant: the caller has
@@ -145,7 +154,7 @@ class Publisher:
         for stamp, time, estimate, clearance in zip(stamps, times, estimates, clearances):
             alarm = self.alarms.update(estimate.solution, clearance)
             scene = scene_records(stamp, self.builder, estimate.solution, alarm) if self.throttle.due(time) else None
-            published.append(Published(solution_records(stamp, estimate.solution, estimate), (alarm.level, alarm.reason),
+            published.append(Published(solution_records(stamp, estimate.solution, estimate), Published.key(alarm),
                                        alarm_record(stamp, alarm), scene))
         return Ahead(replace(batch, plant=None),
                      PackedClearances.of(self.model.physical, clearances, [s.ok for s in solutions]),

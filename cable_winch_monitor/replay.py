@@ -131,12 +131,10 @@ def _records(item: BagMessage, stamp: fields.Stamp, result: MonitorOutput | Resi
     if item.msgtype == fields.JOINT_STATE:
         if result is None:
             return []
-        if published is None:
-            return records.output_records(stamp, result) + scenes.records(stamp, result)
-        if published.alarm != (result.alarm.level, result.alarm.reason):
-            return records.output_records(stamp, result, published.solution) + scenes.records(stamp, result)
-        return records.output_records(stamp, result, published.solution, published.alarm_record) + \
-            scenes.records(stamp, result, published.scene)
+        same = published is not None and published.encoded_for(result.alarm)
+        return records.output_records(stamp, result, None if published is None else published.solution,
+                                      published.alarm_record if same else None) + \
+            scenes.records(stamp, result, published.scene if same else None)
     return records.residual_records(stamp, result)
 
 
