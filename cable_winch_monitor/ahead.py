@@ -10,7 +10,10 @@ the estimate; and each sample's records as the bytes the replay writes (`Publish
 pose, /tf and tension, which its solution alone decides, and the collision alarm and the
 scene, which the worker encodes with an alarm tracker and a scene throttle of its own and
 the replay takes where it raises the same alarm there (else it encodes its own). What goes
-there are arrays too: the samples' conditions packed (`PackedConditions`).
+there are arrays too: the samples' conditions packed (`PackedConditions`). A chunk's results
+(2 MB for 909 samples) come back through a file (`SPOOL`), not the pool's pipe: a thread of
+the replaying process reads that pipe, and it needs the interpreter lock for every 64 kB, so
+the worker waited up to 40 ms to hand over a chunk before it could start the next.
 
 Only a fork can start it (the process inherits the plant model as it is, effects from a
 user's module included, without pickling it); where the platform has none, or the worker
@@ -20,7 +23,11 @@ replay stops it when it stops.
 from __future__ import annotations
 
 import multiprocessing
+import os
+import pickle
+import shutil
 import signal
+import tempfile
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
@@ -39,6 +46,7 @@ from .model.plant import Plant
 from .monitor.alarm import Alarm, AlarmLevel, AlarmPolicy, AlarmTracker
 from .monitor.clearance import Clearance, solution_clearances
 
+SPOOL = "/dev/shm"  # where the worker's results are written, if the system has it (memory, not a disk)
 _worker: "Publisher | None" = None  # the worker's state, made at the fork from the replay's
 
 
@@ -161,9 +169,17 @@ class Publisher:
                      self.model.predict_solutions(solutions, conditions), published)
 
 
-def _chunk(*job: object) -> Ahead:
+def _chunk(spool: str, *job: object) -> str | None:
+    """The worker's job: a chunk's `Ahead`, pickled to a file in `spool` (its path; None where it could
+    not be written: the replay then estimates the chunk itself)."""
     assert _worker is not None, "the worker was started without its state"
-    return _worker.chunk(*job)
+    ahead = _worker.chunk(*job)
+    try:
+        with tempfile.NamedTemporaryFile(dir=spool, delete=False) as file:
+            pickle.dump(ahead, file, protocol=pickle.HIGHEST_PROTOCOL)
+    except OSError:
+        return None
+    return file.name
 
 
 class AheadEstimator:
@@ -171,6 +187,7 @@ class AheadEstimator:
 
     def __init__(self, model: PlantModel, plant: Plant, scene_rate: float):
         self.model = model
+        self.spool = tempfile.mkdtemp(prefix="cable-winch-monitor-", dir=SPOOL if os.path.isdir(SPOOL) else None)
         self.pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
             1, mp_context=multiprocessing.get_context("fork"), initializer=_start,
             initargs=(Publisher(model, plant, scene_rate),))
@@ -186,8 +203,8 @@ class AheadEstimator:
         if self.pool is None:
             return None
         try:
-            return self.pool.submit(_chunk, reported, measured, PackedConditions.of(conditions), list(stamps),
-                                    list(times))
+            return self.pool.submit(_chunk, self.spool, reported, measured, PackedConditions.of(conditions),
+                                    list(stamps), list(times))
         except BrokenProcessPool:
             self.pool = None
             return None
@@ -196,10 +213,15 @@ class AheadEstimator:
         """What `future` was started for; None where the worker was lost (the caller estimates them itself).
         The estimator's own errors are raised as they would be in the caller's process."""
         try:
-            batch, clearances, predicted, published = future.result()
+            path = future.result()
         except BrokenProcessPool:
             self.pool = None
             return None
+        if path is None:
+            return None
+        with open(path, "rb") as file:
+            batch, clearances, predicted, published = pickle.load(file)
+        os.unlink(path)
         batch.plant = self.model.physical
         return Estimated(batch.estimates(), clearances.unpacked(self.model.physical), predicted, published)
 
@@ -207,3 +229,4 @@ class AheadEstimator:
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
             self.pool = None
+        shutil.rmtree(self.spool, ignore_errors=True)

@@ -9,13 +9,14 @@ outputs; a load pin that goes wrong is left out after the gate's hold time.
 """
 from __future__ import annotations
 
+import os
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy.special import chdtri
 
-from cable_winch_monitor import channels
+from cable_winch_monitor import ahead, channels
 from cable_winch_monitor.bagio import fields, records
 from cable_winch_monitor.lookahead import LookaheadPipeline
 from cable_winch_monitor.model.gate import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
@@ -100,10 +101,11 @@ def test_a_pin_that_goes_wrong_is_left_out_after_the_hold_time(plant, lowering):
         assert np.abs(got.solution.tensions - want.solution.tensions).max() < 1.0
 
 
-def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowering, monkeypatch):
+def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowering, monkeypatch, tmp_path):
     """Replay's second process estimates each window while the one before is published, under the gates
     of that moment; where a gate closes in between, the window is estimated again here. The outputs
-    are those of one process, to the bit."""
+    are those of one process, to the bit, and the files it handed its results over in are gone."""
+    monkeypatch.setattr(ahead, "SPOOL", str(tmp_path))
     truths, _ = lowering
     items = sensed(truths[:120], seed=7, pin_fault=(1, 50, 5e3))
     taken = []
@@ -120,7 +122,7 @@ def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowerin
     pipeline = LookaheadPipeline(noisy(plant), window=64, gate_hold=0.5, second_process=True)
     run = list(pipeline.run_published(items))
     two = [r for _, r, _ in run if isinstance(r, MonitorOutput)]
-    assert pipeline.ahead is None  # stopped with the replay
+    assert pipeline.ahead is None and not any(tmp_path.iterdir())  # stopped with the replay, its spool removed
     encoded = [(fields.stamp_of(item.message), r, published) for item, r, published in run if published is not None]
     assert len(encoded) >= len(two) // 3  # the records of the windows the gate left alone come from there
     for stamp, output, published in encoded:
@@ -135,6 +137,30 @@ def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowerin
         assert got.solution.points_b.tobytes() == want.solution.points_b.tobytes()
         assert got.alarm.level == want.alarm.level and got.alarm.reason == want.alarm.reason
         assert got.clearance.value == want.clearance.value
+
+
+def test_a_second_process_that_cannot_hand_over_its_results_leaves_them_to_the_replay(plant, lowering, monkeypatch,
+                                                                                      tmp_path):
+    """Where the worker cannot write a chunk's results (its spool is not a directory: a full or missing
+    /dev/shm), the replaying process estimates the chunk itself: the same outputs, none from there."""
+    spooled = ahead.AheadEstimator.__init__
+
+    def unwritable(self, *args):
+        spooled(self, *args)
+        os.rmdir(self.spool)
+        self.spool = str(tmp_path / "not-a-directory")
+        open(self.spool, "w").close()
+
+    monkeypatch.setattr(ahead.AheadEstimator, "__init__", unwritable)
+    items = sensed(lowering[0][:60], seed=11)
+    one = replayed(LookaheadPipeline(noisy(plant), window=64), items)
+    run = list(LookaheadPipeline(noisy(plant), window=64, second_process=True).run_published(items))
+    two = [r for _, r, _ in run if isinstance(r, MonitorOutput)]
+    assert all(published is None for _, _, published in run)
+    assert len(two) == len(one) > 0
+    for got, want in zip(two, one):
+        assert got.solution.tensions.tobytes() == want.solution.tensions.tobytes()
+        assert got.solution.points_b.tobytes() == want.solution.points_b.tobytes()
 
 
 def test_pins_left_out_are_taken_back_once_they_agree_again(plant):
