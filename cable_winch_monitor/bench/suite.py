@@ -33,7 +33,7 @@ from ..bagio.fields import input_topics
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
 from .plants import REALISTIC_EFFECTS, realistic, realistic_plant_file
-from .replay_throughput import replay_child
+from .replay_throughput import byte_compile_package, replay_child
 from .solvers import lowering_samples, timed
 
 Diagnose = Callable[[Path, Plant], Any]  # a 20-minute bag and the plant -> anything; timed
@@ -216,6 +216,7 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
         directory = Path(tmp)
         files = {"rigid": None, "realistic": realistic_plant_file(directory)}
         bags = recordings(directory)
+        byte_compile_package()
         for label, plant in plants.items():
             rows += _progress(replay_rows(bags[label], directory, label, files[label], large_mb, traversal_ms))
         if node:
