@@ -68,11 +68,15 @@ def test_scene_rate_is_bounded_by_the_stamps(live):
     node.client.outputs(stamps[-1], pose=True)
     collectors["tf"].wait_for(lambda m: stamped(stamps[-1])(m.transforms[0]), "/tf of the last sample")
     keys = {(s.sec, s.nanosec) for s in stamps}
+
+    def of_these(scene):
+        return (scene.markers[0].header.stamp.sec, scene.markers[0].header.stamp.nanosec) in keys
+
+    collectors["scene"].wait_for(of_these, "/platform/scene of a sample")  # it may come after the last /tf
     seconds = [s.sec + s.nanosec * 1e-9 for s in stamps]
     tf_count = sum((m.transforms[0].header.stamp.sec, m.transforms[0].header.stamp.nanosec) in keys
                    for _, m in collectors["tf"].messages)
-    scenes = [m for _, m in collectors["scene"].messages
-              if (m.markers[0].header.stamp.sec, m.markers[0].header.stamp.nanosec) in keys]
+    scenes = [m for _, m in collectors["scene"].messages if of_these(m)]
     poses = sum(bool(node.client.outputs_with_stamp(stamp)["pose"]) for stamp in stamps)  # the node may skip
     assert tf_count == poses >= 1, "a transform for every solved pose"  # samples under load (newest first)
     assert 1 <= len(scenes) <= math.floor((seconds[-1] - seconds[0]) * SCENE_RATE) + 1
