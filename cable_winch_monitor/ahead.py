@@ -210,8 +210,9 @@ class AheadEstimator:
             return None
 
     def estimates(self, future: Future) -> Estimated | None:
-        """What `future` was started for; None where the worker was lost (the caller estimates them itself).
-        The estimator's own errors are raised as they would be in the caller's process."""
+        """What `future` was started for; None where the worker was lost or could not write its results (the
+        caller estimates them itself). The estimator's own errors are raised as they would be in the caller's
+        process."""
         try:
             path = future.result()
         except BrokenProcessPool:
