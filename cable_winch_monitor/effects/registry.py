@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib.util
 import inspect
 import sys
+from importlib.metadata import entry_points
 from pathlib import Path
 
 from .base import ACTS, Effect, EffectError
@@ -53,8 +54,6 @@ def _load_entry_points() -> None:
     if _entry_points_loaded:
         return
     _entry_points_loaded = True
-    from importlib.metadata import entry_points
-
     for point in entry_points(group=GROUP):
         loaded = point.load()
         classes = [loaded] if isinstance(loaded, type) else _effect_classes(loaded)
