@@ -30,6 +30,7 @@ import signal
 import tempfile
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import suppress
 from dataclasses import replace
 from typing import Mapping, NamedTuple, Sequence
 
@@ -182,6 +183,14 @@ def _chunk(spool: str, *job: object) -> str | None:
     return file.name
 
 
+def _remove_results(future: Future) -> None:
+    """Remove the file a finished chunk's results were written to (none if it failed or was cancelled;
+    gone already if the spool was removed)."""
+    if not future.cancelled() and future.exception() is None and future.result() is not None:
+        with suppress(OSError):
+            os.unlink(future.result())
+
+
 class AheadEstimator:
     """One worker process estimating windows for `model` (it must fuse, and not refine its geometry)."""
 
@@ -225,6 +234,12 @@ class AheadEstimator:
         os.unlink(path)
         batch.plant = self.model.physical
         return Estimated(batch.estimates(), clearances.unpacked(self.model.physical), predicted, published)
+
+    @staticmethod
+    def discard(future: Future) -> None:
+        """Drop what `future` was started for (the gates changed before its turn): its results' file is
+        removed as soon as it is written, not left in the spool until the replay ends."""
+        future.add_done_callback(_remove_results)
 
     def close(self) -> None:
         if self.pool is not None:

@@ -129,10 +129,19 @@ class Presolved:
             self.start, self.stop = index, min(index + self.size, len(samples))
             ahead = self.speculated.pop(self.start, None)
             taken = ahead is not None and ahead.stop == self.stop and ahead.refused == refused
+            if ahead is not None and not taken:
+                self.pipeline.ahead.discard(ahead.future)
             self.solved, self.published = self.pipeline._presolve(samples[self.start:self.stop],
                                                                   ahead if taken else None)
             self.refused = refused
         return self.solved[index - self.start], self.published[index - self.start]
+
+    def discard_rest(self) -> None:
+        """Drop the speculated chunks the window did not take (where a gate changed, its chunks start
+        elsewhere)."""
+        for ahead in self.speculated.values():
+            self.pipeline.ahead.discard(ahead.future)
+        self.speculated.clear()
 
 
 class LookaheadPipeline(MonitorPipeline):
@@ -217,6 +226,7 @@ class LookaheadPipeline(MonitorPipeline):
             except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
                 result = error
             yield item, result, published
+        ahead.discard_rest()
 
     def _merge_item(self, item: Any) -> Merged | dict[str, float] | Exception | None:
         """Step 1 for one message: a winch message merged (its complete sample, if it makes one), a

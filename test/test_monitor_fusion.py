@@ -106,6 +106,15 @@ def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowerin
     of that moment; where a gate closes in between, the window is estimated again here. The outputs
     are those of one process, to the bit, and the files it handed its results over in are gone."""
     monkeypatch.setattr(ahead, "SPOOL", str(tmp_path))
+    left_over = []
+    close = ahead.AheadEstimator.close
+
+    def closing(self):
+        self.pool.shutdown(wait=True)  # every chunk handed over
+        left_over.extend(os.listdir(self.spool))
+        close(self)
+
+    monkeypatch.setattr(ahead.AheadEstimator, "close", closing)
     truths, _ = lowering
     items = sensed(truths[:120], seed=7, pin_fault=(1, 50, 5e3))
     taken = []
@@ -123,6 +132,7 @@ def test_a_second_process_estimating_ahead_gives_the_same_outputs(plant, lowerin
     run = list(pipeline.run_published(items))
     two = [r for _, r, _ in run if isinstance(r, MonitorOutput)]
     assert pipeline.ahead is None and not any(tmp_path.iterdir())  # stopped with the replay, its spool removed
+    assert left_over == []  # the results of chunks not taken (the gate closed) were removed as they came
     encoded = [(fields.stamp_of(item.message), r, published) for item, r, published in run if published is not None]
     assert len(encoded) >= len(two) // 3  # the records of the windows the gate left alone come from there
     for stamp, output, published in encoded:
