@@ -31,7 +31,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from .batched import solve_batch
+from .batched import BatchSolution, solve_batch
 from .batched_elastic import solve_batch_elastic
 from .elastic import solve_elastic
 from .energy import TENSION_TOL, solve_energy
@@ -39,6 +39,7 @@ from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
 from .gate import DEFAULT_PROBABILITY, GateResult, chi_square_threshold, gate_sensors
 from .observations import Observation
 from .plant import Plant
+from .prior import Prior
 from .result import Solution, SolveStatus, failed, solved_rows, validate_lengths
 from .ropes import Ropes
 
@@ -71,8 +72,11 @@ class Estimate:
                  `loaded_lengths` in place of its lengths
     reported     the lengths the encoders reported [m]
     corrections  corrected minus reported lengths [m]
-    residuals    (measured - predicted) / sigma of each observation used, by name
+    residuals    (measured - predicted) / sigma of each observation used, by name (a load pin's
+                 sigma and prediction include the model's expected error where a prior gave one)
     used         names of the observations measured at this sample (the lengths always are)
+    cost         the minimised cost where a prior weighed it (None: the corrections' and residuals'
+                 squares in sigma)
     """
 
     solution: Solution
@@ -82,6 +86,7 @@ class Estimate:
     residuals: dict[str, float] = field(default_factory=dict)
     used: tuple[str, ...] = ()
     loaded_lengths: np.ndarray | None = None
+    cost: float | None = None
 
     @property
     def ok(self) -> bool:
@@ -106,7 +111,10 @@ class Estimate:
 
     @property
     def chi_square(self) -> float:
-        """The minimised cost: squared corrections and residuals in sigma."""
+        """The minimised cost: squared corrections and residuals in sigma (weighed by the prior where one was
+        given)."""
+        if self.cost is not None:
+            return self.cost
         return float(np.sum(self.corrections_sigma ** 2) + sum(r * r for r in self.residuals.values()))
 
 
@@ -134,6 +142,7 @@ class BatchEstimate:
     loads: np.ndarray             # (N, 6) the external wrench of each sample (model.load)
     fallback: dict[int, Estimate] = field(default_factory=dict)
     anchors: np.ndarray | None = None  # (N, 4, 3) each sample's anchors where they move with the pose
+    cost: np.ndarray | None = None     # (N,) the minimised cost where a prior weighed it
 
     def __len__(self) -> int:
         return len(self.reported)
@@ -157,24 +166,26 @@ class BatchEstimate:
             measured = np.isfinite(self.residuals[i])
             out[i] = Estimate(solution, self.reported[i], self.corrected[i] - self.reported[i], self.sigma_length,
                               {n: float(r) for n, r, m in zip(self.names, self.residuals[i], measured) if m},
-                              tuple(n for n, m in zip(self.names, measured) if m), self.loaded[i])
+                              tuple(n for n, m in zip(self.names, measured) if m), self.loaded[i],
+                              None if self.cost is None else float(self.cost[i]))
         return [out[i] for i in indices]
 
 
 def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] = (), sigma_length: float = 1e-3,
              axial_stiffness: object = None, rope_weight: float = 0.0, load: np.ndarray | None = None,
-             warm_start: Estimate | None = None) -> Estimate:
+             warm_start: Estimate | None = None, prior: Prior | None = None) -> Estimate:
     """The fused state of one sample: reported lengths (4) [m] with noise sigma_length [m] and the
     observations (scalar values; NaN = not measured), for rigid ropes (axial_stiffness None) or
     elastic ones (EA [N], scalar or per rope; rope_weight [N/m]) under the wrench `load`
-    (None: gravity). Live, pass the previous sample's estimate as warm_start. Never raises."""
+    (None: gravity), with the model's expected error `prior` (one row; None: the model taken as
+    exact). Live, pass the previous sample's estimate as warm_start. Never raises."""
     array, reason = validate_lengths(lengths)
     if array is None:
         return _unfused(failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan)), np.full(4, np.nan),
                         sigma_length)
     try:
         problem = Problem.build(plant, array[None], sigma_length, observations, Ropes.of(axial_stiffness, rope_weight),
-                                load)
+                                load, prior=prior)
     except ValueError as error:
         return _unfused(failed(SolveStatus.INVALID_INPUT, str(error), METHOD, array), array, sigma_length)
     try:
@@ -188,20 +199,24 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
 def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Observation] = (),
                    sigma_length: float = 1e-3, axial_stiffness: object = None, rope_weight: float = 0.0,
                    loads: np.ndarray | None = None, warm_starts: Sequence[Estimate | None] | None = None,
-                   anchors: np.ndarray | None = None, same_samples: bool = True) -> BatchEstimate:
+                   anchors: np.ndarray | None = None, same_samples: bool = True,
+                   prior: Prior | None = None, forward: BatchSolution | None = None) -> BatchEstimate:
     """`estimate` for the rows of lengths (N, 4), observation values (N,) each, under `loads` (one
     wrench (6,) for all, one per sample (N, 6), None: gravity), with each sample's `anchors` (N, 4, 3)
     where the geometry depends on the pose (None: the plant's): every sample starts from its warm start
     where given (an estimate of the sample under slightly different parameters or geometry, as a fit
     and the pose-dependent geometry's refinement make them), else from the batched forward kinematics
-    of its reported lengths; the search runs on all together. Warm starts that are other samples'
+    of its reported lengths (with the `prior`'s expected corrections, where one is given: the model's
+    expected error, one row per sample); the search runs on all together. Warm starts that are other samples'
     states (`same_samples` False: the previous sample's, live) are searched as the live estimate is.
-    ValueError names a bad argument."""
+    `forward`: the samples' `forward_kinematics` of their expected lengths, where the caller has it
+    (their cold starts). ValueError names a bad argument."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
-        problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads, anchors)
-        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, same_samples)
+        problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads, anchors, prior)
+        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, same_samples,
+                         forward)
 
 
 def estimate_gated(plant: Plant, lengths: object, observations: Sequence[Observation],
@@ -254,7 +269,7 @@ def _warm_rows(problem: Problem, warm_starts: Sequence[Estimate | None]) -> Rows
         return None
     samples = np.array([i for i, _ in picked], dtype=int)
     solutions = [s for _, s in picked]
-    shift = np.array([s.lengths.mean() for s in solutions]) - problem.lengths[samples].mean(axis=1)
+    shift = np.array([s.lengths.mean() for s in solutions]) - problem.expected_lengths[samples].mean(axis=1)
     return Rows(samples, np.array([s.taut for s in solutions]), np.array([s.rotation for s in solutions]),
                 np.array([s.position for s in solutions]) + np.outer(shift, [0.0, 0.0, 1.0]),
                 np.array([s.tensions for s in solutions]) / problem.scales[samples, None])
@@ -266,7 +281,7 @@ def _forward_kinematics(problem: Problem, samples: np.ndarray) -> tuple[Rows, Ca
     the estimator leaves: a single-cable state, bad input, no admissible set), and whether the starts
     are rigid (their taut sets are often wrong: four taut rigid ropes are the exception)."""
     plant, ropes = problem.plant, problem.ropes
-    effective = ropes.effective(problem.lengths[samples])
+    effective = ropes.effective(problem.expected_lengths[samples])
     loads = problem.loads[samples]
     if len(samples) == 1:
         solution = solve_energy(plant, effective[0], load=loads[0])  # one sample: the per-sample solver is the faster
@@ -289,11 +304,34 @@ def _forward_kinematics(problem: Problem, samples: np.ndarray) -> tuple[Rows, Ca
     return start, lambda i: one(position[i]), rigid_start
 
 
-def _estimate(problem: Problem, warm: Rows | None, same_samples: bool = False) -> BatchEstimate:
+def forward_kinematics(plant: Plant, lengths: np.ndarray, ropes: Ropes, loads: np.ndarray,
+                       warm_start: Solution | None = None) -> BatchSolution:
+    """The model's own equilibrium of N samples' lengths (N, 4) under their loads (N, 6), along a
+    trajectory from `warm_start` (a solution of the sample before, None: cold): batched, or the
+    per-sample solver of the same rope law for one sample; the same answers either way (to the
+    solvers' tolerance), so that a sample estimated alone starts where it starts in a batch."""
+    effective = ropes.effective(np.asarray(lengths, dtype=float).reshape(-1, 4))
+    loads = np.asarray(loads, dtype=float).reshape(-1, 6)
+    if len(effective) != 1:
+        return solve_batch(plant, effective, warm_start, loads) if ropes.rigid else \
+            solve_batch_elastic(plant, effective, ropes.axial_stiffness, warm_start, loads)
+    solution = solve_energy(plant, effective[0], warm_start=warm_start, load=loads[0]) if ropes.rigid else \
+        solve_elastic(plant, effective[0], ropes.axial_stiffness, warm_start=warm_start, load=loads[0])
+    posed = solution.ok
+    return BatchSolution(plant, effective, loads, np.array([solution.status.value], dtype=object),
+                         np.array([solution.taut]), np.array([solution.tensions if posed else np.zeros(4)]),
+                         np.array([solution.rotation if posed else np.eye(3)]),
+                         np.array([solution.position if posed else np.zeros(3)]), np.array([solution.iterations]),
+                         fallback={0: solution}, method=solution.method)
+
+
+def _estimate(problem: Problem, warm: Rows | None, same_samples: bool = False,
+              forward: BatchSolution | None = None) -> BatchEstimate:
     """The search from the warm starts; the samples without one, or whose warm search found no
-    admissible state, from their forward kinematics. Warm starts that are the same samples' states
-    under slightly other parameters (`same_samples`: a fit) were searched already: a misfit alone does
-    not send them to their neighbouring taut sets again."""
+    admissible state, from their forward kinematics (`forward`, where it was solved already for the
+    problem's expected lengths). Warm starts that are the same samples' states under slightly other
+    parameters (`same_samples`: a fit) were searched already: a misfit alone does not send them to their
+    neighbouring taut sets again."""
     count = len(problem.lengths)
     kept, rest = None, np.arange(count)
     if warm is not None:
@@ -302,13 +340,19 @@ def _estimate(problem: Problem, warm: Rows | None, same_samples: bool = False) -
         rest = np.setdiff1d(rest, kept.sample)
         if not rest.size:
             return _assemble(problem, kept, {})
-    cold, forward, rigid_start = _forward_kinematics(problem, rest)
+    if forward is None:
+        cold, one, rigid_start = _forward_kinematics(problem, rest)
+    else:
+        ok = rest[forward.ok[rest]]
+        cold = Rows(ok, forward.taut[ok], forward.rotation[ok].copy(), forward.position[ok].copy(),
+                    forward.tensions[ok] / problem.scales[ok, None])
+        one, rigid_start = forward.solution, problem.ropes.rigid
     cold = _search(problem, cold, probe=rigid_start)
     best = cold.take(np.flatnonzero(_admissible(cold)))
     if kept is not None:
         best = Rows.joined(kept, best)
     missing = sorted(set(range(count)) - set(best.sample.tolist()))
-    return _assemble(problem, best, {i: forward(i) for i in missing})
+    return _assemble(problem, best, {i: one(i) for i in missing})
 
 
 def _admissible(rows: Rows) -> np.ndarray:
@@ -373,23 +417,48 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         pending = searched[_doubtful(best.take(searched), misfit=misfit and stage == 0)]
         if not pending.size:
             break
+    return _unloaded(problem, best) if problem.prior is not None else best
+
+
+def _unloaded(problem: Problem, best: Rows) -> Rows:
+    """With a prior, each row with taut ropes whose load pins cannot tell their tension from zero (below
+    SEARCH_SIGMA of the pin's spread) solved again with those ropes slack, and taken where admissible
+    and no dearer than SEARCH_SIGMA^2: where the model's lengths are free to follow the sensors, four
+    rigid ropes can always be made taut, and a rope carrying a pin's noise is not one the platform
+    hangs on."""
+    ropes, _, sigma, _ = problem.pin_prior
+    if not ropes.size:
+        return best
+    measured = np.isfinite(problem.values[best.sample][:, problem.pin_observations[ropes]])
+    tension = best.mu[:, ropes] * problem.scales[best.sample, None]
+    weak = np.zeros_like(best.taut)
+    weak[:, ropes] = best.taut[:, ropes] & measured & (tension < SEARCH_SIGMA * sigma[best.sample])
+    rows = np.flatnonzero(weak.any(axis=1) & ((best.taut & ~weak).sum(axis=1) >= 2) & _admissible(best))
+    if not rows.size:
+        return best
+    candidates = solve_rows(problem, best.take(rows, best.taut[rows] & ~weak[rows]))
+    better = _admissible(candidates) & (candidates.cost <= best.cost[rows] + SEARCH_SIGMA ** 2)
+    for name in ("taut", "rotation", "position", "mu", "converged", "cost", "residuals", "steps"):
+        getattr(best, name)[rows[better]] = getattr(candidates, name)[better]
     return best
 
 
 def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.ndarray) \
         -> tuple[np.ndarray, np.ndarray] | None:
     """Rows and taut-set codes of the sets the load pins read for the pending rows, where another than
-    the start's (marked visited): a rope is taut where its pin reads more than SEARCH_SIGMA sigma, as
-    at the start where it has none. None where no load pin is read off the state. One candidate a
-    row instead of its neighbours (seven for three taut ropes): with 1 mm of noise the forward
-    kinematics of four rigid ropes often picks the wrong three, and the pins say which."""
+    the start's (marked visited): a rope is taut where its pin reads more than SEARCH_SIGMA sigma beyond
+    what it reads of a slack rope (nothing, or the prior's expected pin error), as at the start where
+    it has none. None where no load pin is read off the state. One candidate a row instead of its
+    neighbours (seven for three taut ropes): with 1 mm of noise the forward kinematics of four rigid
+    ropes often picks the wrong three, and the pins say which."""
     if not problem.pins:
         return None
     taut = best.taut[pending].copy()
-    values = problem.values[best.sample[pending]]
-    for k, rope in problem.pins:
-        read = np.isfinite(values[:, k])
-        taut[read, rope] = values[read, k] > SEARCH_SIGMA * problem.sigmas[k]
+    samples = best.sample[pending]
+    for k, rope, expected, sigma in _slack_readings(problem, samples):
+        value = problem.values[samples, k]
+        read = np.isfinite(value)
+        taut[read, rope] = value[read] - expected[read] > SEARCH_SIGMA * sigma[read]
     codes = taut @ BITS
     other = (codes != best.taut[pending] @ BITS) & (taut.sum(axis=1) >= 2)
     owner, codes = pending[other], codes[other]
@@ -397,15 +466,50 @@ def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.
     return owner, codes
 
 
+def _slack_readings(problem: Problem, samples: np.ndarray) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
+    """For each load pin read off the state (observation index, rope): what it is expected to read of a
+    slack rope at each sample [N] and the spread of that (N,) [N] -- nothing and its noise, or the
+    prior's expected pin error and its marginal sigma."""
+    out = []
+    if problem.prior is not None:
+        ropes, _, sigma, expected = problem.pin_prior
+        column = {int(rope): c for c, rope in enumerate(ropes)}
+    for k, rope in problem.pins:
+        if problem.prior is None:
+            out.append((k, rope, np.zeros(len(samples)), np.full(len(samples), problem.sigmas[k])))
+        else:
+            out.append((k, rope, expected[samples, column[rope]], sigma[samples, column[rope]]))
+    return out
+
+
 def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np.ndarray:
     """A lower bound of the cost of each candidate (its sample and taut-set code) whatever its pose: a
     rope it leaves slack carries nothing, so a load pin read off that rope's tension adds (value /
-    sigma)^2. A candidate whose bound exceeds its row's admissible best cannot replace it and is not
-    solved: where the pins read kilonewtons on three ropes, the sets that slacken one of them."""
+    sigma)^2 (with a prior: the pins of the slack ropes, their expected error and covariance, the
+    quadratic form of that subset alone, which the other terms can only add to). A candidate whose bound
+    exceeds its row's admissible best cannot replace it and is not solved: where the pins read
+    kilonewtons on three ropes, the sets that slacken one of them."""
     bound = np.zeros(len(samples))
-    for k, rope in problem.pins:
-        slack = (codes >> rope & 1) == 0
-        bound += np.where(slack, np.nan_to_num((problem.values[samples, k] / problem.sigmas[k]) ** 2), 0.0)
+    if problem.prior is None:
+        for k, rope in problem.pins:
+            slack = (codes >> rope & 1) == 0
+            bound += np.where(slack, np.nan_to_num((problem.values[samples, k] / problem.sigmas[k]) ** 2), 0.0)
+        return bound
+    ropes = np.array([rope for _, rope in problem.pins], dtype=int)
+    values = problem.values[samples][:, [k for k, _ in problem.pins]]
+    deviation = problem.prior.pins[samples][:, ropes] - values
+    covariance = problem.prior.pin_covariance[samples][:, ropes][:, :, ropes]
+    for code in np.unique(codes).tolist():
+        rows = np.flatnonzero(codes == code)
+        slack = ((code >> ropes) & 1) == 0
+        if not slack.any():
+            continue
+        d = deviation[rows][:, slack]
+        read = np.isfinite(d)
+        d = np.where(read, d, 0.0)
+        c = covariance[rows][:, slack][:, :, slack]
+        c = np.where(read[:, :, None] & read[:, None, :], c, np.eye(int(slack.sum())))
+        bound[rows] = np.einsum("ni,ni->n", d, np.linalg.solve(c, d[..., None])[..., 0])
     return bound
 
 
@@ -442,10 +546,27 @@ def _assemble(problem: Problem, best: Rows, unsolved: dict[int, Solution]) -> Ba
     out.taut[rows], out.tensions[rows] = taut, np.where(taut, tensions, 0.0)
     out.rotation[rows], out.position[rows], out.iterations[rows] = best.rotation, best.position, best.steps
     measured = np.isfinite(problem.values[rows])
-    out.residuals[rows] = np.where(measured, -best.residuals[:, 4:], np.nan)
+    out.residuals[rows] = np.where(measured, -_marginal(problem, best), np.nan)
+    if problem.prior is not None:
+        out.cost = np.full(count, np.nan)
+        out.cost[rows] = best.cost
     for i, solution in unsolved.items():
         out.status[i] = solution.status.value
         out.fallback[i] = _unfused(solution, problem.lengths[i], problem.sigma_length)
+    return out
+
+
+def _marginal(problem: Problem, rows: Rows) -> np.ndarray:
+    """The observations' residuals of the rows (n, m), each (predicted - measured) / its own sigma: with a
+    prior, a load pin's beyond its expected error, over its marginal sigma (the whitened residuals mix
+    the pins)."""
+    out = rows.residuals[:, 4:].copy()
+    if problem.prior is None or not rows.sample.size:
+        return out
+    ropes, white, sigma, _ = problem.pin_prior
+    pins = problem.pin_observations[ropes]
+    raw = np.linalg.solve(white[rows.sample], out[:, pins][..., None])[..., 0]
+    out[:, pins] = raw / sigma[rows.sample]
     return out
 
 

@@ -27,7 +27,8 @@ import numpy as np
 from . import load as loads
 from .geometry import cross, rotations_from_vectors, skew
 from .observations import Observation, States
-from .plant import Plant
+from .plant import CABLE_NAMES, Plant
+from .prior import Prior, whitening
 from .ropes import Ropes
 
 MAX_STEPS = 12
@@ -54,13 +55,16 @@ class Problem:
     ropes: Ropes
     loads: np.ndarray         # external wrench of each sample (N, 6) [N, N m about C]
     anchors: np.ndarray | None = None  # each sample's anchors (N, 4, 3) where they move with the pose
+    prior: Prior | None = None  # each sample's expected model error (None: the encoders' and pins' noise alone)
 
     @classmethod
     def build(cls, plant: Plant, lengths: np.ndarray, sigma_length: float, observations: Sequence[Observation],
-              ropes: Ropes, load: np.ndarray | None, anchors: np.ndarray | None = None) -> "Problem":
+              ropes: Ropes, load: np.ndarray | None, anchors: np.ndarray | None = None,
+              prior: Prior | None = None) -> "Problem":
         """The problem of N samples under `load`: one wrench (6,) for all, one per sample (N, 6), or None
-        for gravity; with each sample's `anchors` (N, 4, 3) (None: the plant's); ValueError names what is
-        wrong."""
+        for gravity; with each sample's `anchors` (N, 4, 3) (None: the plant's) and the model's expected
+        error `prior` (None: the model taken as exact, the lengths and pins off by their noise alone);
+        ValueError names what is wrong."""
         if not (np.isfinite(sigma_length) and sigma_length > 0.0):
             raise ValueError(f"length noise sigma must be finite and positive, got {sigma_length!r}")
         count = len(lengths)
@@ -76,7 +80,9 @@ class Problem:
             raise ValueError(reason)
         if anchors is not None and np.shape(anchors) != (count, 4, 3):
             raise ValueError(f"anchors must have shape ({count}, 4, 3), got {np.shape(anchors)}")
-        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrenches, anchors)
+        if prior is not None:
+            prior.check(count)
+        return cls(plant, lengths, float(sigma_length), tuple(observations), values, ropes, wrenches, anchors, prior)
 
     def anchors_of(self, sample: np.ndarray) -> np.ndarray | None:
         """The anchors of these samples (n, 4, 3), None where they are the plant's."""
@@ -106,6 +112,33 @@ class Problem:
         """(observation index, rope) of each load pin read off the state (a rope's tension coordinate)."""
         index, columns, _ = self.read_off
         return [(int(k), int(c) - 6) for k, c in zip(index, columns) if c >= 6]
+
+    @cached_property
+    def expected_lengths(self) -> np.ndarray:
+        """(N, 4) the lengths the model's ropes are expected to have: reported plus the prior's correction."""
+        return self.lengths if self.prior is None else self.lengths + self.prior.lengths
+
+    @cached_property
+    def length_white(self) -> np.ndarray:
+        """(N, 4, 4) whitening of the length corrections' deviation from the prior (needs a prior)."""
+        return whitening(self.prior.length_covariance)[0]
+
+    @cached_property
+    def pin_observations(self) -> np.ndarray:
+        """(4,) the index of each rope's load-pin observation, -1 where it has none."""
+        index = {o.name: k for k, o in enumerate(self.observations)}
+        return np.array([index.get(f"tension_{name}", -1) for name in CABLE_NAMES], dtype=int)
+
+    @cached_property
+    def pin_prior(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The ropes with a load pin, and each sample's whitening (N, k, k) of those pins' errors, their
+        marginal sigmas (N, k) [N] and expected errors (N, k) [N], each pin not measured at a sample left
+        out of the others' (needs a prior)."""
+        ropes = np.flatnonzero(self.pin_observations >= 0)
+        measured = np.zeros((len(self.lengths), 4), bool)
+        measured[:, ropes] = np.isfinite(self.values[:, self.pin_observations[ropes]])
+        white, sigma = whitening(self.prior.pin_covariance, measured)
+        return ropes, white[:, ropes][:, :, ropes], sigma[:, ropes], self.prior.pins[:, ropes]
 
     @cached_property
     def predicted_by_function(self) -> np.ndarray:
@@ -154,12 +187,12 @@ class Rows:
 
 def implied_lengths(problem: Problem, rows: Rows) -> np.ndarray:
     """The corrected lengths of each row (n, 4): a taut rope's unstretched length through the rope law;
-    a slack rope's reported length, or longer where its span needs it."""
+    a slack rope's expected length (reported, plus the prior's correction), or longer where its span needs it."""
     states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scales[rows.sample, None],
                     anchors=problem.anchors_of(rows.sample))
     taut_length = problem.ropes.unstretched(states.spans, states.tensions)[0]
     slack_length = problem.ropes.unstretched(states.spans, np.zeros_like(states.spans))[0]
-    return np.where(rows.taut, taut_length, np.maximum(slack_length, problem.lengths[rows.sample]))
+    return np.where(rows.taut, taut_length, np.maximum(slack_length, problem.expected_lengths[rows.sample]))
 
 
 def residuals(problem: Problem, rows: Rows, live: np.ndarray) -> np.ndarray:
@@ -182,8 +215,9 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     norms = np.sqrt(np.einsum("nci,nci->nc", spans, spans))
     units = spans / norms[..., None]
     moments = cross(levers, units)
-    lengths = problem.lengths[sample]
-    sigma = problem.sigma_length
+    lengths = problem.expected_lengths[sample]
+    prior = problem.prior
+    sigma = problem.sigma_length if prior is None else 1.0
     tensions = mu * weight
 
     taut_length, d_span, d_tension = problem.ropes.unstretched(norms, tensions)
@@ -204,6 +238,8 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     for k in functional.tolist():
         predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
+    if prior is not None:
+        _whiten(problem, sample, residual, None)
 
     load = problem.loads[sample] / weight
     constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - load[:, :3],
@@ -223,6 +259,8 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     jacobian[:, 4:, 6:] *= weight[:, :, None]   # per newton -> per unit of |f|
     jacobian[:, 4:] *= measured[..., None]
     jacobian[:, :, 6:] *= taut[:, None, :]
+    if prior is not None:
+        _whiten(problem, sample, None, jacobian)
 
     projector = (np.eye(3) - units[..., :, None] * units[..., None, :]) / norms[..., None, None]
     weighted = (mu * taut)[..., None, None] * projector
@@ -238,6 +276,80 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     return residual, jacobian, constraint, balance
 
 
+def _whiten(problem: Problem, sample: np.ndarray, residual: np.ndarray | None, jacobian: np.ndarray | None) -> None:
+    """Weigh the rows' length and load-pin residuals (or their Jacobian rows) by the prior, in place: the
+    lengths' deviation from their expected correction by the corrections' covariance, the pins'
+    readings beyond the model's prediction by the expected pin error and its covariance. The residuals
+    come in as the lengths' deviations [m] and the pins' (predicted - measured) / sigma."""
+    ropes, white, _, expected = problem.pin_prior
+    white, expected = white[sample], expected[sample]
+    pins = 4 + problem.pin_observations[ropes]
+    scale = problem.sigmas[pins - 4]
+    length_white = problem.length_white[sample]
+    if residual is not None:
+        residual[:, :4] = np.einsum("nij,nj->ni", length_white, residual[:, :4])
+        measured = np.isfinite(problem.values[sample][:, pins - 4])
+        raw = residual[:, pins] * scale + np.where(measured, expected, 0.0)
+        residual[:, pins] = np.einsum("nij,nj->ni", white, raw)
+    if jacobian is not None:
+        jacobian[:, :4] = np.matmul(length_white, jacobian[:, :4])
+        jacobian[:, pins] = np.matmul(white, jacobian[:, pins] * scale[:, None])
+
+
+def _kkt(jacobian: np.ndarray, residual: np.ndarray, balance: np.ndarray, slack: np.ndarray,
+         mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows' 16 x 16 KKT systems of the Gauss-Newton model with the balance linearised, and the cost's
+    gradient: a slack rope's tension held (an identity row, its gradient the tension, so a step sets it
+    to zero), a small Levenberg term EPS on the state."""
+    n = len(jacobian)
+    system = np.zeros((n, 16, 16))
+    hessian = np.swapaxes(jacobian, 1, 2) @ jacobian + EPS * np.eye(10)
+    gradient = np.einsum("nki,nk->ni", jacobian, residual)
+    held = np.concatenate([np.zeros((n, 6), bool), slack], axis=1)
+    hessian = np.where(held[:, :, None] | held[:, None, :], 0.0, hessian)
+    hessian[:, np.arange(6, 10), np.arange(6, 10)] += slack
+    gradient = np.where(held, np.concatenate([np.zeros((n, 6)), mu], axis=1), gradient)
+    system[:, :10, :10] = hessian
+    system[:, :10, 10:] = np.swapaxes(balance, 1, 2)
+    system[:, 10:, :10] = balance
+    return system, gradient
+
+
+def prior_jacobian(problem: Problem, rows: Rows) -> np.ndarray:
+    """(n, 4 + m, 8) derivative of the rows' weighed residuals (needs a prior) with respect to the prior's
+    expected length corrections (4) [m] and expected load-pin errors (4) [N], at the rows' states: a taut
+    rope's length residual, or a slack one's where its span overstretches it, moves against its expected
+    correction; a measured pin's residual with its expected error."""
+    live = np.arange(len(rows.sample))
+    states = States(problem.plant, rows.rotation, rows.position, rows.mu * problem.scales[rows.sample, None],
+                    anchors=problem.anchors_of(rows.sample))
+    slack_length = problem.ropes.unstretched(states.spans, np.zeros_like(states.spans))[0]
+    active = rows.taut | (slack_length > problem.expected_lengths[rows.sample])
+    out = np.zeros((live.size, 4 + len(problem.observations), 8))
+    out[:, :4, :4] = -problem.length_white[rows.sample] * active[:, None, :]
+    ropes, white, _, _ = problem.pin_prior
+    pins = 4 + problem.pin_observations[ropes]
+    measured = np.isfinite(problem.values[rows.sample][:, pins - 4])
+    out[:, pins[:, None], 4 + ropes[None, :]] = white[rows.sample] * measured[:, None, :]
+    return out
+
+
+def reduced_normal(problem: Problem, rows: Rows, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's part of the Gauss-Newton normal equations of k parameters that all rows share and that
+    enter their weighed residuals with `jacobian` (n, 4 + m, k), the row's own state (pose and tensions,
+    on its equilibrium) optimised again for any change of them (its Schur complement): (n, k, k) and the
+    gradient (n, k) at the rows' states, as a fixed-lag smoother takes a bias's information from a
+    window of samples."""
+    live = np.arange(len(rows.sample))
+    residual, state_jacobian, _, balance = _residuals(problem, rows, live, True)
+    system, _ = _kkt(state_jacobian, residual, balance, ~rows.taut, rows.mu)
+    coupling = np.zeros((live.size, 16, jacobian.shape[2]))
+    coupling[:, :10] = np.swapaxes(state_jacobian, 1, 2) @ jacobian
+    response = np.linalg.solve(system, coupling)[:, :10]       # the state's best move per unit of each parameter
+    projected = jacobian - state_jacobian @ response
+    return np.swapaxes(jacobian, 1, 2) @ projected, np.einsum("nki,nk->ni", projected, residual)
+
+
 def solve_rows(problem: Problem, rows: Rows) -> Rows:
     """Gauss-Newton SQP on every row from its start; sets converged, cost, residuals and steps."""
     plant = problem.plant
@@ -247,17 +359,7 @@ def solve_rows(problem: Problem, rows: Rows) -> Rows:
     for _ in range(MAX_STEPS):
         residual, jacobian, constraint, balance = _residuals(problem, rows, live, True)
         n = live.size
-        system = np.zeros((n, 16, 16))
-        hessian = np.swapaxes(jacobian, 1, 2) @ jacobian + EPS * np.eye(10)
-        gradient = np.einsum("nki,nk->ni", jacobian, residual)
-        slack = ~rows.taut[live]
-        held = np.concatenate([np.zeros((n, 6), bool), slack], axis=1)
-        hessian = np.where(held[:, :, None] | held[:, None, :], 0.0, hessian)
-        hessian[:, np.arange(6, 10), np.arange(6, 10)] += slack
-        gradient = np.where(held, np.concatenate([np.zeros((n, 6)), rows.mu[live]], axis=1), gradient)
-        system[:, :10, :10] = hessian
-        system[:, :10, 10:] = np.swapaxes(balance, 1, 2)
-        system[:, 10:, :10] = balance
+        system, gradient = _kkt(jacobian, residual, balance, ~rows.taut[live], rows.mu[live])
         rhs = -np.concatenate([gradient, constraint], axis=1)
         try:
             step = np.linalg.solve(system, rhs[..., None])[..., 0][:, :10]

@@ -17,6 +17,7 @@ import numpy as np
 from ..paths import default_plant_file
 from .safe_yaml import YamlLimitError, load_yaml_file
 from .plant_checks import degenerate_points
+from .prior import ModelErrorConfigError, ModelErrorSpec
 
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
 DEFAULT_MAX_PAYOUT = 3000.0  # [m] deeper than any shaft sunk with a hanging platform
@@ -81,6 +82,7 @@ class Plant:
     effect_modules: tuple[str, ...] = ()  # user files defining effects (and channels)
     sheaves: tuple[Sheave, ...] = ()  # one per cable where the plant file describes pulleys (anchors: where ropes meet them)
     effect_bounds: Mapping[str, Mapping[str, tuple[float, float]]] = field(default_factory=dict)  # effect -> param -> (lo, hi)
+    model_error: ModelErrorSpec = field(default_factory=ModelErrorSpec)  # how far and fast the model may be off
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -352,8 +354,17 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         effect_modules=_modules(section.get("effect_modules")),
         sheaves=_sheaves(geometry.get("sheaves")),
         effect_bounds=_effect_bounds(section.get("effect_bounds")),
+        model_error=_model_error(section.get("model_error")),
         raw=config,
     )
+
+
+def _model_error(section: Any) -> ModelErrorSpec:
+    """`plant.model_error`: how far and how fast the model may be off (prior.ModelErrorSpec)."""
+    try:
+        return ModelErrorSpec.from_mapping(section)
+    except ModelErrorConfigError as error:
+        raise PlantConfigError(f"plant file: {error}") from None
 
 
 def load_plant(path: str | Path | None = None) -> Plant:
