@@ -422,17 +422,18 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
 
 def _unloaded(problem: Problem, best: Rows) -> Rows:
     """With a prior, each row with taut ropes whose load pins cannot tell their tension from zero (below
-    SEARCH_SIGMA of the pin's spread) solved again with those ropes slack, and taken where admissible
+    SEARCH_SIGMA of the pin's noise) solved again with those ropes slack, and taken where admissible
     and no dearer than SEARCH_SIGMA^2: where the model's lengths are free to follow the sensors, four
     rigid ropes can always be made taut, and a rope carrying a pin's noise is not one the platform
-    hangs on."""
-    ropes, _, sigma, _ = problem.pin_prior
+    hangs on. A rope its pin shows carrying more stays taut."""
+    ropes = np.flatnonzero(problem.pin_observations >= 0)
     if not ropes.size:
         return best
-    measured = np.isfinite(problem.values[best.sample][:, problem.pin_observations[ropes]])
+    pins = problem.pin_observations[ropes]
+    measured = np.isfinite(problem.values[best.sample][:, pins])
     tension = best.mu[:, ropes] * problem.scales[best.sample, None]
     weak = np.zeros_like(best.taut)
-    weak[:, ropes] = best.taut[:, ropes] & measured & (tension < SEARCH_SIGMA * sigma[best.sample])
+    weak[:, ropes] = best.taut[:, ropes] & measured & (tension < SEARCH_SIGMA * problem.sigmas[pins])
     rows = np.flatnonzero(weak.any(axis=1) & ((best.taut & ~weak).sum(axis=1) >= 2) & _admissible(best))
     if not rows.size:
         return best
@@ -468,18 +469,10 @@ def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.
 
 def _slack_readings(problem: Problem, samples: np.ndarray) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
     """For each load pin read off the state (observation index, rope): what it is expected to read of a
-    slack rope at each sample [N] and the spread of that (N,) [N] -- nothing and its noise, or the
-    prior's expected pin error and its marginal sigma."""
-    out = []
-    if problem.prior is not None:
-        ropes, _, sigma, expected = problem.pin_prior
-        column = {int(rope): c for c, rope in enumerate(ropes)}
-    for k, rope in problem.pins:
-        if problem.prior is None:
-            out.append((k, rope, np.zeros(len(samples)), np.full(len(samples), problem.sigmas[k])))
-        else:
-            out.append((k, rope, expected[samples, column[rope]], sigma[samples, column[rope]]))
-    return out
+    slack rope at each sample [N] (nothing, or the prior's expected pin error: the rope's own weight
+    above the platform, a pin's zero) and the pin's noise (N,) [N]."""
+    expected = np.zeros((len(samples), 4)) if problem.prior is None else problem.prior.pins[samples]
+    return [(k, rope, expected[:, rope], np.full(len(samples), problem.sigmas[k])) for k, rope in problem.pins]
 
 
 def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np.ndarray:

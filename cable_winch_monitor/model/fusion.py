@@ -35,6 +35,7 @@ MAX_STEPS = 12
 EPS = 1e-6                # Levenberg term (residuals are in sigma, dz in m, rad, m g)
 BALANCE_TOL = 1e-9        # relative force and moment balance at convergence (per 100 m of rope)
 STEP_TOL = 1e-6           # last step [m per 100 m of rope, rad, |f|] at convergence: Newton's next is ~1e-12
+COST_TOL = 1e-4           # change of the cost [sigma^2, per 1 + cost] between iterates at which it has stopped falling
 MAX_TURN_STEP = 0.2       # [rad] largest rotation of one step
 MAX_SHIFT_STEP = 0.2      # largest translation of one step, in units of the plant's size
 
@@ -135,10 +136,15 @@ class Problem:
         marginal sigmas (N, k) [N] and expected errors (N, k) [N], each pin not measured at a sample left
         out of the others' (needs a prior)."""
         ropes = np.flatnonzero(self.pin_observations >= 0)
+        white, sigma = whitening(self.prior.pin_covariance, self._pins_measured)
+        return ropes, white[:, ropes][:, :, ropes], sigma[:, ropes], self.prior.pins[:, ropes]
+
+    @cached_property
+    def _pins_measured(self) -> np.ndarray:
+        ropes = np.flatnonzero(self.pin_observations >= 0)
         measured = np.zeros((len(self.lengths), 4), bool)
         measured[:, ropes] = np.isfinite(self.values[:, self.pin_observations[ropes]])
-        white, sigma = whitening(self.prior.pin_covariance, measured)
-        return ropes, white[:, ropes][:, :, ropes], sigma[:, ropes], self.prior.pins[:, ropes]
+        return measured
 
     @cached_property
     def predicted_by_function(self) -> np.ndarray:
@@ -350,14 +356,54 @@ def reduced_normal(problem: Problem, rows: Rows, jacobian: np.ndarray) -> tuple[
     return np.swapaxes(jacobian, 1, 2) @ projected, np.einsum("nki,nk->ni", projected, residual)
 
 
+def _size(step: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """The size of steps (n, 10) against STEP_TOL: translation per `reach`, rotation, tension per |f|."""
+    return np.maximum.reduce([np.abs(step[:, 0:3]).max(axis=1) / reach, np.abs(step[:, 3:6]).max(axis=1),
+                              np.abs(step[:, 6:]).max(axis=1)])
+
+
+def _move(rows: Rows, index: np.ndarray, step: np.ndarray) -> None:
+    """Move the rows `index` by `step` (n, 10): translation, rotation vector on the left, tensions."""
+    rows.position[index] += step[:, 0:3]
+    rows.rotation[index] = rotations_from_vectors(step[:, 3:6]) @ rows.rotation[index]
+    rows.mu[index] += step[:, 6:]
+
+
 def solve_rows(problem: Problem, rows: Rows) -> Rows:
     """Gauss-Newton SQP on every row from its start; sets converged, cost, residuals and steps."""
     plant = problem.plant
     reach = np.maximum(1.0, problem.lengths[rows.sample].max(axis=1) * 1e-2)
     live = np.arange(len(rows.sample))
     settled = np.zeros(len(rows.sample), bool)
+    previous = np.full(len(rows.sample), np.inf)
+    last = np.zeros((len(rows.sample), 10))
+    scale = np.ones(len(rows.sample))  # of the Gauss-Newton step: halved each time one went too far
     for _ in range(MAX_STEPS):
         residual, jacobian, constraint, balance = _residuals(problem, rows, live, True)
+        balanced = np.abs(constraint).max(axis=1) < BALANCE_TOL * reach[live]
+        cost = np.where(balanced, np.einsum("nk,nk->n", residual, residual), np.inf)  # on the balance only
+        worse = balanced & (cost > previous[live] * (1.0 + 1e-12) + 1e-12)
+        if worse.any():  # the last step went past the minimum (a slack rope's one-sided residual has a kink where
+            back = live[worse]  # it meets its length): take half of it back, and try again from there
+            _move(rows, back, -0.5 * last[back])
+            last[back] *= 0.5
+            scale[back] *= 0.5
+            small = _size(last[back], reach[back]) < STEP_TOL
+            settled[back[small]] = True
+            retry = back[~small]
+            keep = ~worse
+            live, residual, jacobian, constraint, balance, cost = (live[keep], residual[keep], jacobian[keep],
+                                                                   constraint[keep], balance[keep], cost[keep])
+            balanced = balanced[keep]
+        else:
+            retry = np.zeros(0, int)
+        flat = balanced & (scale[live] < 1.0) & (np.abs(previous[live] - cost) <= COST_TOL * (1.0 + cost))
+        previous[live] = cost
+        if flat.any():  # a row that went too far has stopped falling on the balance (to far below the noise)
+            settled[live[flat]] = True
+            keep = ~flat
+            live, residual, jacobian, constraint, balance = (live[keep], residual[keep], jacobian[keep],
+                                                             constraint[keep], balance[keep])
         n = live.size
         system, gradient = _kkt(jacobian, residual, balance, ~rows.taut[live], rows.mu[live])
         rhs = -np.concatenate([gradient, constraint], axis=1)
@@ -365,18 +411,16 @@ def solve_rows(problem: Problem, rows: Rows) -> Rows:
             step = np.linalg.solve(system, rhs[..., None])[..., 0][:, :10]
         except np.linalg.LinAlgError:
             step = np.stack([np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(system, rhs)])[:, :10]
-        size = np.maximum.reduce([np.abs(step[:, 0:3]).max(axis=1) / reach[live], np.abs(step[:, 3:6]).max(axis=1),
-                                  np.abs(step[:, 6:]).max(axis=1)])
+        size = _size(step, reach[live])
         largest = np.maximum.reduce([np.abs(step[:, 3:6]).max(axis=1) / MAX_TURN_STEP,
                                      np.abs(step[:, 0:3]).max(axis=1) / (MAX_SHIFT_STEP * plant.moment_scale),
                                      np.ones(n)])
-        step /= largest[:, None]
-        rows.position[live] += step[:, 0:3]
-        rows.rotation[live] = rotations_from_vectors(step[:, 3:6]) @ rows.rotation[live]
-        rows.mu[live] += step[:, 6:]
+        step *= (scale[live] / largest)[:, None]
+        _move(rows, live, step)
+        last[live] = step
         rows.steps[live] += 1
         settled[live[size < STEP_TOL]] = True
-        live = live[size >= STEP_TOL]
+        live = np.concatenate([live[size >= STEP_TOL], retry])
         if not live.size:
             break
     everything = np.arange(len(rows.sample))  # residuals and balance where the last steps left the rows

@@ -27,11 +27,14 @@ update at the same stamps, so they estimate the same states.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from .fusion import Problem, Rows, prior_jacobian, reduced_normal
 from .prior import LENGTHS, PINS, SIZE, ModelErrorSpec, Prior
+
+MAX_STEP = 5.0  # [sigma of the prior] the largest move of the error at one update
 
 
 def _design(payouts: np.ndarray) -> np.ndarray:
@@ -53,6 +56,7 @@ class ModelError:
         self.walk = spec.walk()
         self.reference: float | None = None  # [s] the stamp the estimate holds at (None: no sample yet)
         self.updates = 0
+        self.fast_scale = 1.0  # how much faster than `length_unmodelled` the error has lately changed in a window
 
     def window(self, stamp: float, origin: float) -> int:
         """The update window of a sample stamped `stamp` [s], windows counted from `origin` [s]."""
@@ -79,8 +83,8 @@ class ModelError:
         design = _design(payouts)
         lengths, pins = design @ self.mean[LENGTHS], design @ self.mean[PINS]
         eye = np.eye(4)
-        fast = (self.spec.length_unmodelled * payouts) ** 2
-        length_cov = self.sigma_length ** 2 * eye + fast[:, :, None] * eye
+        fast = self.fast_scale ** 2 * (self.sigma_length ** 2 + (self.spec.length_unmodelled * payouts) ** 2)
+        length_cov = fast[:, :, None] * eye
         pin_cov = np.broadcast_to(self.sigma_pin ** 2 * eye, (len(payouts), 4, 4)).copy()
         if with_state:
             elapsed = np.zeros(len(payouts)) if self.reference is None else \
@@ -90,16 +94,16 @@ class ModelError:
             pin_cov = pin_cov + design @ grown[:, PINS, PINS] @ np.swapaxes(design, 1, 2)
         return Prior(lengths, length_cov, pins, pin_cov)
 
-    def update(self, problem: Problem, rows: Rows, payouts: np.ndarray, stamp: float) -> None:
-        """One Gauss-Newton step of the error from a window's estimated samples: `problem` weighed by
+    def updated(self, problem: Problem, rows: Rows, payouts: np.ndarray, stamp: float) -> "ErrorState":
+        """The error after one Gauss-Newton step from a window's estimated samples: `problem` weighed by
         `white` at their stamps, `rows` their estimated states (one row per sample that was estimated),
-        `payouts` (N, 4) of the problem's samples, `stamp` [s] where the window ends. The estimate then
-        holds at the window's middle; the random walk grows it from there."""
-        if not len(rows.sample):
-            return
+        `payouts` (N, 4) of the problem's samples, `stamp` [s] where the window ends; the estimate then
+        holds at the window's middle, the random walk grows it from there. Reads the error as it is now
+        and changes nothing (`apply` takes it), so that the node can work it out beside its samples."""
+        mean, covariance, reference = self.mean.copy(), self.covariance.copy(), self.reference
         middle = stamp - 0.5 * self.spec.period
-        elapsed = 0.0 if self.reference is None else max(middle - self.reference, 0.0)
-        predicted = self.covariance + elapsed * self.walk
+        elapsed = 0.0 if reference is None else max(middle - reference, 0.0)
+        predicted = covariance + elapsed * self.walk
         design = _design(payouts[rows.sample])
         chain = np.zeros((len(rows.sample), 8, SIZE))
         chain[:, 0:4, LENGTHS] = design
@@ -108,11 +112,25 @@ class ModelError:
         information = np.linalg.inv(predicted) + info.sum(axis=0)
         information = 0.5 * (information + information.T)
         step = -np.linalg.solve(information, gradient.sum(axis=0))
-        self.mean = self.mean + step
-        self.covariance = np.linalg.inv(information)
-        self.covariance = 0.5 * (self.covariance + self.covariance.T)
-        self.reference = middle
+        reach = math.sqrt(max(float(step @ np.linalg.solve(predicted, step)), 0.0))
+        if reach > MAX_STEP:  # a linearised step this far out of the prior is not to be trusted: go part of the way
+            step *= MAX_STEP / reach
+        covariance = np.linalg.inv(information)
+        return ErrorState(mean + step, 0.5 * (covariance + covariance.T), middle)
+
+    def apply(self, state: "ErrorState") -> None:
+        self.mean, self.covariance, self.reference = state
         self.updates += 1
+
+    def rescale(self, consistency: float) -> None:
+        """Match the part of the error that changes within a window to what a window's samples showed: the
+        mean over them of their length corrections' squared Mahalanobis distance from the expected ones, per
+        rope (1 where the prior's spread was right). Where the model is coarser than the plant file says
+        (rigid ropes that stretch), the samples weigh the lengths less from the next window on; never below
+        `length_unmodelled` (covariance matching of the normalised innovations, as adaptive Kalman filters
+        tune their process noise)."""
+        if math.isfinite(consistency):
+            self.fast_scale = math.sqrt(max(1.0, self.fast_scale ** 2 * (0.5 + 0.5 * consistency)))
 
     def start(self, stamp: float) -> None:
         """The first sample's stamp: the initial spread holds from there."""
@@ -132,3 +150,11 @@ class ModelError:
         design = _design(np.asarray(payouts, dtype=float).reshape(-1, 4))
         covariance = design @ self.covariance[block, block] @ np.swapaxes(design, 1, 2)
         return design @ self.mean[block], np.sqrt(np.diagonal(covariance, axis1=1, axis2=2))
+
+
+class ErrorState(NamedTuple):
+    """The error's estimate after an update: its mean (16,), covariance (16, 16), the stamp it holds at."""
+
+    mean: np.ndarray
+    covariance: np.ndarray
+    reference: float | None

@@ -93,7 +93,7 @@ class ModelErrorSpec:
     period: float = 10.0                 # [s] of sample stamps between updates of the estimated error
     length_offset: float = 0.1           # [m] 1-sigma of a rope's length error at the start
     length_strain: float = 1e-3          # [-] 1-sigma of its length error per metre of payout at the start
-    length_offset_walk: float = 1e-3     # [m/sqrt(s)] random walk of the length offset
+    length_offset_walk: float = 3e-4     # [m/sqrt(s)] random walk of the length offset
     length_strain_walk: float = 2e-6     # [1/sqrt(s)] random walk of the length error per metre
     length_unmodelled: float = 3e-5      # [-] per metre of payout, each sample: what changes within a window
     pin_common: float = 3e4              # [N] 1-sigma of the error common to the load pins at the start
