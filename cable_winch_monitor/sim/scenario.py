@@ -38,6 +38,10 @@ DEFAULTS: dict[str, Any] = {
         "sigma": 0.0,           # [m] stationary standard deviation of each winch's random drift (Ornstein-Uhlenbeck)
         "tau": 30.0,            # [s] its correlation time
         "events": [],           # {winch: 1-4, lag: m, start: s, duration: s, hold: s}: winch pays out `lag` less
+        "drives": "encoders",   # encoders: the winches pay out what their encoders report plus the errors above (an
+                                # encoder error moves the rope); ropes: the ropes are paid out so, kept in step by a
+                                # measurement of their own, and the encoders the monitor reads report them through
+                                # the hidden encoder errors
     },
     "sensors": {
         "latency": 0.004,       # [s] mean delay of the bag's receive time after the header stamp
@@ -61,6 +65,7 @@ DEFAULTS: dict[str, Any] = {
         "position": {"enabled": False, "rate": 2.0, "noise": 0.005,      # depth gauge: [Hz], [m]
                      "horizontal": False},  # True: x and y too (motion capture)
         "temperature": {"enabled": False, "rate": 1.0, "noise": 0.1},   # shaft air thermometer: [Hz], [K]
+        "faults": [],               # {sensor, kind: stuck | offset | silent, start, duration, value, roll, pitch}
     },
 }
 OPTIONAL = {"plant": str, "duration": float, "rate": float}
@@ -69,6 +74,7 @@ STOP = {"stop": float}
 EVENT = {"winch": int, "lag": float, "start": float, "duration": float, "hold": float}
 EVENT_OPTIONAL = {"hold"}
 ROPE_MODELS = ("rigid", "elastic")
+DRIVES = ("encoders", "ropes")
 
 
 class ScenarioError(ValueError):
@@ -113,8 +119,15 @@ def _segment(item: Any, where: str) -> dict:
     return _check_item(item, MOVE, where)
 
 
+def _fault(item: Any, where: str) -> dict:
+    from .faults import check_fault
+
+    return check_fault(item, where)
+
+
 LIST_ITEMS = {"profile.segments": _segment,
-              "sync.events": lambda item, where: _check_item(item, EVENT, where, EVENT_OPTIONAL)}
+              "sync.events": lambda item, where: _check_item(item, EVENT, where, EVENT_OPTIONAL),
+              "sensors.faults": _fault}
 
 
 def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any]:
@@ -151,6 +164,8 @@ def _check_physics(config: dict[str, Any]) -> None:
     if config["ropes"]["model"] not in ROPE_MODELS:
         raise ScenarioError(f"key 'ropes.model' must be one of {', '.join(ROPE_MODELS)}, "
                             f"got {config['ropes']['model']!r}")
+    if config["sync"]["drives"] not in DRIVES:
+        raise ScenarioError(f"key 'sync.drives' must be one of {', '.join(DRIVES)}, got {config['sync']['drives']!r}")
     positive = [("ropes.EA", config["ropes"]["EA"]), ("sync.tau", config["sync"]["tau"]),
                 ("profile.start_length", config["profile"]["start_length"])]
     positive += [(f"sensors.{name}.rate", config["sensors"][name]["rate"])

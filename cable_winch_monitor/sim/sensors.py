@@ -20,6 +20,7 @@ import numpy as np
 from ..model.plant import CABLE_NAMES
 from ..bagio.fields import Stamp, header
 from ..channels import IMU, JOINT_STATE, POINT, TENSION_CHANNELS
+from .faults import SensorFaults
 
 NAN = float("nan")
 UNKNOWN = -1.0  # covariance[0] of a quantity that is not measured (sensor_msgs convention)
@@ -84,8 +85,13 @@ def quaternion_from_roll_pitch(roll: float, pitch: float) -> tuple[float, float,
 class Sensors:
     """Noisy readings of the true state, as message field values (None: nothing to report)."""
 
-    def __init__(self, sensors: Mapping[str, Any], rng: np.random.Generator):
+    def __init__(self, sensors: Mapping[str, Any], rng: np.random.Generator, start_time: float = 0.0):
         self.config, self.rng = sensors, rng
+        self.faults = SensorFaults(sensors.get("faults", []))
+        self.start_time = start_time  # [s] the stamp of the run's t = 0 (the faults' times are the run's)
+
+    def _time(self, stamp: Stamp) -> float:
+        return stamp[0] + stamp[1] * 1e-9 - self.start_time
 
     def _noisy(self, values: np.ndarray, sigma: float) -> np.ndarray:
         return np.asarray(values, dtype=float) + self.rng.normal(0.0, sigma, np.shape(values))
@@ -95,10 +101,13 @@ class Sensors:
         joints = self.config["joint_states"]
         cables = list(stream.cables)
         tensions = np.array([channels.get(TENSION_CHANNELS[i], NAN) for i in cables])
+        effort = self._noisy(tensions, joints["tension_noise"]) if joints["effort"] else []
+        t = self._time(stamp)
+        effort = [self.faults.pin(i, t, float(value)) for i, value in zip(cables, effort)]
         return {"header": header(stamp, ""), "name": [CABLE_NAMES[i] for i in cables],
                 "position": self._noisy(lengths[cables], joints["length_noise"]),
                 "velocity": self._noisy(speeds[cables], joints["velocity_noise"]) if joints["velocity"] else [],
-                "effort": self._noisy(tensions, joints["tension_noise"]) if joints["effort"] else []}
+                "effort": effort}
 
     def imu(self, stamp: Stamp, channels: Mapping[str, float]) -> dict[str, Any] | None:
         if "roll" not in channels:
@@ -135,4 +144,6 @@ class Sensors:
             return self.joint_state(stamp, stream, lengths, speeds, channels)
         if stream.msgtype == TEMPERATURE:
             return self.temperature(stamp, air)
-        return self.imu(stamp, channels) if stream.msgtype == IMU else self.position(stamp, channels)
+        if stream.msgtype == IMU:
+            return self.faults.message("imu", self._time(stamp), self.imu(stamp, channels))
+        return self.faults.message("position", self._time(stamp), self.position(stamp, channels))

@@ -87,7 +87,7 @@ def simulate(config: dict[str, Any], out: str | Path) -> SimResult:
     duration = config["duration"] if config["duration"] is not None else profile.end + TAIL
     sync = SyncErrors(config["sync"]["sigma"], config["sync"]["tau"], config["sync"]["events"], sync_rng)
     truth = TruthModel(plant, config)
-    sensors = Sensors(config["sensors"], noise_rng)
+    sensors = Sensors(config["sensors"], noise_rng, config["start_time"])
     streams = sensor_streams(config["sensors"], duration, timing_rng)
     latency = config["sensors"]["latency"]
     result = SimResult(Path(out), duration)
@@ -101,7 +101,12 @@ def simulate(config: dict[str, Any], out: str | Path) -> SimResult:
             commanded, speed, acceleration = profile(t)
             errors, rates = sync(t)
             lengths, air = commanded + errors, air_temperature(config["shaft_air"], t)
-            state, channels = truth(lengths, Sample(t, speed + rates, acceleration, air))
+            sample = Sample(t, speed + rates, acceleration, air)
+            if config["sync"]["drives"] == "ropes":  # the ropes are paid out so; the encoders report them
+                state, channels = truth.paid_out(lengths, sample)
+                lengths = truth.reported(lengths, air)
+            else:
+                state, channels = truth(lengths, sample)
             clearance = solution_clearance(plant, state)
             table.writerow(_truth_row(config["start_time"] + t, stream.name, lengths, state,
                                       clearance.value if clearance is not None else np.nan))

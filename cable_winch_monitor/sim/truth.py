@@ -110,6 +110,12 @@ class TruthModel:
             lengths = physics.rope_temperature(lengths, e["rope_temperature"], temperature)
         return lengths
 
+    def reported(self, lengths: np.ndarray, temperature: float) -> np.ndarray:
+        """What the encoders report for ropes paid out `lengths` [m]: the inverse of `lengths`, which is
+        affine in each rope's reported length."""
+        zero, one = self.lengths(np.zeros(4), temperature), self.lengths(np.ones(4), temperature)
+        return (np.asarray(lengths, dtype=float) - zero) / (one - zero)
+
     def load(self, acceleration: float) -> np.ndarray:
         """The external wrench on the platform (force [N], moment about C [N m], shaft frame)."""
         g = self.plant.g
@@ -119,7 +125,11 @@ class TruthModel:
 
     def __call__(self, reported: np.ndarray, sample: Sample) -> tuple[Solution, dict[str, float]]:
         """The true equilibrium for the lengths the winches report, and what the sensors read of it."""
-        lengths, load = self.lengths(reported, sample.temperature), self.load(sample.acceleration)
+        return self.paid_out(self.lengths(reported, sample.temperature), sample)
+
+    def paid_out(self, lengths: np.ndarray, sample: Sample) -> tuple[Solution, dict[str, float]]:
+        """The true equilibrium for the ropes paid out `lengths` [m], and what the sensors read of it."""
+        load = self.load(sample.acceleration)
         self.direction = physics.motion_direction(np.asarray(sample.speeds, dtype=float), self.direction)
         try:
             state = self.trajectory(sample.time, lengths, load)
