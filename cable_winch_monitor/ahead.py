@@ -1,27 +1,24 @@
-"""A second process that estimates replay's next window while this one publishes the current one.
+"""Replay's second process: it estimates, judges and encodes the samples while the replay reads, merges and writes.
 
-A fused replay spends about a third of its time in the estimator (`recording_batch`) and
-the rest in work that must run in log order: the alarms, the sensor gates, the output
-records and the writing. The estimator of a window needs only the window's merged samples
-and the sensors trusted when it starts, so a forked process estimates window k+1 while
-this one publishes window k. What comes back are arrays (`BatchEstimate`, the clearances,
-what each channel reads), not one object per sample: pickling those would cost as much as
-the estimate; and each sample's records as the bytes the replay writes (`Published`): the
-pose, /tf and tension, which its solution alone decides, and the collision alarm and the
-scene, which the worker encodes with an alarm tracker and a scene throttle of its own and
-the replay takes where it raises the same alarm there (else it encodes its own). What goes
-there are arrays too: the samples' conditions packed (`PackedConditions`). A chunk's results
-(2 MB for 909 samples) come back through a file (`SPOOL`), not the pool's pipe: a thread of
-the replaying process reads that pipe, and it needs the interpreter lock for every 64 kB, so
-the worker waited up to 40 ms to hand over a chunk before it could start the next.
+What happens to a complete sample after it is merged -- its estimate (the model's error
+carried from window to window), its alarm and residuals, its records and scene -- is a
+function of the merged samples in order (`SamplePublisher`), the same code the node runs
+one sample at a time. Replay merges each window of messages (cheap, in log order) and
+hands its complete samples to a forked process that publishes them, window after window,
+while it reads and merges the next ones; it then writes the records the worker encoded, in
+log order, with the sensor messages' residuals between them. What comes back is bytes and
+small outcomes, not objects per sample, whose pickling would cost as much as the work.
 
-Only a fork can start it (the process inherits the plant model as it is, effects from a
-user's module included, without pickling it); where the platform has none, or the worker
-process is lost, the window is estimated in the replaying process as before. The worker ignores Ctrl-C:
-replay stops it when it stops.
+A window's results (about 1 kB a sample) come back through a file in SPOOL (/dev/shm where
+there is one), not the pool's pipe: a thread of the replaying process reads that pipe, and
+it needs the interpreter lock for every 64 kB. With each window comes the publisher's state
+after it, so that where the worker is lost, the replay publishes the rest itself from there.
+Only a fork can start it (the process inherits the plant model as it is, a user's effects
+included); where there is none, the replay publishes the samples itself.
 """
 from __future__ import annotations
 
+import math
 import multiprocessing
 import os
 import pickle
@@ -31,218 +28,160 @@ import tempfile
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import suppress
-from dataclasses import replace
-from typing import Mapping, NamedTuple, Sequence
+from typing import Any, NamedTuple, Sequence
 
-import numpy as np
-
+from .bagio import records
 from .bagio.fields import Stamp
-from .bagio.records import Record, alarm_record, scene_records, solution_records
+from .bagio.records import Record
 from .bagio.scene import SceneBuilder, SceneThrottle
-from .effects import PlantModel
-from .effects.estimate import recording_batch
 from .model.conditions import Conditions
-from .model.estimation import BatchEstimate, Estimate
-from .model.plant import Plant
-from .monitor.alarm import Alarm, AlarmLevel, AlarmPolicy, AlarmTracker
-from .monitor.clearance import Clearance, solution_clearances
+from .monitor.diagnostics import SampleView, sample_view
+from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
 
 SPOOL = "/dev/shm"  # where the worker's results are written, if the system has it (memory, not a disk)
-_worker: "Publisher | None" = None  # the worker's state, made at the fork from the replay's
+_worker: "SamplePublisher | None" = None  # the worker's publisher, made at the fork from the replay's
 
 
-def _start(worker: "Publisher") -> None:
+class Published(NamedTuple):
+    """A complete sample as replay writes it: its records (outputs, and a scene where one is due), what its
+    counts and the residuals of the sensor messages after it need, and at the first sample of each
+    second of stamps what /diagnostics says of it."""
+
+    records: list[Record]
+    outcome: Outcome
+    view: SampleView | None
+    output: MonitorOutput | None = None  # the sample's outputs themselves, where published in this process
+
+
+class SamplePublisher:
+    """A window's merged samples estimated (or solved) together, judged one by one in order -- alarm,
+    residuals, what the alarm is based on -- and encoded, by the pipeline's own code."""
+
+    def __init__(self, pipeline: MonitorPipeline, scene_rate: float):
+        self.pipeline = pipeline
+        self.builder, self.throttle = SceneBuilder(pipeline.plant), SceneThrottle(scene_rate)
+        self.second = -math.inf  # the second of stamps whose diagnostics view was sent
+
+    def publish(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions],
+                headers: Sequence[Stamp], batched: bool = True) -> list[Published]:
+        """What replay writes for each sample (header stamps `headers`); solved together where `batched`."""
+        pipeline = self.pipeline
+        solved = pipeline.solve_samples(samples, conditions) if batched else [None] * len(samples)
+        out = []
+        for sample, at, header, ahead in zip(samples, conditions, headers, solved):
+            output, outcome = pipeline.judge(sample, ahead, at)
+            encoded = records.output_records(header, output)
+            if self.throttle.due(output.stamp):
+                encoded += records.scene_records(header, self.builder, output.solution, output.alarm)
+            second = math.floor(output.stamp)
+            view = None
+            if second != self.second:
+                self.second, view = second, sample_view(output, pipeline.fusing)
+            out.append(Published(encoded, outcome, view, output))
+        return out
+
+    def state(self) -> bytes:
+        """What the publisher has learnt so far (the estimator's, the alarm's, the scenes'), pickled."""
+        pipeline = self.pipeline
+        return pickle.dumps((pipeline.estimator, pipeline.alarms.level, pipeline.tracker, self.throttle.last,
+                             self.second), protocol=pickle.HIGHEST_PROTOCOL)
+
+    def restore(self, state: bytes) -> None:
+        pipeline = self.pipeline
+        estimator, level, tracker, scene, self.second = pickle.loads(state)
+        if estimator is not None:
+            estimator.model = pipeline.model
+        pipeline.estimator, pipeline.alarms.level, pipeline.tracker, self.throttle.last = estimator, level, tracker, \
+            scene
+
+
+def _start(worker: SamplePublisher) -> None:
     global _worker
     _worker = worker
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-class PackedConditions(NamedTuple):
-    """Samples' conditions as arrays, to send to the worker: pickling a `Conditions` costs more than
-    estimating its sample (its three small arrays). Unpacked, the same values (inputs as they were:
-    a NaN input stays in, where `StackedConditions` leaves it out)."""
-
-    time: np.ndarray          # (N,)
-    speeds: np.ndarray        # (N, 4)
-    accelerations: np.ndarray  # (N, 4)
-    direction: np.ndarray     # (N, 4)
-    inputs: list[Mapping[str, float]]
-
-    @classmethod
-    def of(cls, conditions: Sequence[Conditions]) -> "PackedConditions":
-        return cls(np.array([c.time for c in conditions], dtype=float),
-                   *(np.array([getattr(c, name) for c in conditions], dtype=float).reshape(-1, 4)
-                     for name in ("speeds", "accelerations", "direction")),
-                   [c.inputs for c in conditions])
-
-    def unpacked(self) -> list[Conditions]:
-        return [Conditions(*row) for row in zip(self.time.tolist(), self.speeds, self.accelerations, self.direction,
-                                                self.inputs)]
-
-
-class PackedClearances(NamedTuple):
-    """Samples' clearances as arrays, to send back: each posed sample's value, outline point and that
-    point in `shaft`; the others' (a single-cable swing, none) as they are. Unpacked, the same values."""
-
-    values: np.ndarray  # (N,)
-    points: list[int]   # index in the plant's outline
-    shaft: np.ndarray   # (N, 3)
-    others: dict[int, Clearance | None]
-
-    @classmethod
-    def of(cls, plant: Plant, clearances: Sequence[Clearance | None], posed: Sequence[bool]) -> "PackedClearances":
-        index = {point.name: k for k, point in enumerate(plant.outline)}
-        rows = [(c.value, index[c.point_name], c.point_shaft) if ok else (np.nan, -1, np.full(3, np.nan))
-                for c, ok in zip(clearances, posed)]
-        values, points, shaft = zip(*rows) if rows else ((), (), ())
-        return cls(np.array(values, dtype=float), list(points), np.array(shaft, dtype=float).reshape(-1, 3),
-                   {i: c for i, (c, ok) in enumerate(zip(clearances, posed)) if not ok})
-
-    def unpacked(self, plant: Plant) -> list[Clearance | None]:
-        names, body = [point.name for point in plant.outline], plant.outline_array
-        return [self.others[i] if k < 0 else Clearance(value, names[k], body[k], shaft)
-                for i, (value, k, shaft) in enumerate(zip(self.values.tolist(), self.points, self.shaft))]
-
-
-class Published(NamedTuple):
-    """A sample's records as the worker encoded them: those its solution alone decides (pose, /tf,
-    tension), and those the alarm decides (the collision alarm, the scene where one was due there):
-    valid where the replay raises the same `alarm` (level, reason) at the sample."""
-
-    solution: list[Record]
-    alarm: tuple[AlarmLevel, str]
-    alarm_record: Record
-    scene: list[Record] | None  # None: no scene was due there
-
-    @staticmethod
-    def key(alarm: Alarm) -> tuple[AlarmLevel, str]:
-        """What of an alarm its records depend on beyond the sample's solution and clearance."""
-        return alarm.level, alarm.reason
-
-    def encoded_for(self, alarm: Alarm) -> bool:
-        """Whether the alarm and scene records were encoded for `alarm`."""
-        return self.alarm == self.key(alarm)
-
-
-class Ahead(NamedTuple):
-    """What the worker sends back for a chunk: the estimator's arrays (without the plant: the caller has
-    it), the clearances, what each channel reads at each state, and each sample's records."""
-
-    batch: BatchEstimate
-    clearances: PackedClearances
-    predicted: dict[str, np.ndarray]
-    published: list[Published]
-
-
-class Estimated(NamedTuple):
-    """A chunk's estimates from the worker, with their clearances, predictions and records."""
-
-    estimates: list[Estimate]
-    clearances: list[Clearance | None]
-    predicted: dict[str, np.ndarray]
-    published: list[Published]
-
-
-class Publisher:
-    """The worker: estimates a chunk, and encodes its samples' records with an alarm tracker and a scene
-    throttle of its own, which follow the samples it sees in order as the replay's follow them all."""
-
-    def __init__(self, model: PlantModel, plant: Plant, scene_rate: float):
-        self.model = model
-        self.alarms = AlarmTracker(AlarmPolicy.from_plant(plant))
-        self.builder, self.throttle = SceneBuilder(plant), SceneThrottle(scene_rate)
-
-    def chunk(self, reported: np.ndarray, measured: Mapping[str, np.ndarray], packed: PackedConditions,
-              stamps: Sequence[Stamp], times: Sequence[float]) -> Ahead:
-        conditions = packed.unpacked()
-        batch = recording_batch(self.model, reported, measured, conditions)
-        estimates = batch.estimates()
-        solutions = [e.solution for e in estimates]
-        clearances = solution_clearances(self.model.physical, solutions)
-        published = []
-        for stamp, time, estimate, clearance in zip(stamps, times, estimates, clearances):
-            alarm = self.alarms.update(estimate.solution, clearance)
-            scene = scene_records(stamp, self.builder, estimate.solution, alarm) if self.throttle.due(time) else None
-            published.append(Published(solution_records(stamp, estimate.solution, estimate), Published.key(alarm),
-                                       alarm_record(stamp, alarm), scene))
-        return Ahead(replace(batch, plant=None),
-                     PackedClearances.of(self.model.physical, clearances, [s.ok for s in solutions]),
-                     self.model.predict_solutions(solutions, conditions), published)
-
-
-def _chunk(spool: str, *job: object) -> str | None:
-    """The worker's job: a chunk's `Ahead`, pickled to a file in `spool` (its path; None where it could
-    not be written: the replay then estimates the chunk itself)."""
-    assert _worker is not None, "the worker was started without its state"
-    ahead = _worker.chunk(*job)
+def _job(spool: str, samples: list[CompleteSample], conditions: list[Conditions], headers: list[Stamp],
+         batched: bool) -> str | None:
+    """The worker's job: a window's Published and its state after them, pickled to a file in `spool` (its
+    path; None where it could not be written: the replay then publishes from the last state it got)."""
+    assert _worker is not None, "the worker was started without its publisher"
+    published = [p._replace(output=None) for p in _worker.publish(samples, conditions, headers, batched)]
     try:
         with tempfile.NamedTemporaryFile(dir=spool, delete=False) as file:
-            pickle.dump(ahead, file, protocol=pickle.HIGHEST_PROTOCOL)
+            pickle.dump((published, _worker.state()), file, protocol=pickle.HIGHEST_PROTOCOL)
     except OSError:
         return None
     return file.name
 
 
-def _remove_results(future: Future) -> None:
-    """Remove the file a finished chunk's results were written to (none if it failed or was cancelled;
-    gone already if the spool was removed)."""
-    if not future.cancelled() and future.exception() is None and future.result() is not None:
-        with suppress(OSError):
-            os.unlink(future.result())
+class AheadPublisher:
+    """One worker process publishing windows in order for a replay's pipeline (forked before it merges)."""
 
-
-class AheadEstimator:
-    """One worker process estimating windows for `model` (it must fuse, and not refine its geometry)."""
-
-    def __init__(self, model: PlantModel, plant: Plant, scene_rate: float):
-        self.model = model
+    def __init__(self, publisher: SamplePublisher):
+        self.local = publisher
         self.spool = tempfile.mkdtemp(prefix="cable-winch-monitor-", dir=SPOOL if os.path.isdir(SPOOL) else None)
         self.pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
-            1, mp_context=multiprocessing.get_context("fork"), initializer=_start,
-            initargs=(Publisher(model, plant, scene_rate),))
+            1, mp_context=multiprocessing.get_context("fork"), initializer=_start, initargs=(publisher,))
+        self.pending: list[tuple[Future | None, tuple[Any, ...]]] = []
+        self.state: bytes | None = None  # the worker's state after the last window taken from it
 
     @staticmethod
     def available() -> bool:
         return "fork" in multiprocessing.get_all_start_methods()
 
-    def submit(self, reported: np.ndarray, measured: Mapping[str, np.ndarray], conditions: Sequence[Conditions],
-               stamps: Sequence[Stamp], times: Sequence[float]) -> Future | None:
-        """Start estimating these samples (their winch messages' header `stamps`, in seconds `times`) in
-        the worker; None where it is gone."""
-        if self.pool is None:
-            return None
-        try:
-            return self.pool.submit(_chunk, self.spool, reported, measured, PackedConditions.of(conditions),
-                                    list(stamps), list(times))
-        except BrokenProcessPool:
-            self.pool = None
-            return None
+    def submit(self, samples: list[CompleteSample], conditions: list[Conditions], headers: list[Stamp],
+               batched: bool) -> None:
+        """Start publishing a window's samples in the worker (in order after the windows before it)."""
+        job = (samples, conditions, headers, batched)
+        future = None
+        if self.pool is not None:
+            try:
+                future = self.pool.submit(_job, self.spool, *job)
+            except BrokenProcessPool:
+                self._lost()
+        self.pending.append((future, job))
 
-    def estimates(self, future: Future) -> Estimated | None:
-        """What `future` was started for; None where the worker was lost or could not write its results (the
-        caller estimates them itself). The estimator's own errors are raised as they would be in the caller's
-        process."""
-        try:
-            path = future.result()
-        except BrokenProcessPool:
-            self.pool = None
-            return None
-        if path is None:
-            return None
-        with open(path, "rb") as file:
-            batch, clearances, predicted, published = pickle.load(file)
-        os.unlink(path)
-        batch.plant = self.model.physical
-        return Estimated(batch.estimates(), clearances.unpacked(self.model.physical), predicted, published)
+    def take(self) -> list[Published]:
+        """The oldest submitted window's Published: the worker's, or published here from the worker's last
+        state where it was lost or could not hand its results over."""
+        future, job = self.pending.pop(0)
+        result = None
+        if future is not None and self.pool is not None:
+            try:
+                path = future.result()
+            except BrokenProcessPool:
+                self._lost()
+                path = None
+            if path is not None:
+                with open(path, "rb") as file:
+                    result, self.state = pickle.load(file)
+                os.unlink(path)
+        if result is None:
+            result = self._here(job)
+        return result
 
-    @staticmethod
-    def discard(future: Future) -> None:
-        """Drop what `future` was started for (the gates changed before its turn): its results' file is
-        removed as soon as it is written, not left in the spool until the replay ends."""
-        future.add_done_callback(_remove_results)
+    def _here(self, job: tuple[Any, ...]) -> list[Published]:
+        """Publish a window in this process, from the worker's last state (its initial one where it sent
+        none); the windows after it are published here too."""
+        if self.pool is not None:
+            self._lost()
+        if self.state is not None:
+            self.local.restore(self.state)
+            self.state = None
+        return self.local.publish(*job)
+
+    def _lost(self) -> None:
+        """The worker is gone (or could not hand over a window): publish the rest here."""
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            self.pool = None
+        for k, (future, job) in enumerate(self.pending):
+            self.pending[k] = (None, job)
 
     def close(self) -> None:
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
             self.pool = None
         shutil.rmtree(self.spool, ignore_errors=True)
+

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import json
 import os
 import sys
@@ -151,6 +152,13 @@ def _record(args: argparse.Namespace) -> int:
     from .nodes.recorder import record
 
     return record(args.out, args.topics)
+
+
+def _play(args: argparse.Namespace) -> int:
+    from .nodes.player import play
+
+    return play(args.bag, args.rate, clock=not args.no_clock, wait=args.wait, topics=args.topics or None,
+                until=args.until)
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -363,6 +371,19 @@ def build_parser() -> argparse.ArgumentParser:
                    "/winch_<i>/joint_states, /platform/imu, /platform/position)")
     p.add_argument("--out", required=True, help="bag directory to create (must not exist)")
     p.set_defaults(run=_record)
+
+    p = sub.add_parser("play", help="publish a bag's messages at their log times, with /clock (as ros2 bag play --clock)",
+                       description="Publish every message of a bag (the monitor's inputs by default) as its stored "
+                       "bytes at its log time, with /clock, so that a node run with use_sim_time lives in the "
+                       "recording's time. Waits for a subscriber to the winches' topics first.")
+    p.add_argument("bag", help="rosbag2 directory or .mcap file")
+    p.add_argument("topics", nargs="*", metavar="TOPIC", help="topics to play (default: the monitor's inputs)")
+    p.add_argument("--rate", type=float, default=1.0, help="times as fast as recorded (default: 1)")
+    p.add_argument("--no-clock", action="store_true", help="publish no /clock")
+    p.add_argument("--until", type=float, default=math.inf, help="[s] play the bag's first UNTIL seconds only")
+    p.add_argument("--wait", type=float, default=30.0,
+                   help="[s] longest wait for a subscriber to the winches' topics (default: 30)")
+    p.set_defaults(run=_play)
 
     p = sub.add_parser("bench", help="benchmark solvers, replay, memory and fleet replay in one run, with ratios")
     p.add_argument("--samples", type=int, default=1000, help="solver samples (the same for every solver)")

@@ -7,60 +7,45 @@ ahead. For each window of messages:
    node would merge it, its log time standing for the node clock in the stamp window), and
    every sensor reading kept as the node keeps it; each complete sample keeps what the
    merger knew at its message, what the sensors read then, and its conditions;
-2. the window's complete samples are solved together, with their wall clearances: where
-   the plant fuses its sensors (`noise.length`), estimated together from the sensors
-   trusted at the window's start (`estimate_recording`); else solved by
-   `PlantModel.solve_batch`, warm-started from the last solved sample. Where the effects
-   make the geometry depend on the pose, or with another solver, each sample is solved in
-   step 3 instead, as the node solves it;
+2. the window's complete samples are estimated (or solved) together by the pipeline's own
+   `solve_samples`, with their wall clearances: the estimator is a function of the samples
+   in order, so a window at once gives what the node gives one sample at a time;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
-   solved pose -- the per-sample pipeline's own code, so the outputs are the node's. Step 2
-   runs a chunk of samples ahead of step 3 (`Presolved`): where a gate closes or opens, the
-   chunk is estimated again from that sample on under the sensors trusted then.
+   solved pose -- the per-sample pipeline's own code, so the outputs are the node's.
 
 Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
-a sample's value is interpolated between the readings around its stamp.
-
-Step 1 of a window runs before step 3 of the window before it (step 3 reads nothing step 1
-writes), so that with `second_process` the next windows' estimates are computed in a
-second process (ahead.py) while this one takes the current window in order (MERGED_AHEAD
-windows ahead: the second process has the time to estimate its first); they are used
-where the gates have not changed in between, the same estimates as here, with the records
-encoded there (`run_published`).
+a sample's value is interpolated between the readings around its stamp. Where the effects
+make the geometry depend on the pose, or with another solver, each sample is solved in
+step 3 instead, as the node solves it.
 
 Each message comes out with its result: the solved sample (MonitorOutput), residuals,
 None, or the exception the pipeline raised on it (counted like the node's callback errors).
 """
 from __future__ import annotations
 
+import math
 from collections import deque
-from concurrent.futures import Future
-from contextlib import contextmanager
 from typing import Any, Iterable, Iterator, NamedTuple, Union
 
-import numpy as np
-
-from .ahead import AheadEstimator, Published
-from .bagio import fields
-from .effects.estimate import estimate_recording, forward_estimate
-from .model.conditions import Conditions
-from .model.estimation import Estimate
 from . import channels
-from .model.plant import Plant
-from .model.result import Solution
+from .ahead import AheadPublisher, Published, SamplePublisher
+from .bagio import fields
+from .bagio.records import Record, diagnostics_record
 from .bagio.scene import REPLAY_RATE
-from .monitor.clearance import Clearance, solution_clearances
+from .model.conditions import Conditions
+from .model.plant import Plant
+from .model.plant import CABLE_NAMES
+from .monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view
 from .monitor.inputs import StampWindow
-from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Solved
+from .monitor.pipeline import CompleteSample, MonitorPipeline
 from .monitor.residuals import Residuals
-from .monitor.sensors import DEFAULT_HOLD
 
 WINDOW = 2000  # messages read ahead
-CHUNKS = (16, 1024)  # fewest and most samples solved together under one set of trusted sensors
 MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a second process
+DIAGNOSTICS_PERIOD = 1.0  # [s] of log time between /diagnostics, as the node's default
 
-Result = Union[MonitorOutput, Residuals, None, Exception]
+Result = Union[Published, Residuals, None, Exception]
 
 
 class Merged(NamedTuple):
@@ -71,171 +56,115 @@ class Merged(NamedTuple):
     header: fields.Stamp
 
 
-class FusedJob(NamedTuple):
-    """The samples of a chunk that have trusted sensors (their indices in it), and the estimator's input."""
-
-    fused: list[int]
-    lengths: np.ndarray
-    measured: dict[str, np.ndarray]
-    conditions: list[Conditions]
-    stamps: list[fields.Stamp]
-    times: list[float]
-
-
-class Speculated(NamedTuple):
-    """A chunk's estimates started in the second process before the window's turn, under the sensors
-    trusted then (`refused` left out): used only if the chunk and the gates are the same at its turn."""
-
-    stop: int
-    refused: tuple[str, ...]
-    job: FusedJob
-    future: Future
-
-
-class Prepared(NamedTuple):
-    """A window after step 1: its messages, what merging made of each, its samples, its speculated chunks."""
-
-    window: list[Any]
-    merged: list["Merged | dict[str, float] | Exception | None"]
-    samples: list[Merged]
-    speculated: dict[int, Speculated]
-
-
-class Presolved:
-    """Step 2 for a window's samples, a chunk at a time: each chunk is solved together under the
-    sensors trusted when it starts. Where a gate opens or closes, the rest of the chunk is solved
-    again from that sample on under the new trusted set, in a chunk of CHUNKS[0] samples, each
-    following chunk twice as long up to CHUNKS[1] (a gate that flaps costs a few small chunks, a
-    steady one runs in long chunks, neither a per-sample solve). A chunk speculated in the second
-    process (by its start) is taken from there if the gates have not changed since."""
-
-    def __init__(self, pipeline: "LookaheadPipeline", speculated: dict[int, Speculated]):
-        self.pipeline = pipeline
-        self.speculated = speculated
-        self.start = self.stop = 0
-        self.size = CHUNKS[1]
-        self.solved: list[Solved | None] = []
-        self.published: list[Published | None] = []
-        self.refused: tuple[str, ...] | None = None
-
-    def at(self, index: int, samples: list[Merged]) -> tuple[Solved | None, Published | None]:
-        """The presolved equilibrium, clearance, estimate and predictions of sample `index` of the window,
-        and its records where the second process encoded them."""
-        refused = self.pipeline.gates.refused
-        changed = index < self.stop and refused != self.refused and self.solved[index - self.start] is not None \
-            and self.solved[index - self.start].estimate is not None
-        if index >= self.stop or changed:
-            self.size = CHUNKS[0] if changed else min(2 * self.size, CHUNKS[1])
-            self.start, self.stop = index, min(index + self.size, len(samples))
-            ahead = self.speculated.pop(self.start, None)
-            taken = ahead is not None and ahead.stop == self.stop and ahead.refused == refused
-            if ahead is not None and not taken:
-                self.pipeline.ahead.discard(ahead.future)
-            self.solved, self.published = self.pipeline._presolve(samples[self.start:self.stop],
-                                                                  ahead if taken else None)
-            self.refused = refused
-        return self.solved[index - self.start], self.published[index - self.start]
-
-    def discard_rest(self) -> None:
-        """Drop the speculated chunks the window did not take (where a gate changed, its chunks start
-        elsewhere)."""
-        for ahead in self.speculated.values():
-            self.pipeline.ahead.discard(ahead.future)
-        self.speculated.clear()
-
-
 class LookaheadPipeline(MonitorPipeline):
-    """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time."""
+    """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time.
+
+    Each window is merged here (step 1) and its complete samples published (steps 2 and 3 of a sample:
+    estimated, judged, encoded) by a `SamplePublisher`: in a second process where `second_process`
+    (MERGED_AHEAD windows ahead of the one taken in order), else here. The messages then come out in
+    log order with what became of them."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
-                 window: int = WINDOW, stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD,
-                 second_process: bool = False, scene_rate: float = REPLAY_RATE):
-        super().__init__(plant, solver, staleness, stamp_window, gate_hold)
+                 window: int = WINDOW, stamp_window: StampWindow | None = None, second_process: bool = False,
+                 scene_rate: float = REPLAY_RATE):
+        super().__init__(plant, solver, staleness, stamp_window)
         self.window = window
-        self.batched = batched and (self.fusing or self.model.batchable)  # else solved in step 3, as the node does
+        self.batched = batched and (self.fusing or self.model.batchable)  # else solved one by one, as the node does
         self.input_specs = {spec.topic: spec for spec in self.model.inputs}
-        self.second_process = second_process and self.batched and self.fusing and not self.model.refining \
-            and AheadEstimator.available()
-        self.ahead: AheadEstimator | None = None
-        self.scene_rate = scene_rate
+        self.publisher = SamplePublisher(self, scene_rate)
+        self.second_process = second_process and AheadPublisher.available()
+        self.last_view: SampleView | None = None  # what /diagnostics says of the latest sample taken
+        self.reporter = DiagnosticsReporter(plant.name)
+        self.diagnostics_due = -math.inf  # [s] of log time: the next /diagnostics
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
-        """Every item in order, with what the pipeline made of it."""
-        for item, result, _ in self.run_published(items):
+        """Every item in order, with what became of it: a winch message that made a complete sample with its
+        `Published`, a sensor message with its residuals (or None), a message the pipeline could not
+        take with the exception it raised (counted as the node counts its callback errors)."""
+        for item, result, _ in self.run_diagnosed(items):
             yield item, result
 
-    def run_published(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, Published | None]]:
-        """`run`, each solved sample with its records where the second process encoded them (None: not
-        encoded; scenes there at `scene_rate`). Each window is merged (step 1) before the one before it
-        is taken in order (step 3); with `second_process`, MERGED_AHEAD windows are, so that the
-        second process has estimated a window by its turn (its first one included)."""
-        with self._second_process():
-            depth = MERGED_AHEAD if self.ahead is not None else 1
-            prepared: deque[Prepared] = deque()
+    def run_diagnosed(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, list[Record]]]:
+        """`run`, with /diagnostics after the messages where DIAGNOSTICS_PERIOD of log time has passed, as
+        the node publishes them at its clock (log time stands for it)."""
+        ahead = AheadPublisher(self.publisher) if self.second_process else None
+        try:
+            depth = MERGED_AHEAD if ahead is not None else 0
+            merged: deque[tuple[list[Any], list[Any], list[Any]]] = deque()
             window: list[Any] = []
             for item in items:
                 window.append(item)
                 if len(window) == self.window:
-                    prepared.append(self._prepare(window))
+                    merged.append(self._prepare(window, ahead))
                     window = []
-                    if len(prepared) > depth:
-                        yield from self._run_window(prepared.popleft())
-            prepared.append(self._prepare(window))
-            while prepared:
-                yield from self._run_window(prepared.popleft())
-
-    @contextmanager
-    def _second_process(self) -> Iterator[None]:
-        self.ahead = AheadEstimator(self.model, self.plant, self.scene_rate) if self.second_process else None
-        try:
-            yield
+                    if len(merged) > depth:
+                        yield from self._take(*merged.popleft(), ahead)
+            merged.append(self._prepare(window, ahead))
+            while merged:
+                yield from self._take(*merged.popleft(), ahead)
         finally:
-            if self.ahead is not None:
-                self.ahead.close()
-                self.ahead = None
+            if ahead is not None:
+                ahead.close()
 
-    def _prepare(self, window: list[Any]) -> Prepared:
-        """Step 1 for a window, and its chunks' estimates started in the second process."""
+    def _prepare(self, window: list[Any], ahead: AheadPublisher | None) -> tuple[list[Any], list[Any], list[Any]]:
+        """Step 1 for a window: extra inputs taken in first (a sample's is interpolated between the readings
+        around it), every message merged; its complete samples handed to the publisher."""
         for item in window:
             spec = self.input_specs.get(item.topic)
             if spec is not None:
                 self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
-        merged = [self._merge_item(item) for item in window]
+        merged, inputs = [], []
+        for item in window:
+            merged.append(self._merge_item(item))
+            inputs.append(self._inputs_due(item))
         samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
-        speculated = {}
-        if self.ahead is not None:
-            for start in range(0, len(samples), CHUNKS[1]):
-                stop = min(start + CHUNKS[1], len(samples))
-                job = self._fused_job(samples[start:stop])
-                future = self.ahead.submit(*job[1:]) if job.fused else None
-                if future is not None:
-                    speculated[start] = Speculated(stop, self.gates.refused, job, future)
-        return Prepared(window, merged, samples, speculated)
+        job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
+               self.batched)
+        if ahead is not None:
+            ahead.submit(*job)
+        else:
+            self._published = self.publisher.publish(*job)
+        return window, merged, inputs
 
-    def _run_window(self, prepared: Prepared) -> Iterator[tuple[Any, Result, Published | None]]:
-        window, merged, samples, speculated = prepared
-        ahead = Presolved(self, speculated)
-        index = 0
-        for item, outcome in zip(window, merged):
-            solved = published = None
-            if isinstance(outcome, Merged):
-                solved, published = ahead.at(index, samples)
-                index += 1
+    def _inputs_due(self, item: Any) -> tuple[float, Any] | None:
+        """The arrival of a winch message's cables, and where /diagnostics are due at this message, the
+        inputs' status as merging has left them (it runs windows ahead of the rest)."""
+        now = item.log_time * 1e-9
+        if item.msgtype == fields.JOINT_STATE:
+            names = list(getattr(item.message, "name", []))
+            self.reporter.note_readings([CABLE_NAMES.index(n) for n in names if n in CABLE_NAMES], now)
+        if now < self.diagnostics_due:
+            return None
+        self.diagnostics_due = now + DIAGNOSTICS_PERIOD
+        return now, winch_view(self, self.reporter.rates(now))
+
+    def _take(self, window: list[Any], merged: list[Any], inputs: list[Any], ahead: AheadPublisher | None
+              ) -> Iterator[tuple[Any, Result, list[Record]]]:
+        """The window's messages in log order with what became of them, and the diagnostics due there."""
+        published = iter(ahead.take() if ahead is not None else self._published)
+        for item, outcome, due in zip(window, merged, inputs):
             try:
-                result = self._result(item, outcome, solved)
+                result = self._result(item, outcome, published)
             except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
                 result = error
-            yield item, result, published
-        ahead.discard_rest()
+            residuals = result.outcome.residuals if isinstance(result, Published) else result
+            if isinstance(residuals, Residuals):
+                self.reporter.note_residuals(residuals)
+            yield item, result, [] if due is None else [self._diagnostics(item, *due)]
+
+    def _diagnostics(self, item: Any, now: float, winch: WinchView) -> Record:
+        last = self.last_view or sample_view(None, self.fusing)
+        values = self.reporter.build(self, now, divmod(item.log_time, 1_000_000_000), last=last, winch=winch)
+        return diagnostics_record(values)
 
     def _merge_item(self, item: Any) -> Merged | dict[str, float] | Exception | None:
         """Step 1 for one message: a winch message merged (its complete sample, if it makes one), a
-        sensor's readings kept for the samples to come (and returned, for step 3)."""
+        sensor's readings kept for the samples to come (and returned, for its residuals)."""
         if item.msgtype != fields.JOINT_STATE:
             if channels.on_topic(item.topic) and item.topic not in self.input_specs:
                 try:
                     stamp = fields.message_seconds(item.message, item.log_time)
-                except Exception:  # noqa: BLE001 - step 3 reports it with its message
+                except Exception:  # noqa: BLE001 - reported with its message when taken
                     return None
                 values = self.read_channels(item.topic, item.message)
                 self.keep_reading(stamp, values)
@@ -243,80 +172,22 @@ class LookaheadPipeline(MonitorPipeline):
             return None
         try:
             sample = self._merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival: log time
-        except Exception as error:  # noqa: BLE001 - returned with its message in step 3
+        except Exception as error:  # noqa: BLE001 - returned with its message when taken
             return error
         return None if sample is None else Merged(sample, self.conditions(sample), fields.stamp_of(item.message))
 
-    def _presolve(self, samples: list[Merged], speculated: Speculated | None = None) \
-            -> tuple[list[Solved | None], list[Published | None]]:
-        """Equilibrium, clearance and estimate of each sample, solved together (None each where not batched),
-        and the records the second process encoded. Where the plant fuses: the estimates from the sensors
-        trusted now (from the second process where `speculated` there under the same gates); a sample
-        with none is solved from its lengths alone (batched), as the node solves it."""
-        published: list[Published | None] = [None] * len(samples)
-        if not self.batched or not samples:
-            return [None] * len(samples), published
-        lengths = np.array([s.sample.lengths for s in samples])
-        conditions = [s.conditions for s in samples]
-        if not self.fusing:
-            solutions = self.model.solve_batch(lengths, conditions, self._warm_start())
-            return self._solved(solutions, [None] * len(samples), conditions), published
-        job = self._fused_job(samples) if speculated is None else speculated.job
-        out: list[Solved | None] = [None] * len(samples)
-        if job.fused:
-            ahead = None if speculated is None or self.ahead is None else self.ahead.estimates(speculated.future)
-            if ahead is None:
-                estimates = estimate_recording(self.model, *job[1:4])
-                solved = self._solved([e.solution for e in estimates], estimates, job.conditions)
-            else:
-                solved = self._solved([e.solution for e in ahead.estimates], ahead.estimates, job.conditions,
-                                      ahead.clearances, ahead.predicted)
-                for i, encoded in zip(job.fused, ahead.published):
-                    published[i] = encoded
-            for i, row in zip(job.fused, solved):
-                out[i] = row
-        fused = set(job.fused)
-        alone = [i for i in range(len(samples)) if i not in fused]
-        if alone:
-            solutions = self.model.solve_batch(lengths[alone], [conditions[i] for i in alone], self._warm_start())
-            estimates = [forward_estimate(solution, lengths[i]) for i, solution in zip(alone, solutions)]
-            for i, row in zip(alone, self._solved(solutions, estimates, [conditions[i] for i in alone])):
-                out[i] = row
-        return out, published
-
-    def _solved(self, solutions: list[Solution], estimates: list[Estimate | None], conditions: list[Conditions],
-                clearances: list[Clearance | None] | None = None,
-                predicted: dict[str, np.ndarray] | None = None) -> list[Solved]:
-        """Each solution with its clearance, estimate and what every channel reads there (None where not
-        solved): clearances and predictions computed together here, unless given (the second process's)."""
-        if clearances is None:
-            clearances = solution_clearances(self.model.physical, solutions)
-        if predicted is None:
-            predicted = self.model.predict_solutions(solutions, conditions)
-        names = list(predicted)
-        rows = zip(*(values.tolist() for values in predicted.values()))
-        return [Solved(solution, clearance, estimate, dict(zip(names, row)) if solution.ok else None)
-                for solution, clearance, estimate, row in zip(solutions, clearances, estimates, rows)]
-
-    def _fused_job(self, samples: list[Merged]) -> FusedJob:
-        """The samples with sensors trusted now, and what the estimator needs of them."""
-        trusted = [self.gates.trusted(s.sample.sensors) for s in samples]
-        fused = [i for i, row in enumerate(trusted) if row]
-        names = sorted({name for i in fused for name in trusted[i]})
-        return FusedJob(fused, np.array([samples[i].sample.lengths for i in fused]).reshape(-1, 4),
-                        {name: np.array([trusted[i].get(name, np.nan) for i in fused]) for name in names},
-                        [samples[i].conditions for i in fused], [samples[i].header for i in fused],
-                        [samples[i].sample.stamp for i in fused])
-
     def _result(self, item: Any, outcome: Merged | dict[str, float] | Exception | None,
-                solved: Solved | None) -> Result:
+                published: Iterator[Published]) -> Result:
         msg = item.message
         if item.msgtype == fields.JOINT_STATE:
             if isinstance(outcome, Exception):
                 raise outcome
             if outcome is None:
                 return None
-            return self._solve(outcome.sample, solved, outcome.conditions)
+            done = next(published)
+            self.note(done.outcome)
+            self.last_view = done.view or self.last_view
+            return done
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
         values = outcome if isinstance(outcome, dict) else None

@@ -28,7 +28,7 @@ from .lookahead import LookaheadPipeline
 from .model.plant import Plant, load_plant
 from .monitor.alarm import AlarmLevel
 from .monitor.inputs import StampWindow
-from .monitor.pipeline import MonitorOutput, MonitorStats
+from .monitor.pipeline import MonitorStats
 from .monitor.residuals import Residuals
 from .progress import Progress
 
@@ -94,6 +94,8 @@ class ReplaySummary:
         lines += [f"  ignored joint name '{name}': {n}" for name, n in sorted(stats.ignored_names.items())]
         lines += [f"  error {what}: {n}" for what, n in sorted(self.errors.items())]
         lines.append(f"samples: {self.samples} (solved {stats.solved}, solver failures {stats.failures})")
+        lines += [f"  sensor left out: {sensor} on {count} samples ({first:.1f}-{last:.1f} s): {why}"
+                  for sensor, (count, first, last, why) in sorted(stats.faults.items())]
         lines.append("tension states: " + (", ".join(f"{s} {n}" for s, n in stats.states.most_common()) or "none"))
         lines.append("alarm levels: " + ", ".join(f"{level.name} {stats.levels[level.name]}" for level in AlarmLevel))
         lines.append(f"written: {sum(self.written.values())} messages to {self.out} ("
@@ -109,32 +111,10 @@ class ReplaySummary:
         return "\n".join(lines)
 
 
-class _Scenes:
-    """The 3-D scene of the samples that the throttle lets through."""
-
-    def __init__(self, plant: Plant, rate: float):
-        self.builder, self.throttle = SceneBuilder(plant), SceneThrottle(rate)
-
-    def records(self, stamp: fields.Stamp, output: MonitorOutput,
-                encoded: list[records.Record] | None = None) -> list[records.Record]:
-        """The scene if one is due (`encoded`: as it was encoded already, if it was)."""
-        if not self.throttle.due(output.stamp):
-            return []
-        return encoded if encoded is not None else \
-            records.scene_records(stamp, self.builder, output.solution, output.alarm)
-
-
-def _records(item: BagMessage, stamp: fields.Stamp, result: MonitorOutput | Residuals | None,
-             published: Published | None, scenes: _Scenes) -> list[records.Record]:
-    """What the node publishes for one input message (header `stamp`) and the pipeline's result for it
-    (`published`: its records as the second process encoded them, used where it raised the same alarm)."""
-    if item.msgtype == fields.JOINT_STATE:
-        if result is None:
-            return []
-        same = published is not None and published.encoded_for(result.alarm)
-        return records.output_records(stamp, result, None if published is None else published.solution,
-                                      published.alarm_record if same else None) + \
-            scenes.records(stamp, result, published.scene if same else None)
+def _records(item: BagMessage, stamp: fields.Stamp, result: Published | Residuals | None) -> list[records.Record]:
+    """What the node publishes for one input message (header `stamp`) and what became of it."""
+    if isinstance(result, Published):
+        return result.records
     return records.residual_records(stamp, result)
 
 
@@ -165,9 +145,9 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
-    solved at once (lookahead.py); the outputs are the per-sample pipeline's. Where the plant
-    fuses its sensors, `second_process` estimates the next window in a second process
-    (ahead.py) meanwhile: the same outputs, on two cores (a fleet of bags keeps each replay to one).
+    solved at once (lookahead.py); the outputs are the per-sample pipeline's. `second_process`
+    publishes the windows' samples in a second process (ahead.py) meanwhile: the same outputs, on
+    two cores (a fleet of bags keeps each replay to one).
 
     Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
     while reading is in the summary (`complete` False), never raised.
@@ -176,30 +156,31 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     plant = plant or load_plant()
     pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window,
                                  second_process=second_process, scene_rate=scene_rate)
-    scenes = _Scenes(plant, scene_rate)
     inputs = fields.input_topics(pipeline.model.inputs)
     reader = BagReader(bag, inputs)
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():
         try:
-            for count, (item, result, published) in enumerate(pipeline.run_published(reader), 1):
+            for count, (item, result, diagnostics) in enumerate(pipeline.run_diagnosed(reader), 1):
                 if count == 1:
                     first = divmod(item.log_time, 1_000_000_000)
-                    for topic, msgtype, data in records.static_records(first, scenes.builder):
+                    for topic, msgtype, data in records.static_records(first, pipeline.publisher.builder):
                         writer.write_raw(topic, msgtype, item.log_time, data, latched=True)
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
                 try:
                     if isinstance(result, Exception):
                         raise result
                     stamp = fields.message_stamp(item.message, item.log_time)
-                    outputs = _records(item, stamp, result, published, scenes)
+                    outputs = _records(item, stamp, result)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue
                 log_time = fields.stamp_ns(stamp)
                 for topic, msgtype, data in outputs:
                     writer.write_raw(topic, msgtype, log_time, data)
+                for topic, msgtype, data in diagnostics:
+                    writer.write_raw(topic, msgtype, item.log_time, data)
                 bar.update(count)
         except KeyboardInterrupt:
             summary.interrupted = True

@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 
 from cable_winch_monitor.bagio.reader import BagReader
+from cable_winch_monitor.bagio.records import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
 from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.model.batched import solve_batch
@@ -24,6 +25,10 @@ from simbags import simulated
 from test_solver_agreement import random_lengths
 
 TOLERANCE = 1e-6  # relative: the fused estimate converges to this (model.fusion.STEP_TOL), warm or batched
+PRINTED = 1e-5    # relative: a number printed to six digits
+# Absolute [N, m] where forces are compared: the model's error is learnt from a window's estimates, whose last
+# digits move it, and so the next windows' tensions, by fractions of a millinewton (a load pin's noise: 150 N)
+FLOORS = {MODEL_ERROR: 1e-2, RESIDUALS: 1e-2, TENSION: 1e-2, DIAGNOSTICS: 1e-2}
 
 
 def per_sample(plant, lengths, warm: bool, solver=solve_energy):
@@ -93,8 +98,20 @@ def same_message(got, want, path="", floor=0.0):
     elif isinstance(want, float):
         allowed = max(TOLERANCE * max(1.0, abs(want)), floor)
         assert (np.isnan(got) and np.isnan(want)) or abs(got - want) <= allowed, path
+    elif isinstance(want, str) and _number(want) is not None and _number(got) is not None:
+        # a number /diagnostics prints to 6 digits: the last may round either way
+        got_, want_ = _number(got), _number(want)
+        assert (np.isnan(got_) and np.isnan(want_)) or \
+            abs(got_ - want_) <= max(PRINTED * max(1.0, abs(want_)), floor), path
     else:
         assert got == want, path
+
+
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
 
 
 def assert_same_replay(bag, directory, plant=None, least=0, floor=0.0):
@@ -109,11 +126,14 @@ def assert_same_replay(bag, directory, plant=None, least=0, floor=0.0):
     assert len(got) == len(want) > least
     for g, w in zip(got, want):
         assert (g.topic, g.log_time) == (w.topic, w.log_time)
-        same_message(g.message, w.message, g.topic, floor)
+        same_message(g.message, w.message, g.topic, max(floor, FLOORS.get(g.topic, 0.0)))
 
 
 def test_batched_replay_same_as_per_sample(tmp_path):
-    assert_same_replay(demo_bag(), tmp_path, least=9000)
+    """The bundled recording, a window at a time or one sample at a time: the same estimates to the
+    estimator's convergence, 1e-5 absolute (N, m, rad) where the relative test of a small difference of
+    forces (a load pin's residual of a few newtons out of tens of kilonewtons) is too tight."""
+    assert_same_replay(demo_bag(), tmp_path, least=9000, floor=1e-5)
 
 
 def test_batched_replay_on_the_realistic_plant_same_as_per_sample(tmp_path, plant):

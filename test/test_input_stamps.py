@@ -104,7 +104,7 @@ def test_the_same_in_replay_a_bad_stamp_costs_one_message(plant):
     for batched in (True, False):
         pipeline = LookaheadPipeline(plant, batched=batched, window=64)
         results = [result for _, result in pipeline.run(items)]
-        assert sum(r is not None and r.solution.ok for r in results) == 299
+        assert sum(r is not None and r.output.solution.ok for r in results) == 299
         assert dict(pipeline.stats.rejected) == {"/winch/joint_states: stamp ahead of the clock": 1}
 
 

@@ -32,7 +32,7 @@ def test_a_refused_message_makes_no_sample_and_skips_none(plant):
     pipeline = LatestSamplePipeline(plant)
     assert pipeline.offer(sample(0))
     assert not pipeline.offer(JointSample(2.0, ["cable_1"], [float("nan")]))
-    assert pipeline.offered == 2 and pipeline.complete == 1 and pipeline.skipped == 0
+    assert pipeline.stats.winch == 2 and pipeline.complete == 1 and pipeline.skipped == 0
 
 
 def test_a_worker_solving_while_samples_pour_in_accounts_for_every_one(plant):

@@ -22,7 +22,7 @@ def test_bundled_scenarios_load():
 
 
 @pytest.mark.parametrize("overrides, message", [
-    (["sync.sigmaa=0.1"], "unknown key 'sync.sigmaa' (known: sigma, tau, events)"),
+    (["sync.sigmaa=0.1"], "unknown key 'sync.sigmaa' (known: sigma, tau, events, drives)"),
     (["ropes.EA=stiff"], "key 'ropes.EA' must be a number, got 'stiff'"),
     (["ropes.model=steel"], "key 'ropes.model' must be one of rigid, elastic"),
     (["sync.events.3.lag=0.1"], "has 1 items, no item 3"),

@@ -19,6 +19,7 @@ from ..model.plant import CABLE_NAMES
 from ..model.result import Solution, SolveStatus
 from ..monitor.alarm import Alarm
 from ..monitor.inputs import JointSample
+from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from ..monitor.sensors import sensors_used
 
@@ -128,6 +129,20 @@ def collision_alarm(stamp: Stamp, alarm: Alarm) -> Fields:
             "closest_point_shaft": point(None if clearance is None else clearance.point_shaft),
             "sync_error_pairs": list(alarm.sync_error_pairs), "sync_errors": alarm.sync_errors.tolist(),
             "reason": alarm.reason}
+
+
+def model_error(stamp: Stamp, output: MonitorOutput) -> Fields:
+    """The model's estimated error per cable at an estimated sample, what the model alone predicts of the
+    clearance, what the alarm is based on and the sensors left out (needs `output.model`)."""
+    view, estimate = output.model, output.estimate
+    clearance = view.clearance
+    return {"header": header(stamp), "cables": list(CABLE_NAMES), "length_error": _floats(view.length_error),
+            "length_error_sigma": _floats(view.length_sigma),
+            "length_correction": _floats(estimate.corrections) if estimate is not None else [NAN] * 4,
+            "tension_error": _floats(view.pin_error), "tension_error_sigma": _floats(view.pin_sigma),
+            "model_clearance": NAN if clearance is None else float(clearance.value),
+            "basis": output.basis.text if output.basis is not None else "",
+            "sensors_rejected": list(view.rejected), "sensors_left_out": list(view.left_out)}
 
 
 def model_residuals(stamp: Stamp, residuals: Residuals) -> Fields:

@@ -20,6 +20,30 @@ FIELDDEFS = {
             ('nanosec', (T.BASE, ('uint32', 0))),
         ],
     ),
+    'diagnostic_msgs/msg/DiagnosticArray': (
+        [],
+        [
+            ('header', (T.NAME, 'std_msgs/msg/Header')),
+            ('status', (T.SEQUENCE, ((T.NAME, 'diagnostic_msgs/msg/DiagnosticStatus'), 0))),
+        ],
+    ),
+    'diagnostic_msgs/msg/DiagnosticStatus': (
+        [('OK', 'byte', 0), ('WARN', 'byte', 1), ('ERROR', 'byte', 2), ('STALE', 'byte', 3)],
+        [
+            ('level', (T.BASE, ('byte', 0))),
+            ('name', (T.BASE, ('string', 0))),
+            ('message', (T.BASE, ('string', 0))),
+            ('hardware_id', (T.BASE, ('string', 0))),
+            ('values', (T.SEQUENCE, ((T.NAME, 'diagnostic_msgs/msg/KeyValue'), 0))),
+        ],
+    ),
+    'diagnostic_msgs/msg/KeyValue': (
+        [],
+        [
+            ('key', (T.BASE, ('string', 0))),
+            ('value', (T.BASE, ('string', 0))),
+        ],
+    ),
     'geometry_msgs/msg/Point': (
         [],
         [

@@ -26,11 +26,14 @@ from .typestore import knows, typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
 POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
+MODEL_ERROR = "/model/error"
 TF, TF_STATIC, SCENE, OUTLINE = "/tf", "/tf_static", "/platform/scene", "/platform/outline"
+DIAGNOSTICS = "/diagnostics"
 OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/TensionDistribution",
-                ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals",
+                ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals", MODEL_ERROR: f"{MSGS}/ModelError",
                 TF: "tf2_msgs/msg/TFMessage", TF_STATIC: "tf2_msgs/msg/TFMessage",
-                SCENE: "visualization_msgs/msg/MarkerArray", OUTLINE: "visualization_msgs/msg/MarkerArray"}
+                SCENE: "visualization_msgs/msg/MarkerArray", OUTLINE: "visualization_msgs/msg/MarkerArray",
+                DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray"}
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
 Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
@@ -95,12 +98,20 @@ def alarm_record(stamp: fields.Stamp, alarm: Alarm) -> Record:
 def output_records(stamp: fields.Stamp, output: MonitorOutput, solved: list[Record] | None = None,
                    alarmed: Record | None = None) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: pose and /tf (only if solved),
-    tension distribution, collision alarm, residuals (if any). `solved` and `alarmed`: the first three
+    tension distribution, collision alarm, the model's error (where the sample was estimated), residuals
+    (if any). `solved` and `alarmed`: the first three
     as `solution_records` gave them for the output's solution, the alarm's as `alarm_record` gave it,
     where they were encoded already (replay encodes them ahead)."""
     records = solution_records(stamp, output.solution, output.estimate) if solved is None else list(solved)
     records.append(alarm_record(stamp, output.alarm) if alarmed is None else alarmed)
+    if output.model is not None:
+        records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))
     return records + residual_records(stamp, output.residuals)
+
+
+def diagnostics_record(values: Mapping[str, Any]) -> Record:
+    """/diagnostics from the field values monitor.diagnostics builds."""
+    return _record(DIAGNOSTICS, values, per_sample=False)
 
 
 def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:

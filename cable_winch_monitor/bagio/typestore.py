@@ -23,7 +23,8 @@ from rosbags.typesys.store import Typestore
 MSG_PACKAGE = "cable_winch_monitor_msgs"
 # What the monitor reads (the winches, inclinometer, depth gauge) and writes besides its own messages.
 COMMON_TYPES = ("sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped",
-                "geometry_msgs/msg/PoseStamped", "tf2_msgs/msg/TFMessage", "visualization_msgs/msg/MarkerArray")
+                "geometry_msgs/msg/PoseStamped", "tf2_msgs/msg/TFMessage", "visualization_msgs/msg/MarkerArray",
+                "diagnostic_msgs/msg/DiagnosticArray")
 
 
 def msg_dir() -> Path:

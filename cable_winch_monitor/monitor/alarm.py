@@ -87,8 +87,8 @@ class AlarmTracker:
                     if lvl <= self.level and clearance <= limit + self.policy.hysteresis), default=AlarmLevel.OK)
         return max(raised, held)
 
-    def update(self, solution: Solution, clearance: Clearance | None) -> Alarm:
-        """The alarm for one solved sample."""
+    def update(self, solution: Solution, clearance: Clearance | None, basis: str = "") -> Alarm:
+        """The alarm for one solved sample; `basis` says what the clearance is based on (monitor.basis)."""
         pairs, errors = sync_errors(solution.lengths)
         reasons = []
         level = AlarmLevel.OK
@@ -109,4 +109,5 @@ class AlarmTracker:
             level = max(level, AlarmLevel.WARNING)
             reasons.append(f"no pose: {solution.tension_state}")
         self.level = level
-        return Alarm(level, clearance, pairs, errors, "; ".join(reasons) or "clearance within margins")
+        reason = "; ".join(reasons) or "clearance within margins"
+        return Alarm(level, clearance, pairs, errors, f"{reason} ({basis})" if basis else reason)

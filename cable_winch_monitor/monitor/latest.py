@@ -23,11 +23,10 @@ class LatestSamplePipeline(MonitorPipeline):
     """
 
     def __init__(self, *args: Any, **kwargs: Any):
-        super().__init__(*args, **kwargs)
+        super().__init__(*args, background=True, **kwargs)  # the model error's updates beside the samples
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
         self._pending: tuple[Hashable, CompleteSample] | None = None
-        self.offered = 0  # winch messages merged or refused
         self.unseen = 0  # winch messages the transport dropped before they were offered (as far as known)
         self.complete = 0  # complete samples merged
         self.skipped = 0  # complete samples replaced by a newer one before a solve
@@ -35,7 +34,6 @@ class LatestSamplePipeline(MonitorPipeline):
     def offer(self, sample: JointSample, tag: Hashable = None) -> bool:
         """Merge a winch message; True if it made a complete sample (kept with `tag` for the worker)."""
         with self.lock:
-            self.offered += 1
             complete = self._merge(sample)
             if complete is None:
                 return False
@@ -56,7 +54,13 @@ class LatestSamplePipeline(MonitorPipeline):
     def solve(self, sample: CompleteSample) -> MonitorOutput:
         """Solve a sample from `take`: equilibrium, alarm and load-pin residuals."""
         with self.lock:
-            return self._solve(sample)
+            return super().solve(sample)
+
+    def counters(self) -> dict[str, int]:
+        """The node's own counts, for /diagnostics."""
+        return {"complete samples": self.complete, "skipped (a newer sample came first)": self.skipped,
+                "winch messages": self.stats.winch, "winch messages lost before the node": self.unseen,
+                "waiting": self.waiting}
 
     @property
     def waiting(self) -> int:

@@ -8,35 +8,58 @@ through the plant's one model (effects.PlantModel: its effects, its load, its so
 at the sample's conditions (time, payout speeds and accelerations, direction, inputs).
 
 Where the plant file gives the encoders a noise (`noise.length`), a sample is not solved
-from its lengths alone but estimated (effects.estimate): its lengths, its load pins and
-the latest readings of the other sensors within the staleness limit, each weighted by
-its noise, warm-started from the previous estimate. A sensor that disagrees beyond its
-Mahalanobis gate for the hold time is left out (sensors.SensorGates).
+from its lengths alone but estimated (monitor.estimator): its lengths, its load pins and
+the latest readings of the other sensors within the staleness limit, with the model's
+error as part of the state, so that what is measured wins over what the model says.
+The model's own prediction comes with it, and the alarm is based on the measured tilt,
+or on the model where it is more dangerous beyond their spread (monitor.basis).
 """
 from __future__ import annotations
 
 import math
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
 from .. import channels
 from ..channels import Input
 from ..effects import PlantModel
+from ..effects.estimate import fuses
 from ..effects.model import NO_CONDITIONS
-from ..effects.estimate import estimate_sample, fuses
 from ..model.conditions import Conditions, ConditionsTracker
-from ..model.estimation import Estimate, gate_taken_in
+from ..model.estimation import Estimate
 from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
-from .clearance import Clearance, solution_clearance
+from .basis import CORROBORATING_PINS, Basis, judged, tilt_sigma
+from .clearance import Clearance, solution_clearance, solution_clearances
+from .estimator import Estimated, MonitorEstimator, SampleInput
 from .inputs import (CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason,
                      small_mean)
 from .residuals import Residuals, noise_levels, residuals
-from .sensors import DEFAULT_HOLD, LatestReadings, SensorGates
+from .sensors import LatestReadings, StuckReadings, sensor_of
+
+
+SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
+
+
+@dataclass(frozen=True)
+class ModelView:
+    """What the model says of a sample beside the estimate: its own prediction from the reported lengths
+    and its expected error, and that error per rope."""
+
+    prediction: Solution
+    clearance: Clearance | None
+    length_error: np.ndarray      # (4,) model minus reported rope length [m]
+    length_sigma: np.ndarray      # (4,) its 1-sigma [m]
+    pin_error: np.ndarray         # (4,) load-pin reading minus the model's prediction [N]
+    pin_sigma: np.ndarray         # (4,) its 1-sigma [N]
+    tilt_sigma: float             # [rad] 1-sigma of the tilt the model's lengths give
+    rejected: tuple[str, ...]     # sensors rejected at this sample (they contradict the others)
+    left_out: tuple[str, ...]     # sensors left out while they are found faulty (contradicting, stuck, silent)
+    faults: Mapping[str, str] = field(default_factory=dict)  # each of those sensors: why
 
 
 @dataclass(frozen=True)
@@ -49,17 +72,42 @@ class MonitorOutput:
     alarm: Alarm
     residuals: Residuals | None
     estimate: Estimate | None = None  # the fused estimate the solution is (None: the lengths taken as exact)
-    refused: tuple[str, ...] = ()     # sensors left out by their gate
+    model: ModelView | None = None    # the model's own prediction and error (None: the lengths taken as exact)
+    basis: Basis | None = None        # what the alarm is based on
+
+    @property
+    def refused(self) -> tuple[str, ...]:
+        """The sensors not fused at this sample because they contradict the others."""
+        return () if self.model is None else tuple(sorted(set(self.model.rejected) | set(self.model.left_out)))
+
+    def outcome(self, predicted: dict[str, float] | None) -> "Outcome":
+        return Outcome(self.stamp, self.solution.status, self.solution.tension_state, self.alarm.level.name,
+                       dict(self.model.faults) if self.model is not None else {}, predicted, self.residuals)
+
+
+class Outcome(NamedTuple):
+    """What a solved sample leaves behind for the counts, /diagnostics and the residuals of the sensor
+    messages after it: small, so that replay's second process sends it back cheaply."""
+
+    stamp: float
+    status: SolveStatus
+    tension_state: str
+    level: str
+    faults: Mapping[str, str]             # sensors left out at the sample, with why
+    predicted: dict[str, float] | None    # what every channel reads of its state (None: not solved)
+    residuals: Residuals | None
 
 
 class Solved(NamedTuple):
-    """A sample's equilibrium, wall clearance, fused estimate (None: the lengths taken as exact) and what
-    the model says each channel reads (None: not solved), computed ahead (replay solves many at once)."""
+    """A sample's equilibrium, wall clearance, fused estimate (None: the lengths taken as exact), what
+    the model says each channel reads (None: not solved), and the model's own view (fused plants),
+    computed ahead (replay solves many at once)."""
 
     solution: Solution
     clearance: Clearance | None
     estimate: Estimate | None
     predicted: dict[str, float] | None
+    model: ModelView | None = None
 
 
 class CompleteSample(NamedTuple):
@@ -71,6 +119,8 @@ class CompleteSample(NamedTuple):
     tensions: list[float]  # load pins of the four cables [N] (NaN: not measured)
     speeds: list[float]  # payout speeds [m/s] (NaN: not reported)
     sensors: dict[str, float] = {}  # what every sensor read then: the load pins, the latest other readings
+    taken: dict[str, float] = {}  # the stamp of each of those readings [s]
+    faults: dict[str, str] = {}  # sensors whose readings are not there: stuck at a constant, or silent (why)
 
 
 @dataclass
@@ -91,13 +141,35 @@ class MonitorStats:
     failures: int = 0
     last_rejection: str = ""
     waiting: str = ""
+    winch: int = 0  # winch messages merged or refused
+    winch_topics: set[str] = field(default_factory=set)  # the topics they came on
+    last_winch_rejection: str = ""
+    faults: dict[str, list] = field(default_factory=dict)  # sensor -> [samples left out, first, last stamp, why]
+
+    def note(self, outcome: Outcome) -> None:
+        """A solved sample's counts."""
+        self.solved += int(outcome.status is SolveStatus.SOLVED)
+        self.failures += int(outcome.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
+        self.states[outcome.tension_state] += 1
+        self.levels[outcome.level] += 1
+        self.note_faults(outcome.stamp, outcome.faults)
+
+    def note_faults(self, stamp: float, faults: Mapping[str, str]) -> None:
+        """The sensors left out at a sample stamped `stamp` [s], with why (the latest why is kept)."""
+        for sensor, why in faults.items():
+            entry = self.faults.get(sensor)
+            if entry is None:
+                self.faults[sensor] = [1, stamp, stamp, why]
+            else:
+                entry[0] += 1
+                entry[2], entry[3] = stamp, why
 
 
 class MonitorPipeline:
-    """Merges inputs, solves each complete sample (warm-started), and derives alarm and residuals."""
+    """Merges inputs, estimates (or solves) each complete sample, and derives alarm and residuals."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
-                 stamp_window: StampWindow | None = None, gate_hold: float = DEFAULT_HOLD):
+                 stamp_window: StampWindow | None = None, background: bool = False):
         self.model = PlantModel.from_plant(plant, solver)  # the one solve path: effects, load, solver
         self.plant, self.solver = plant, solver
         self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
@@ -110,11 +182,13 @@ class MonitorPipeline:
         self.tracker = ConditionsTracker()
         self.inputs = {spec.key: InputSeries() for spec in self.model.inputs}
         self.last_predicted: dict[str, float] | None = None
+        self.last_solved_stamp = math.nan
         self.noise = noise_levels(plant)
         self.fusing = solver == "energy" and fuses(self.model)
         self.readings = LatestReadings(staleness)
-        self.gates = SensorGates(gate_hold)
-        self.last_estimate: Estimate | None = None
+        self.pins = StuckReadings()
+        self.heard: dict[str, float] = {}  # load pin -> the stamp of its latest finite reading
+        self.estimator = MonitorEstimator(self.model, background) if self.fusing else None  # background: updates
         self.payout: tuple[float, float, float] = (math.nan, math.nan, 0.0)  # stamp, mean length, mean speed
 
     def _reject(self, topic: str, reason: str) -> None:
@@ -124,33 +198,59 @@ class MonitorPipeline:
     def on_joint_state(self, sample: JointSample) -> MonitorOutput | None:
         """A winch message; returns the solved sample when the four lengths are complete and fresh."""
         complete = self._merge(sample)
-        return None if complete is None else self._solve(complete)
+        return None if complete is None else self.solve(complete)
 
     def _merge(self, sample: JointSample) -> CompleteSample | None:
         """Merge a winch message; the complete sample it makes, if it makes one."""
         self.stats.messages[sample.topic] += 1
+        self.stats.winch += 1
+        self.stats.winch_topics.add(sample.topic)
         merged = self.merger.add(sample)
         self.stats.ignored_names.update(merged.ignored)
         if merged.rejected:
             self._reject(sample.topic, merged.rejected)
+            self.stats.last_winch_rejection = self.stats.last_rejection
             return None
         self.stats.used[sample.topic] += 1
+        readings = self.merger.readings
+        if self.fusing:
+            for cable in merged.accepted:
+                if math.isfinite(readings[cable].tension):
+                    self.pins.add(channels.TENSION_CHANNELS[cable], readings[cable].tension, sample.stamp)
         lengths, waiting = self.merger.complete(sample.stamp)
         self.stats.waiting = waiting
         if lengths is None:
             return None
-        readings = self.merger.readings
         speeds = [r.velocity for r in readings]
         speed = small_mean(speeds)
         self.payout = (sample.stamp, small_mean(lengths.tolist()), speed if math.isfinite(speed) else 0.0)
         complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings], speeds)
-        return complete._replace(sensors=self.measured(complete)) if self.fusing else complete
+        if not self.fusing:
+            return complete
+        sensors, taken = self.measured(complete)
+        return complete._replace(sensors=sensors, taken=taken, faults=self._missing(complete.stamp, sensors))
 
-    def measured(self, sample: CompleteSample) -> dict[str, float]:
-        """What the sensors read at a complete sample: its load pins and the latest other readings
-        within the staleness limit (every sensor: the gates pick the trusted ones when it is solved)."""
-        pins = {name: value for name, value in zip(channels.TENSION_CHANNELS, sample.tensions) if math.isfinite(value)}
-        return {**self.readings.at(sample.stamp, small_mean(sample.lengths.tolist())), **pins}
+    def measured(self, sample: CompleteSample) -> tuple[dict[str, float], dict[str, float]]:
+        """What the sensors read at a complete sample and when: its load pins (but a stuck one) and the
+        latest other readings within the staleness limit."""
+        values, taken = self.readings.at(sample.stamp, small_mean(sample.lengths.tolist()))
+        for name, value in zip(channels.TENSION_CHANNELS, sample.tensions):
+            if math.isfinite(value):
+                self.heard[name] = sample.stamp
+                if not self.pins.is_stuck(name):
+                    values[name], taken[name] = value, sample.stamp
+        return values, taken
+
+    def _missing(self, stamp: float, measured: Mapping[str, float]) -> dict[str, str]:
+        """The sensors heard before whose readings are not at a sample stamped `stamp`: stuck at a constant,
+        or silent (no reading for SILENT staleness limits: one reading late is not a fault), with why."""
+        out = {sensor_of(name): f"stuck at {value:.6g} since {since:.3f} s" for name, (value, since) in self.stuck().items()}
+        heard = {**self.heard, **{name: when for name, (when, _, _) in self.readings.values.items()}}
+        for name, when in heard.items():
+            sensor = sensor_of(name)
+            if name not in measured and sensor not in out and stamp - when > SILENT * self.staleness:
+                out[sensor] = f"silent for {stamp - when:.1f} s"
+        return out
 
     def payout_at(self, stamp: float) -> float:
         """The mean payout [m] at `stamp`, carried from the latest complete sample by its payout speed."""
@@ -162,6 +262,10 @@ class MonitorPipeline:
         as exact, only the residuals read them)."""
         if self.fusing:
             self.readings.add(stamp, values, self.payout_at(stamp))
+
+    def stuck(self) -> dict[str, tuple[float, float]]:
+        """The channels stuck at a constant now: the value and since when [s]."""
+        return {**self.readings.stuck.stuck(), **self.pins.stuck()}
 
     def inputs_at(self, stamp: float) -> dict[str, float]:
         """The extra inputs' values at `stamp` (interpolated where later values are known, else the latest)."""
@@ -184,52 +288,93 @@ class MonitorPipeline:
             return NO_CONDITIONS
         return self.tracker.update(sample.stamp, sample.lengths, np.array(sample.speeds), self.inputs_at(sample.stamp))
 
-    def estimate(self, sample: CompleteSample, measured: dict[str, float], conditions: Conditions) -> Estimate:
-        """The fused state of a sample from its trusted sensors, warm-started from the previous estimate."""
-        return estimate_sample(self.model, sample.lengths, self.gates.trusted(measured), conditions, self.last_estimate)
+    def solve_samples(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions]) -> list[Solved]:
+        """Estimate (or solve) consecutive complete samples at their conditions: the node's one at a time,
+        replay's a window at once, with the same answers."""
+        if self.estimator is not None:
+            inputs = [SampleInput(s.stamp, s.lengths, s.sensors, s.taken, c) for s, c in zip(samples, conditions)]
+            out: list[Solved] = []
+            for estimated, start in self.estimator.run(inputs):
+                stop = start + len(estimated)
+                out += self._estimated(estimated, samples[start:stop], conditions[start:stop])
+            return out
+        lengths = np.array([s.lengths for s in samples]).reshape(-1, 4)
+        solutions = self.model.solve_batch(lengths, conditions, self._warm_start())
+        return self._solved(solutions, [None] * len(solutions), conditions)
 
-    def _solve(self, sample: CompleteSample, solved: Solved | None = None,
-               conditions: Conditions | None = None) -> MonitorOutput:
-        """Solve (or estimate, from what the sensors read) a complete sample, or take it `solved` ahead
-        with its `conditions`; raise its alarm, gate its sensors and compare its load pins with the model."""
-        conditions = conditions or self.conditions(sample)
-        if solved is None:
-            fused = self.estimate(sample, sample.sensors, conditions) if self.fusing else None
-            solution = fused.solution if fused is not None else \
-                self.model.solve(sample.lengths, self._warm_start(), conditions)
-            solved = Solved(solution, solution_clearance(self.model.physical, solution), fused,
-                            self.model.predict(solution, conditions) if solution.ok else None)
-        solution, clearance, fused, predicted = solved
-        alarm = self.alarms.update(solution, clearance)
-        pins = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
-        resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
-        if fused is not None and predicted is not None:
-            self._gate(sample, fused, conditions)
-        output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, self.gates.refused)
-        self.stats.solved += int(solution.ok)
-        self.stats.failures += int(solution.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
-        self.stats.states[solution.tension_state] += 1
-        self.stats.levels[alarm.level.name] += 1
-        self.last = output
-        if solution.ok:
-            self.last_solved, self.last_predicted = output, predicted
-            self.last_estimate = fused
+    def _estimated(self, estimated: Estimated, samples: Sequence[CompleteSample],
+                   conditions: Sequence[Conditions]) -> list[Solved]:
+        """The solved samples of an estimator's run, with the model's own prediction beside each."""
+        estimates = estimated.batch.estimates()
+        predictions = estimated.forward.solutions()
+        model_clearances = solution_clearances(self.model.physical, predictions)
+        rows = self._solved([e.solution for e in estimates], estimates, conditions)
+        plant = self.model.physical
+        out = []
+        for k, row in enumerate(rows):
+            faults = {**samples[k].faults, **{sensor: "contradicts the other sensors" for sensor in
+                                             estimated.left_out + estimated.rejected[k]}}
+            view = ModelView(predictions[k], model_clearances[k], estimated.length_error[k],
+                             estimated.length_sigma[k], estimated.pin_error[k], estimated.pin_sigma[k],
+                             tilt_sigma(plant, estimated.prior.length_covariance[k]), estimated.rejected[k],
+                             tuple(sorted(set(estimated.left_out) | set(samples[k].faults))), faults)
+            out.append(row._replace(model=view))
+        return out
+
+    def _solved(self, solutions: list[Solution], estimates: list[Estimate | None],
+                conditions: Sequence[Conditions]) -> list[Solved]:
+        """Each solution with its clearance, estimate and what every channel reads there (None where not
+        solved), computed together."""
+        clearances = solution_clearances(self.model.physical, solutions)
+        predicted = self.model.predict_solutions(solutions, conditions)
+        names = list(predicted)
+        rows = zip(*(values.tolist() for values in predicted.values()))
+        return [Solved(solution, clearance, estimate, dict(zip(names, row)) if solution.ok else None)
+                for solution, clearance, estimate, row in zip(solutions, clearances, estimates, rows)]
+
+    def solve(self, sample: CompleteSample) -> MonitorOutput:
+        """Solve (or estimate, from what the sensors read) a complete sample, judge it and count it."""
+        output, outcome = self.judge(sample)
+        self.note(outcome)
         return output
 
-    def _gate(self, sample: CompleteSample, fused: Estimate, conditions: Conditions) -> None:
-        """Each sensor's verdict: a used one by its channels' residuals in the estimate, a left-out one
-        when its turn comes (`SensorGates.trial`) by what taking it back in would cost (the sample
-        estimated again with it: `gate_taken_in`)."""
-        taken_in = {}
-        tried = self.gates.trial(sample.stamp, sample.sensors)
-        if tried is not None:
-            sensor, readings = tried
-            trial = estimate_sample(self.model, sample.lengths, {**self.gates.trusted(sample.sensors), **readings},
-                                    conditions, fused)
-            gate = gate_taken_in(fused, trial, list(readings), self.gates.probability)
-            if gate is not None:
-                taken_in[sensor] = gate
-        self.gates.update(sample.stamp, fused.residuals, taken_in)
+    def judge(self, sample: CompleteSample, solved: Solved | None = None,
+              conditions: Conditions | None = None) -> tuple[MonitorOutput, Outcome]:
+        """Solve (or estimate, from what the sensors read) a complete sample, or take it `solved` ahead
+        with its `conditions`; raise its alarm and compare its load pins with the model. Returns the
+        outputs and what `note` counts of them (replay's second process judges, the replay counts)."""
+        conditions = conditions or self.conditions(sample)
+        if solved is None:
+            solved = self.solve_samples([sample], [conditions])[0]
+        solution, clearance, fused, predicted, view = solved
+        basis = self._basis(clearance, fused, view)
+        alarm = self.alarms.update(solution, basis.clearance, basis.text if view is not None else "")
+        pins = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+        resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
+        output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, view, basis)
+        self.last = output
+        if solution.ok:
+            self.last_solved = output
+        return output, output.outcome(predicted)
+
+    def note(self, outcome: Outcome) -> None:
+        """A solved sample's counts, and its predictions for the residuals of the sensor messages after it
+        (replay takes the outcomes of samples its second process solved)."""
+        self.stats.note(outcome)
+        if outcome.status is SolveStatus.SOLVED:
+            self.last_solved_stamp, self.last_predicted = outcome.stamp, outcome.predicted
+
+    def _basis(self, clearance: Clearance | None, fused: Estimate | None, view: ModelView | None) -> Basis:
+        """What the alarm is based on: the estimate's clearance where the lengths are taken as exact; else
+        the measured tilt's, or the model's where it is more dangerous beyond their spread."""
+        if view is None:
+            return Basis(clearance, "")
+        used = fused.used if fused is not None else ()
+        tilt = "roll" in used and "pitch" in used
+        pins = sum(name in used for name in channels.TENSION_CHANNELS)
+        sigma = max(self.noise.get("roll", math.nan), self.noise.get("pitch", math.nan))
+        return judged(clearance if fused is not None and fused.ok else None, view.clearance, tilt,
+                      pins >= CORROBORATING_PINS, sigma if math.isfinite(sigma) else view.tilt_sigma, view.tilt_sigma)
 
     def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True,
                        values: dict[str, float] | None = None) -> Residuals | None:
@@ -248,8 +393,7 @@ class MonitorPipeline:
             return None
         if keep:
             self.keep_reading(stamp, values)
-        last = self.last_solved
-        if last is None or abs(stamp - last.stamp) > self.staleness:
+        if not abs(stamp - self.last_solved_stamp) <= self.staleness:
             self._reject(topic, "no solved pose within the staleness limit")
             return None
         self.stats.used[topic] += 1

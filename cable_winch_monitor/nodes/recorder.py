@@ -8,7 +8,6 @@ SIGTERM stops the recording and the bag is closed complete.
 """
 from __future__ import annotations
 
-import importlib
 import sys
 from collections import Counter
 from pathlib import Path
@@ -23,16 +22,11 @@ from ..bagio.reader import BagError
 from ..bagio.typestore import knows
 from ..bagio.writer import BagWriter
 from ..bagio.fields import input_topics
+from .conversions import message_class
 
 NODE_NAME = "cable_winch_monitor_recorder"
 GRAPH_PERIOD = 0.5  # [s] between looks for topics not yet subscribed
 DEPTH = 1000
-
-
-def message_class(msgtype: str) -> Any:
-    """The rclpy class of 'pkg/msg/Name'."""
-    package, kind, name = msgtype.split("/")
-    return getattr(importlib.import_module(f"{package}.{kind}"), name)
 
 
 class Recorder(Node):

@@ -28,7 +28,7 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
+from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelError, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
 from .. import channels
@@ -39,12 +39,11 @@ from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
 from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
 from ..monitor.inputs import StampWindow
+from ..monitor.diagnostics import DiagnosticsReporter
 from ..monitor.latest import LatestSamplePipeline
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
-from ..monitor.sensors import DEFAULT_HOLD
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
-from .diagnostics import DiagnosticsReporter
 from .winch_input import WinchInput
 
 NODE_NAME = "winch_monitor"
@@ -84,10 +83,6 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
     ("staleness", 0.5, ParameterDescriptor(
         description="[s] a sample is solved only when no cable's latest length is older than this",
         floating_point_range=_range(0.001, 60.0), read_only=True)),
-    ("gate_hold", DEFAULT_HOLD, ParameterDescriptor(
-        description="[s] a sensor failing its Mahalanobis gate this long is left out of the estimate "
-                    "(and taken back after passing as long)", floating_point_range=_range(0.0, 3600.0),
-        read_only=True)),
     ("stamp_ahead", StampWindow.ahead, ParameterDescriptor(
         description="[s] a winch stamp later than its arrival on the node clock by more than this is refused",
         floating_point_range=_range(0.001, 1e10), read_only=True)),
@@ -119,8 +114,7 @@ class WinchMonitorNode(Node):
         value = self._parameter
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
         window = StampWindow(value("stamp_ahead"), value("stamp_behind"), value("stamp_skew"))
-        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window,
-                                             gate_hold=value("gate_hold"))
+        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window)
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0
@@ -130,12 +124,13 @@ class WinchMonitorNode(Node):
         self.tension_pub = publisher(TensionDistribution, "/cables/tension", OUTPUT_QOS)
         self.alarm_pub = publisher(CollisionAlarm, "/platform/collision_alarm", OUTPUT_QOS)
         self.residuals_pub = publisher(ModelResiduals, "/model/residuals", OUTPUT_QOS)
+        self.model_error_pub = publisher(ModelError, records.MODEL_ERROR, OUTPUT_QOS)
         self.diagnostics_pub = publisher(DiagnosticArray, "/diagnostics", 10)
         self.tf_pub = publisher(TFMessage, "/tf", TF_QOS)
         self.scene_pub = publisher(MarkerArray, "/platform/scene", OUTPUT_QOS)
         self._output_publishers = {records.POSE: self.pose_pub, records.TF: self.tf_pub,
                                    records.TENSION: self.tension_pub, records.ALARM: self.alarm_pub,
-                                   records.RESIDUALS: self.residuals_pub}
+                                   records.RESIDUALS: self.residuals_pub, records.MODEL_ERROR: self.model_error_pub}
         self.scene, self.scene_throttle = SceneBuilder(plant), SceneThrottle(value("scene_rate"))
         self.tf_static_pub = publisher(TFMessage, "/tf_static", LATCHED_QOS)
         self.outline_pub = publisher(MarkerArray, "/platform/outline", LATCHED_QOS)
@@ -249,9 +244,10 @@ class WinchMonitorNode(Node):
 
     def _publish_diagnostics(self) -> None:
         now = self.get_clock().now()
+        stamp = divmod(now.nanoseconds, 1_000_000_000)
         with self.pipeline.lock:
-            diagnostics = self.reporter.build(self.pipeline, now.nanoseconds * 1e-9, now.to_msg())
-        self.diagnostics_pub.publish(diagnostics)
+            values = self.reporter.build(self.pipeline, now.nanoseconds * 1e-9, stamp, self.pipeline.counters())
+        self.diagnostics_pub.publish(records.diagnostics_record(values)[2])
 
     def _check_cable_lengths(self, request: CheckCableLengths.Request,
                              response: CheckCableLengths.Response) -> CheckCableLengths.Response:

@@ -1,0 +1,425 @@
+"""The monitor's estimator: each sample's state from its sensors and the model, the model's error carried
+from window to window, and a sensor that contradicts the others left out.
+
+Measurements win over the model. Each sample is estimated from its lengths, its load pins
+and the latest readings of the other sensors, under the model's equilibrium, with the
+model's error as part of the state (`model.model_error`): the lengths and load pins are
+weighed by what the model is expected to be off by, not by the sensors' noise alone, so
+a plant file that is centimetres or kilonewtons off is corrected by the sensors instead
+of the sensors being judged against it. The model fills in what no sensor measures and
+predicts: `forward` is its own prediction of each sample, the equilibrium of the reported
+lengths corrected by the expected error, which the alarm compares with the estimate.
+
+A sensor is a fault when it contradicts the other sensors, not the model: a sample whose
+sensors fail their Mahalanobis gates (or whose lengths leave the model's expected error)
+is estimated again without each of its sensors in turn, and the sensor whose leaving
+out makes the rest agree is rejected at that sample. A sensor rejected on most samples
+of an update window is left out of the next ones, and tried again on every
+`RETRY_EVERY`-th sample until it agrees again.
+
+Everything here is a function of the samples in order: the node estimates one sample at a
+time and replay a window's samples at once, and both update the model's error at the
+same sample stamps, so they give the same states.
+"""
+from __future__ import annotations
+
+import math
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, NamedTuple, Sequence
+
+import numpy as np
+
+from ..effects import PlantModel
+from ..effects.estimate import length_noise, observations_for
+from ..model.batched import BatchSolution
+from ..model.conditions import Conditions
+from ..model.estimation import BatchEstimate, estimate_batch, forward_kinematics
+from ..model.fusion import Problem, Rows
+from ..model.gate import chi_square_threshold
+from ..model.geometry import roll_pitch_yaw
+from ..model.model_error import ErrorState, ModelError
+from ..model.prior import Prior
+from ..model.result import Solution
+from ..model.ropes import Ropes
+from .sensors import sensor_of
+
+CARRIED = ("roll", "pitch")  # readings carried to the sample's stamp by the model's own rate of change
+CARRY_WINDOW = 1.0    # [s] of the model's predictions that give that rate
+LEFT_OUT_SHARE = 0.5  # a sensor rejected on more than this share of a window's samples is left out of the next ones
+RETRY_EVERY = 10      # a sensor left out is tried again on every this-many-th sample
+TAKEN_BACK_SHARE = 0.9  # and taken back when it agrees on at least this share of its tries in a window
+FOLLOW = 10.0  # how many times less a sample the model cannot explain weighs the model's lengths
+_THRESHOLDS = np.array([np.inf] + [chi_square_threshold(dof) for dof in range(1, 17)])  # by channels measured
+
+
+class SampleInput(NamedTuple):
+    """What the estimator needs of a complete sample."""
+
+    stamp: float
+    reported: np.ndarray               # (4,) the encoders' lengths [m]
+    measured: Mapping[str, float]      # every sensor's reading at the sample, by channel
+    taken: Mapping[str, float]         # the stamp of each reading [s] (a load pin's is the sample's)
+    conditions: Conditions
+
+
+@dataclass
+class Estimated:
+    """What the estimator made of consecutive samples of one update window (arrays over them)."""
+
+    batch: BatchEstimate                  # the fused states (`batch.estimate(i)`)
+    forward: BatchSolution                # the model's own prediction of each sample
+    prior: Prior                          # the model's expected error at each sample, sensors' noise included
+    rejected: list[tuple[str, ...]]       # sensors rejected at each sample (they contradict the others)
+    left_out: tuple[str, ...]             # sensors left out of the whole window (found faulty before)
+    length_error: np.ndarray              # (N, 4) the model's estimated length error [m] (model minus reported)
+    length_sigma: np.ndarray              # (N, 4) its 1-sigma [m]
+    pin_error: np.ndarray                 # (N, 4) the load pins' estimated error [N] (reading minus model)
+    pin_sigma: np.ndarray                 # (N, 4) its 1-sigma [N]
+
+    def __len__(self) -> int:
+        return len(self.batch)
+
+
+@dataclass
+class _Window:
+    """The samples of the current update window, kept for its update."""
+
+    index: int
+    lengths: list[np.ndarray] = field(default_factory=list)
+    measured: list[dict[str, float]] = field(default_factory=list)
+    conditions: list[Conditions] = field(default_factory=list)
+    stamps: list[float] = field(default_factory=list)
+    states: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None] = field(default_factory=list)
+    rejected: dict[str, int] = field(default_factory=dict)     # sensor -> samples it was rejected at
+    measuring: dict[str, int] = field(default_factory=dict)    # sensor -> samples it was measured at
+    tried: dict[str, list[bool]] = field(default_factory=dict)  # left-out sensor -> did it agree at each try
+    misfits: list[float] = field(default_factory=list)  # each estimated sample's length misfit (`_length_misfit`)
+
+
+class MonitorEstimator:
+    """The estimator of one stream of samples (a live node's, a replay's), with its model error and faults."""
+
+    def __init__(self, model: PlantModel, background: bool = False):
+        self.model = model
+        # the node works each window's update out in a thread of its own beside the samples (`background`)
+        self.background = ThreadPoolExecutor(1, thread_name_prefix="model error") if background else None
+        self.pending: Future | ErrorState | None = None  # the last window's update, taken at the next window's end
+        sigma_length = length_noise(model)
+        if sigma_length is None:
+            raise ValueError("the plant file gives the encoders no noise (noise.length): the lengths are taken "
+                             "as exact and nothing is estimated")
+        self.sigma_length = sigma_length
+        sigma_pin = float(model.plant.noise.get("tension", math.nan))
+        self.error = ModelError(model.plant.model_error, sigma_length, sigma_pin if sigma_pin > 0.0 else 1.0)
+        law = model.rope_law
+        self.ropes = Ropes.of(law.EA, law.weight if law.EA is not None else 0.0)
+        self.origin: float | None = None
+        self.window: _Window | None = None
+        self.left_out: dict[str, float] = {}   # sensor -> the stamp from which it is left out
+        self.last_rejected: tuple[str, ...] = ()  # the sensors rejected at the sample before
+        self.last_forward: Solution | None = None  # the model's prediction of the last sample it could solve
+        self.predictions: list[tuple[float, float, float]] = []  # the model's stamp, roll, pitch lately
+
+    def run(self, samples: Sequence[SampleInput]) -> list[tuple[Estimated, int]]:
+        """Estimate consecutive samples (in stamp order); returns, for each run of them in one update window,
+        what was estimated and the index of its first sample in `samples`. The window's end updates the
+        model's error before the next one is estimated."""
+        out = []
+        start = 0
+        while start < len(samples):
+            if self.origin is None:
+                self.origin = samples[start].stamp
+                self.error.start(self.origin)
+            index = self.error.window(samples[start].stamp, self.origin)
+            if self.window is not None and index != self.window.index:
+                self._close(index)
+            if self.window is None:
+                self.window = _Window(index)
+            stop = start + 1
+            while stop < len(samples) and self.error.window(samples[stop].stamp, self.origin) == index:
+                stop += 1
+            out.append((self._estimate(samples[start:stop]), start))
+            start = stop
+        return out
+
+    # -- one run of samples in the current window ------------------------------------------------------------
+    def _estimate(self, samples: Sequence[SampleInput]) -> Estimated:
+        model = self.model
+        stamps = np.array([s.stamp for s in samples])
+        lengths = np.array([model.true_lengths(np.asarray(s.reported, dtype=float), s.conditions) for s in samples])
+        loads = np.array([model.load(s.conditions) for s in samples])
+        prior = self.error.prior(stamps, lengths)
+        forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.last_forward)
+        last = np.flatnonzero(forward.ok)
+        self.last_forward = forward.solution(int(last[-1])) if last.size else self.last_forward
+        measured = self._carried(samples, forward)
+        left_out = tuple(sorted(self.left_out))
+        kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured]
+        batch = self._batch(lengths, kept, [s.conditions for s in samples], loads, prior, forward)
+        rejected, followed = self._screen(batch, lengths, kept, samples, loads, prior, forward)
+        self._try_left_out(lengths, measured, kept, samples, loads, prior, forward, batch)
+        self._remember(samples, lengths, kept, rejected, followed, batch, prior)
+        length_error, length_sigma = self.error.length_errors(lengths)
+        pin_error, pin_sigma = self.error.pin_errors(lengths)
+        return Estimated(batch, forward, prior, rejected, left_out, length_error, length_sigma, pin_error, pin_sigma)
+
+    def _batch(self, lengths: np.ndarray, measured: Sequence[Mapping[str, float]], conditions: Sequence[Conditions],
+               loads: np.ndarray, prior: Prior, forward: BatchSolution) -> BatchEstimate:
+        """The fused states of samples with these readings (NaN-free mappings, any channels)."""
+        names = sorted({name for row in measured for name in row})
+        values = {name: np.array([row.get(name, np.nan) for row in measured]) for name in names}
+        observations = observations_for(self.model, values, conditions)
+        law = self.model.rope_law
+        return estimate_batch(self.model.physical, lengths, observations, self.sigma_length, law.EA,
+                              law.weight if law.EA is not None else 0.0, loads=loads, prior=prior, forward=forward)
+
+    def _carried(self, samples: Sequence[SampleInput], forward: BatchSolution) -> list[dict[str, float]]:
+        """Each sample's readings, the inclinometer's carried from its stamp to the sample's by the rate at
+        which the model's own roll and pitch have been changing (a line through its predictions of the last
+        CARRY_WINDOW seconds): its readings come tens of milliseconds after the winches', so the latest one
+        at a sample is most of a sample period old, which during a swing towards the wall is millimetres of
+        clearance. A line, not the last two predictions: those differ by the encoders' noise."""
+        stamps = np.array([s.stamp for s in samples])
+        ok = forward.ok
+        angles = np.array([roll_pitch_yaw(r)[:2] for r in forward.rotation[ok]]).reshape(-1, 2)
+        earlier = np.array(self.predictions).reshape(-1, 3)
+        times = np.concatenate([earlier[:, 0], stamps[ok]])
+        values = np.concatenate([earlier[:, 1:], angles])
+        rates = _line_slopes(times, values, stamps, CARRY_WINDOW)
+        recent = times >= stamps[-1] - CARRY_WINDOW
+        self.predictions = [tuple(row) for row in np.column_stack([times[recent], values[recent]]).tolist()]
+        out = []
+        for k, sample in enumerate(samples):
+            row = {name: value for name, value in sample.measured.items() if math.isfinite(value)}
+            for c, name in enumerate(CARRIED):
+                taken = sample.taken.get(name)
+                if name in row and taken is not None and math.isfinite(rates[k, c]):
+                    row[name] += rates[k, c] * (sample.stamp - taken)
+            out.append(row)
+        return out
+
+    # -- faults ----------------------------------------------------------------------------------------------
+    def _failing(self, batch: BatchEstimate, prior: Prior, lengths: bool = True) -> np.ndarray:
+        """(N,) samples whose sensors or lengths disagree beyond their gates: the whole estimate's cost beyond
+        the gate of its measurements (the load pins are weighed together: an error common to them all is
+        the model's, one pin's own is not), a sensor's channels beyond theirs, or (`lengths`) the lengths
+        beyond the model's expected error."""
+        measured = np.isfinite(batch.residuals).sum(axis=1)
+        verdict = np.nan_to_num(batch.cost, nan=0.0) > _THRESHOLDS[np.minimum(measured, len(_THRESHOLDS) - 1)]
+        groups: dict[str, list[int]] = {}
+        for k, name in enumerate(batch.names):
+            groups.setdefault(sensor_of(name), []).append(k)
+        for columns in groups.values():
+            values = batch.residuals[:, columns]
+            dof = np.isfinite(values).sum(axis=1)
+            chi_square = np.nansum(values ** 2, axis=1)
+            limit = _THRESHOLDS[np.minimum(dof, len(_THRESHOLDS) - 1)]
+            verdict |= chi_square > limit
+        if lengths:
+            verdict |= self._length_misfit(batch, prior) > chi_square_threshold(4)
+        return verdict & np.array([i not in batch.fallback for i in range(len(batch))])
+
+    @staticmethod
+    def _length_misfit(batch: BatchEstimate, prior: Prior) -> np.ndarray:
+        """(N,) the corrections' Mahalanobis distance squared from the model's expected error."""
+        deviation = np.nan_to_num(batch.corrections - prior.lengths)
+        return np.einsum("ni,ni->n", deviation, np.linalg.solve(prior.length_covariance, deviation[..., None])[..., 0])
+
+    def _screen(self, batch: BatchEstimate, lengths: np.ndarray, measured: list[dict[str, float]],
+                samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior,
+                forward: BatchSolution) -> tuple[list[tuple[str, ...]], np.ndarray]:
+        """Each sample's rejected sensors, and which samples the model could not explain. A sample that fails
+        its gates is estimated again with the model's lengths weighed FOLLOW times less: where its
+        sensors then agree with each other, the model is what was wrong (faster than its error is learnt),
+        and the state follows the sensors. Where they still do not, it is estimated again without each of
+        its sensors in turn, under the model as it is (the lengths agreeing too), then under the model
+        loosely held; of those whose leaving out makes the others agree, the one rejected at the sample
+        before if it is one of them (a fault lasts, and where four rigid ropes can share the load any way,
+        two pins may each be the odd one out at one sample), else the one whose leaving out lowers the
+        cost most, is rejected. A sensor is a fault where it contradicts the other sensors, never where it
+        contradicts the model alone. In place on `batch` and `measured`."""
+        rejected: list[tuple[str, ...]] = [() for _ in samples]
+        followed = np.zeros(len(samples), bool)
+        failing = np.flatnonzero(self._failing(batch, prior))
+        if not failing.size:
+            self.last_rejected = ()
+            return rejected, followed
+        loose = Prior(prior.lengths, prior.length_covariance * FOLLOW ** 2, prior.pins, prior.pin_covariance)
+        again = self._batch(lengths[failing], [measured[i] for i in failing],
+                            [samples[i].conditions for i in failing], loads[failing], loose.take(failing),
+                            _take(forward, failing))
+        disagree = self._failing(again, loose.take(failing), lengths=False)
+        for k, i in enumerate(failing.tolist()):
+            if k not in again.fallback:
+                _put(batch, i, again, k)
+                followed[i] = not disagree[k]
+        suspects = failing[disagree]
+        tiers = [(self._without_each(suspects, lengths, measured, samples, loads, weights, forward, with_lengths),
+                  with_lengths) for weights, with_lengths in ((prior, True), (loose, False))]
+        for i in range(len(samples)):  # in order: the sensor rejected at the sample before is preferred
+            for (pairs, trial, without, agrees), with_lengths in tiers:  # the model as it is, then loosely held
+                agreeing = [k for k, (row, _) in enumerate(pairs) if row == i and agrees[k]]
+                if agreeing:
+                    again = [k for k in agreeing if pairs[k][1] in self.last_rejected]
+                    best = again[0] if again else min(agreeing, key=lambda k: without.cost[k])
+                    _put(batch, i, without, best)
+                    measured[i] = trial[best]
+                    rejected[i] = (pairs[best][1],)
+                    followed[i] = not with_lengths
+                    break
+            self.last_rejected = rejected[i]
+        return rejected, followed
+
+    def _without_each(self, suspects: np.ndarray, lengths: np.ndarray, measured: list[dict[str, float]],
+                      samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior, forward: BatchSolution,
+                      with_lengths: bool) -> tuple[list[tuple[int, str]], list[dict[str, float]], BatchEstimate | None,
+                                                   np.ndarray]:
+        """The suspect samples estimated again without each of their sensors under `prior`: the (sample,
+        sensor) pairs, the readings kept, the estimates, and whether the other sensors (and, `with_lengths`,
+        the lengths) then agree."""
+        pairs = [(int(i), sensor) for i in suspects for sensor in sorted({sensor_of(n) for n in measured[i]})]
+        if not pairs:
+            return [], [], None, np.zeros(0, bool)
+        rows = np.array([i for i, _ in pairs], dtype=int)
+        trial = [{n: v for n, v in measured[i].items() if sensor_of(n) != sensor} for i, sensor in pairs]
+        without = self._batch(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows],
+                              prior.take(rows), _take(forward, rows))
+        agrees = ~self._failing(without, prior.take(rows), lengths=with_lengths) & \
+            np.array([k not in without.fallback for k in range(len(pairs))])
+        return pairs, trial, without, agrees
+
+    def _try_left_out(self, lengths: np.ndarray, measured: list[dict[str, float]], kept: list[dict[str, float]],
+                      samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior, forward: BatchSolution,
+                      batch: BatchEstimate) -> None:
+        """Every RETRY_EVERY-th sample (by its place in the window), each sensor left out is tried: the
+        sample estimated with it too; whether it agrees is kept for the window's end."""
+        if not self.left_out:
+            return
+        window = self.window
+        offset = len(window.stamps)
+        tries = [(k, sensor) for k in range(len(samples)) if (offset + k) % RETRY_EVERY == 0 and k not in batch.fallback
+                 for sensor in sorted(self.left_out) if any(sensor_of(n) == sensor for n in measured[k])]
+        if not tries:
+            return
+        rows = np.array([k for k, _ in tries])
+        trial = [{**kept[k], **{n: v for n, v in measured[k].items() if sensor_of(n) == sensor}} for k, sensor in tries]
+        again = self._batch(lengths[rows], trial, [samples[k].conditions for k in rows], loads[rows],
+                            prior.take(rows), _take(forward, rows))
+        agrees = ~self._failing(again, prior.take(rows))
+        for (_, sensor), verdict in zip(tries, agrees.tolist()):
+            window.tried.setdefault(sensor, []).append(bool(verdict))
+
+    # -- the window's samples, and its end --------------------------------------------------------------------
+    def _remember(self, samples: Sequence[SampleInput], lengths: np.ndarray, measured: list[dict[str, float]],
+                  rejected: list[tuple[str, ...]], followed: np.ndarray, batch: BatchEstimate, prior: Prior) -> None:
+        """Keep the samples of the window for its update: those the model could not explain (`followed`)
+        only for how far it was off, not for what its error is."""
+        window = self.window
+        misfits = self._length_misfit(batch, prior)
+        for k, sample in enumerate(samples):
+            window.lengths.append(lengths[k])
+            window.measured.append(measured[k])
+            window.conditions.append(sample.conditions)
+            window.stamps.append(sample.stamp)
+            estimated = k not in batch.fallback and batch.status[k] == "solved"
+            if estimated:
+                window.misfits.append(float(misfits[k]))
+            solved = estimated and not followed[k] and self._plausible(batch, k)
+            window.states.append((batch.taut[k], batch.rotation[k], batch.position[k], batch.tensions[k])
+                                 if solved else None)
+            for sensor in {sensor_of(n) for n in measured[k]} | set(rejected[k]):
+                window.measuring[sensor] = window.measuring.get(sensor, 0) + 1
+            for sensor in rejected[k]:
+                window.rejected[sensor] = window.rejected.get(sensor, 0) + 1
+
+    @staticmethod
+    def _plausible(batch: BatchEstimate, k: int) -> bool:
+        """Whether sample k's estimate is one the model's error may be learnt from: its cost within the gate
+        of its measurements (a sample the search could only explain badly would pull the error astray)."""
+        if batch.cost is None:
+            return True
+        dof = 4 + int(np.isfinite(batch.residuals[k]).sum())
+        return bool(batch.cost[k] <= chi_square_threshold(dof))
+
+    def _close(self, next_index: int) -> None:
+        """The window's end: the update the window before worked out taken (so the next window's samples
+        are estimated with the error learnt up to two windows back: the node works an update out beside
+        the samples of the window after, and replay does as the node); this window's update started; its
+        sensors rejected on most of its samples left out, those left out that agreed again taken back."""
+        window, self.window = self.window, None
+        end = self.origin + (window.index + 1) * self.error.spec.period
+        if self.pending is not None:
+            self.error.apply(self.pending.result() if isinstance(self.pending, Future) else self.pending)
+        job = self._update(window, end)
+        self.pending = self.background.submit(job) if self.background is not None else job()
+        if window.misfits:
+            self.error.rescale(float(np.mean(window.misfits)) / 4.0)
+        for sensor, count in window.rejected.items():
+            if count > LEFT_OUT_SHARE * window.measuring.get(sensor, count):
+                self.left_out.setdefault(sensor, end)
+        for sensor, verdicts in window.tried.items():
+            if verdicts and sum(verdicts) >= TAKEN_BACK_SHARE * len(verdicts):
+                self.left_out.pop(sensor, None)
+
+    def _update(self, window: _Window, end: float) -> Callable[[], ErrorState]:
+        """The work of a window's update (the error's state as it is now read when it runs)."""
+        solved = [k for k, state in enumerate(window.states) if state is not None]
+        if not solved:
+            unchanged = ErrorState(self.error.mean.copy(), self.error.covariance.copy(), self.error.reference)
+            return lambda: unchanged
+        prior = self.error.white(np.array(window.stamps), np.array(window.lengths))
+        return lambda: self._updated(window, end, solved, prior)
+
+    def _updated(self, window: _Window, end: float, solved: list[int], white: Prior) -> ErrorState:
+        lengths = np.array(window.lengths)
+        names = sorted({name for row in window.measured for name in row})
+        values = {name: np.array([row.get(name, np.nan) for row in window.measured]) for name in names}
+        observations = observations_for(self.model, values, window.conditions)
+        loads = np.array([self.model.load(c) for c in window.conditions])
+        problem = Problem.build(self.model.physical, lengths, self.sigma_length, observations, self.ropes, loads,
+                                prior=white)
+        taut, rotation, position, tensions = (np.array([window.states[k][j] for k in solved]) for j in range(4))
+        rows = Rows(np.array(solved), taut, rotation, position, tensions / problem.scales[solved, None])
+        return self.error.updated(problem, rows, lengths, end)
+
+
+def _line_slopes(times: np.ndarray, values: np.ndarray, at: np.ndarray, span: float) -> np.ndarray:
+    """(N, k) the slope of a least-squares line through the points (times (n,), values (n, k)) in
+    [at_i - span, at_i], for each of `at` (N,) (times sorted; NaN where fewer than three points)."""
+    if not len(times):
+        return np.full((len(at), values.shape[1]), np.nan)
+    t = times - times[0]
+    sums = [np.concatenate([[0.0], np.cumsum(x)]) for x in (np.ones_like(t), t, t * t)]
+    cross = np.vstack([np.zeros(values.shape[1]), np.cumsum(t[:, None] * values, axis=0)])
+    total = np.vstack([np.zeros(values.shape[1]), np.cumsum(values, axis=0)])
+    hi = np.searchsorted(times, at, side="right")
+    lo = np.searchsorted(times, at - span, side="left")
+    n, st, stt = (c[hi] - c[lo] for c in sums)
+    sx, stx = total[hi] - total[lo], cross[hi] - cross[lo]
+    spread = n * stt - st * st
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slopes = (n[:, None] * stx - st[:, None] * sx) / spread[:, None]
+    return np.where((n >= 3)[:, None] & (spread > 0.0)[:, None], slopes, np.nan)
+
+
+def _take(forward: BatchSolution, rows: np.ndarray) -> BatchSolution:
+    """The rows of a forward-kinematics batch (repeated rows allowed)."""
+    return BatchSolution(forward.plant, forward.lengths[rows], forward.loads[rows], forward.status[rows],
+                         forward.taut[rows], forward.tensions[rows], forward.rotation[rows], forward.position[rows],
+                         forward.iterations[rows], {k: forward.fallback[int(i)] for k, i in enumerate(rows)
+                                                    if int(i) in forward.fallback},
+                         forward.method, None if forward.stretch is None else forward.stretch[rows])
+
+
+def _put(batch: BatchEstimate, i: int, other: BatchEstimate, k: int) -> None:
+    """Sample i of `batch` replaced by sample k of `other` (its residuals by channel name)."""
+    for name in ("corrected", "loaded", "status", "taut", "tensions", "rotation", "position", "iterations"):
+        getattr(batch, name)[i] = getattr(other, name)[k]
+    column = {name: j for j, name in enumerate(other.names)}
+    batch.residuals[i] = [other.residuals[k, column[name]] if name in column else np.nan for name in batch.names]
+    if batch.cost is not None and other.cost is not None:
+        batch.cost[i] = other.cost[k]
+    batch.fallback.pop(i, None)
+    if k in other.fallback:
+        batch.fallback[i] = other.fallback[k]
