@@ -33,7 +33,7 @@ from ..model.result import Solution, SolveStatus, failed
 from ..model.solve import METHODS, solve
 from .base import Effect, EffectError, RopeLaw
 from .pulley import wrap
-from .registry import effect_class, load_module
+from .registry import USER_MODULES, effect_class, load_module
 
 REFINE_STEPS = 6
 REFINE_TOL = 1e-7  # [m] pose change at which the pose-dependent geometry has settled
@@ -336,6 +336,6 @@ class PlantModel:
         files = []
         for effect in self.effects:
             module = inspect.getmodule(type(effect))
-            if module is not None and module.__name__.startswith("cable_winch_monitor_user_effects."):
+            if module is not None and module.__name__.startswith(USER_MODULES):
                 files.append(str(Path(module.__file__).resolve()))
         return sorted(set(files))
