@@ -44,7 +44,7 @@ BUILT_IN = {
 
 def length_noise(model: PlantModel) -> float | None:
     """The encoders' 1-sigma noise [m] (`noise.length` in the plant file), None where not given."""
-    value = model.plant.noise.get("length")
+    value = model.plant.noise.get(channels.LENGTH_NOISE)
     return float(value) if value is not None and math.isfinite(value) and value > 0.0 else None
 
 

@@ -81,6 +81,14 @@ def _check_effect_bounds(plant: Plant) -> None:
                               f"(known: {', '.join(sorted(known))})")
 
 
+def _check_noise_keys(plant: Plant) -> None:
+    """Every key of the plant file's noise section is a declared channel's (or the encoders')."""
+    unknown = sorted(set(plant.noise) - set(channels.noise_keys()))
+    if unknown:
+        raise EffectError(f"unknown key 'plant.noise.{unknown[0]}' (known: {', '.join(channels.noise_keys())}; a "
+                          "user's channel needs its module in plant.effect_modules)")
+
+
 @dataclass(frozen=True)
 class PlantModel:
     """The nominal plant, its enabled effects (at most one of each name) and the rigid-rope solver."""
@@ -104,6 +112,7 @@ class PlantModel:
             for path in plant.effect_modules:
                 load_module(path)
             _check_effect_bounds(plant)
+            _check_noise_keys(plant)
             return cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant)), solver)
         except EffectError as error:
             raise PlantConfigError(f"plant file: {error}") from None
