@@ -22,8 +22,10 @@ from typing import Iterator
 from .bagio import fields, records
 from .bagio.reader import BagMessage, BagReader, ReadReport
 from .bagio.scene import REPLAY_RATE, SceneBuilder, SceneThrottle
+from .bagio.topics import require_inputs
 from .bagio.writer import BagWriter
 from .ahead import Published
+from .effects import PlantModel
 from .lookahead import LookaheadPipeline
 from .model.plant import Plant, load_plant
 from .monitor.alarm import AlarmLevel
@@ -169,11 +171,13 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     fuses its sensors, `second_process` estimates the next window in a second process
     (ahead.py) meanwhile: the same outputs, on two cores (a fleet of bags keeps each replay to one).
 
-    Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
+    Raises BagError (nothing written) when `bag` holds no bag, lacks a topic the plant's effects read, or
+    `out` exists; damage met
     while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
     plant = plant or load_plant()
+    require_inputs(bag, PlantModel.from_plant(plant, solver).inputs)  # a topic the effects read: before any work
     pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window,
                                  second_process=second_process, scene_rate=scene_rate)
     scenes = _Scenes(plant, scene_rate)
