@@ -105,11 +105,23 @@ def diagnose_text(d: Diagnosis) -> str:
         lines += [f"correlation {k}: {v:+.3f}" for k, v in d.final.correlations().items()]
         lines += [f"warning: {w}" for w in d.final.warnings]
     else:
-        lines.append("found: nothing -- no candidate effect explains the data significantly better "
-                     "(held-out error and BIC)")
+        lines.append(_nothing_found(d))
     if d.skipped:
         lines.append(f"skipped (the time budget of {d.budget:g} s was spent): {'; '.join(d.skipped)}")
     return "\n".join(lines + _ill_conditioned(d.ill_conditioned) + _follows_lines(d.follows, d.follows_notes))
+
+
+def _nothing_found(d: Diagnosis) -> str:
+    """What is true when nothing was selected: no candidate helps, or the time budget stopped the ones that
+    lowered the held-out error before their fits converged (never judged), or left candidates untried."""
+    stopped = [c for c in d.ranking if c.fit.truncated and c.score_after < c.score_before]
+    untried = sum(item.startswith("candidate ") for item in d.skipped)
+    if not stopped and not untried:
+        return "found: nothing -- no candidate effect explains the data significantly better (held-out error and BIC)"
+    why = [f"{', '.join(f'{c.name} ({c.score_before:.3f}->{c.score_after:.3f})' for c in stopped)} lowered the "
+           "held-out error but stopped at the time budget before converging"] if stopped else []
+    why += [f"{untried} candidate(s) were not tried"] if untried else []
+    return f"found: nothing within the time budget -- {'; '.join(why)}: give diagnose a larger --budget"
 
 
 def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:
