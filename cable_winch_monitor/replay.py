@@ -62,6 +62,7 @@ class ReplaySummary:
     errors: Counter[str] = field(default_factory=Counter)  # pipeline exceptions (as the node's callback errors)
     wall: float = 0.0
     interrupted: bool = False  # stopped by Ctrl-C: the output bag holds what was replayed until then
+    unsolved: dict[str, str] = field(default_factory=dict)  # tension state without a pose -> why, its first sample
 
     @property
     def samples(self) -> int:
@@ -97,6 +98,7 @@ class ReplaySummary:
         lines += [f"  error {what}: {n}" for what, n in sorted(self.errors.items())]
         lines.append(f"samples: {self.samples} (solved {stats.solved}, solver failures {stats.failures})")
         lines.append("tension states: " + (", ".join(f"{s} {n}" for s, n in stats.states.most_common()) or "none"))
+        lines += [f"  {why} (first of {stats.states[state]} samples)" for state, why in self.unsolved.items() if why != state]
         lines.append("alarm levels: " + ", ".join(f"{level.name} {stats.levels[level.name]}" for level in AlarmLevel))
         lines.append(f"written: {sum(self.written.values())} messages to {self.out} ("
                      + ", ".join(f"{t} {n}" for t, n in sorted(self.written.items())) + ")")
@@ -198,6 +200,8 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                         raise result
                     stamp = fields.message_stamp(item.message, item.log_time)
                     outputs = _records(item, stamp, result, published, scenes)
+                    if isinstance(result, MonitorOutput) and not result.solution.ok:
+                        summary.unsolved.setdefault(result.solution.tension_state, result.solution.failure)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue
