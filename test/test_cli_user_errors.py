@@ -10,7 +10,7 @@ import pytest
 from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.paths import demo_bag
-from simbags import assert_clean, run_cli
+from simbags import assert_clean, run_cli, simulated
 
 MISSING_FOLDER = Path("/nonexistent-folder/out")
 
@@ -102,3 +102,14 @@ def test_fleet_diagnose_keeps_to_its_budget_per_bag(tmp_path):
     assert report["budget"] is not None and report["budget"] <= 0.001
     assert "candidate rope_weight" in report["skipped"]
     assert json.loads((tmp_path / "table.json").read_text())["budget"] == 0.001
+
+
+@pytest.mark.parametrize("command", [("diagnose", "--budget", "30"), ("fit", "--effects", "rope_weight")])
+def test_a_bag_too_short_to_hold_data_out_is_refused(tmp_path, command):
+    """15 s of every sensor: diagnose ended in "need at least one array to concatenate", fit printed a held-out
+    score of nan."""
+    bag = simulated(tmp_path, "all_channels", "duration=15")
+    result = run_cli(command[0], bag, *command[1:])
+    assert_clean(result, 2)
+    assert "its measurements span 14.9 s, too short to hold data out" in one_error_line(result)
+    assert "nan" not in result.stdout
