@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Iterator
 
 from .bagio import fields, records
+from .bagio.clock import clock_offset
 from .bagio.reader import BagMessage, BagReader, ReadReport
 from .bagio.scene import REPLAY_RATE, SceneBuilder, SceneThrottle
 from .bagio.topics import require_inputs
@@ -180,11 +181,13 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     started = time.perf_counter()
     plant = plant or load_plant()
     require_inputs(bag, PlantModel.from_plant(plant, solver).inputs)  # a topic the effects read: before any work
+    stamp_window, clock_note = clock_offset(bag, stamp_window or StampWindow())
     pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window,
                                  second_process=second_process, scene_rate=scene_rate)
     scenes = _Scenes(plant, scene_rate)
     inputs = fields.input_topics(pipeline.model.inputs)
     reader = BagReader(bag, inputs)
+    reader.report.notes += [clock_note] if clock_note else []
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():
