@@ -4,7 +4,10 @@ Five statuses: the solver (with input and solve rates and the samples skipped be
 newer one came first), the inputs (per cable stamp, age and rate; rejections), the
 collision alarm, model-versus-measurement residuals and the sensor fusion (the sensors
 the estimate used, how far it moved the lengths, the sensors its gates left out). Ages and rates are taken
-against the node clock, so under `use_sim_time` they follow the bag's /clock.
+against the node clock, so under `use_sim_time` they follow the bag's /clock: a reading stamped further
+ahead of the clock than the stamp window allows is an error like a stale one, the alarm of a sample
+older than the staleness limit is no data (STALE) rather than its last level, and a clock that went
+back (a bag played again) is said for a while after the node forgot its stamps.
 """
 from __future__ import annotations
 
@@ -22,9 +25,9 @@ from ..monitor.latest import LatestSamplePipeline
 from ..monitor.residuals import Residuals
 from ..monitor.sensors import sensors_used
 
-OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+OK, WARN, ERROR, STALE = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE
 RATE_WINDOW = 2.0          # [s] of node time over which input rates are counted
-REJECTION_HOLD = 10.0      # [s] inputs stay WARN this long after a rejection
+REJECTION_HOLD = 10.0      # [s] inputs stay WARN this long after a rejection or a jump of the clock back
 RESIDUAL_WINDOW = 200      # latest residuals per channel in the RMS
 RESIDUAL_WARN = 3.0        # RMS / noise above which the model vs measurement status warns
 ALARM_DIAGNOSTIC = {AlarmLevel.OK: OK, AlarmLevel.WARNING: WARN, AlarmLevel.CRITICAL: ERROR,
@@ -52,12 +55,28 @@ class DiagnosticsReporter:
         self._rejected_seen = 0
         self._last_rejection_time = -np.inf
         self.throughput: deque[tuple[float, int, int]] = deque()  # node time, winch messages, samples solved
+        self.clock_jumps = 0
+        self.last_clock_jump = ""
+        self._last_clock_jump_time = -np.inf
 
     def note_readings(self, cables: list[int], now: float) -> None:
-        """Cables whose reading was just accepted, at node time `now` [s]."""
+        """Cables whose reading was just accepted, at node time `now` [s] (NaN: the clock has not started)."""
+        if not np.isfinite(now):
+            return
         for cable in cables:
             self.arrivals[cable].append(now)
             self._prune(cable, now)
+
+    def note_clock_jump(self, back: float, now: float) -> None:
+        """The node clock went `back` seconds back to `now` and the pipeline forgot its stamps: the arrival
+        times and rates kept are from that future too."""
+        for arrivals in self.arrivals:
+            arrivals.clear()
+        self.throughput.clear()
+        self._last_rejection_time = -np.inf
+        self.clock_jumps += 1
+        self.last_clock_jump = f"clock went back {back:.3f} s to {now:.3f} s: stamp history reset"
+        self._last_clock_jump_time = now
 
     def note_residuals(self, residuals: Residuals) -> None:
         for channel, value, noise in zip(residuals.channels, residuals.values, residuals.noise):
@@ -80,8 +99,8 @@ class DiagnosticsReporter:
 
     def build(self, pipeline: LatestSamplePipeline, now: float, stamp: Time) -> DiagnosticArray:
         """All five statuses at node time `now` [s], stamped `stamp`."""
-        statuses = [self._solver(pipeline, now), self._inputs(pipeline, now), self._alarm(pipeline), self._model(),
-                    self._fusion(pipeline)]
+        statuses = [self._solver(pipeline, now), self._inputs(pipeline, now), self._alarm(pipeline, now),
+                    self._model(), self._fusion(pipeline)]
         return DiagnosticArray(header=Header(stamp=stamp), status=statuses)
 
     def throughput_rates(self, pipeline: LatestSamplePipeline, now: float) -> tuple[float, float]:
@@ -117,9 +136,9 @@ class DiagnosticsReporter:
                        values, self.hardware_id)
 
     def _inputs(self, pipeline: LatestSamplePipeline, now: float) -> DiagnosticStatus:
-        stats, staleness = pipeline.stats, pipeline.staleness
+        stats, staleness, ahead = pipeline.stats, pipeline.staleness, pipeline.merger.window.ahead
         values: dict[str, object] = {}
-        missing, stale = [], []
+        missing, stale, early = [], [], []
         for i, (name, reading) in enumerate(zip(CABLE_NAMES, pipeline.merger.readings)):
             values[f"{name} rate [Hz]"] = f"{self.rate(i, now):.1f}"
             if reading is None:
@@ -131,6 +150,8 @@ class DiagnosticsReporter:
             values[f"{name} age [s]"] = f"{age:.3f}"
             if age > staleness:
                 stale.append(f"{name} ({age:.3f} s old)")
+            elif age < -ahead:
+                early.append(f"{name} ({-age:.3f} s after the clock)")
         for topic, count in sorted(stats.messages.items()):
             values[f"{topic} messages"] = count
             values[f"{topic} used"] = stats.used[topic]
@@ -140,6 +161,8 @@ class DiagnosticsReporter:
         values["callback errors"] = self.callback_errors
         values["last callback error"] = self.last_callback_error
         values["waiting"] = stats.waiting
+        values["clock jumps back"] = self.clock_jumps
+        values["last clock jump"] = self.last_clock_jump
         rejected = sum(stats.rejected.values()) + self.callback_errors
         if rejected > self._rejected_seen:
             self._rejected_seen, self._last_rejection_time = rejected, now
@@ -148,25 +171,36 @@ class DiagnosticsReporter:
             problems.append("missing: " + ", ".join(missing))
         if stale:
             problems.append(f"stale (> {staleness:g} s): " + ", ".join(stale))
+        if early:
+            problems.append(f"stamped ahead of the clock (> {ahead:g} s): " + ", ".join(early))
+        jumped = now - self._last_clock_jump_time <= REJECTION_HOLD
+        if jumped:
+            problems.append(self.last_clock_jump)
         recent = now - self._last_rejection_time <= REJECTION_HOLD
         if recent:
             problems.append(f"inputs rejected: {stats.last_rejection or self.last_callback_error}")
-        level = ERROR if missing or stale else WARN if recent else OK
+        level = ERROR if missing or stale or early else WARN if recent or jumped else OK
         return _status("inputs", level, "; ".join(problems) or "all four cables fresh", values, self.hardware_id)
 
-    def _alarm(self, pipeline: LatestSamplePipeline) -> DiagnosticStatus:
+    def _alarm(self, pipeline: LatestSamplePipeline, now: float) -> DiagnosticStatus:
+        """The last sample's alarm; no data (STALE) once that sample is older than the staleness limit, or
+        stamped further ahead of the clock than the stamp window allows: a level is never held without data."""
         values: dict[str, object] = {f"samples {level}": count for level, count in pipeline.stats.levels.items()}
         last = pipeline.last
         if last is None:
             return _status("collision alarm", OK, "no sample yet", values, self.hardware_id)
-        alarm = last.alarm
+        alarm, age = last.alarm, now - last.stamp
         values["level"] = alarm.level.name
+        values["age [s]"] = f"{age:.3f}"
         if alarm.clearance is not None:
             values["clearance [m]"] = f"{alarm.clearance.value:.4f}"
             values["closest point"] = alarm.clearance.point_name
         values["reason"] = alarm.reason
         values.update({f"sync error {pair} [m]": f"{error:.4f}"
                        for pair, error in zip(alarm.sync_error_pairs, alarm.sync_errors)})
+        if not -pipeline.merger.window.ahead <= age <= pipeline.staleness:
+            return _status("collision alarm", STALE, f"no data: the last sample is {age:.3f} s from the clock (it was "
+                           f"{alarm.level.name}: {alarm.reason})", values, self.hardware_id)
         return _status("collision alarm", ALARM_DIAGNOSTIC[alarm.level], f"{alarm.level.name}: {alarm.reason}", values,
                        self.hardware_id)
 
