@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.writer import BagWriter
