@@ -99,7 +99,8 @@ class ReplaySummary:
         lines += [f"  error {what}: {n}" for what, n in sorted(self.errors.items())]
         lines.append(f"samples: {self.samples} (solved {stats.solved}, solver failures {stats.failures})")
         lines.append("tension states: " + (", ".join(f"{s} {n}" for s, n in stats.states.most_common()) or "none"))
-        lines += [f"  {why} (first of {stats.states[state]} samples)" for state, why in self.unsolved.items() if why != state]
+        lines += [f"  {why} (first of {stats.states[state]} samples)" for state, why in self.unsolved.items()
+                  if why != state]
         lines.append("alarm levels: " + ", ".join(f"{level.name} {stats.levels[level.name]}" for level in AlarmLevel))
         lines.append(f"written: {sum(self.written.values())} messages to {self.out} ("
                      + ", ".join(f"{t} {n}" for t, n in sorted(self.written.items())) + ")")
@@ -175,8 +176,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     (ahead.py) meanwhile: the same outputs, on two cores (a fleet of bags keeps each replay to one).
 
     Raises BagError (nothing written) when `bag` holds no bag, lacks a topic the plant's effects read, or
-    `out` exists; damage met
-    while reading is in the summary (`complete` False), never raised.
+    `out` exists; damage met while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
     plant = plant or load_plant()

@@ -269,8 +269,8 @@ class PlantModel:
         try:
             lengths = self.true_lengths(np.asarray(reported, dtype=float), conditions)
             load = self.load(conditions)
-        except EffectError as error:  # an effect's hook failed on this sample
-            return failed(SolveStatus.INVALID_INPUT, str(error), self.solver, np.full(4, np.nan))
+        except EffectError as error:  # an effect's hook failed on this sample (its lengths are numbers)
+            return failed(SolveStatus.INVALID_INPUT, str(error), self.solver, np.asarray(reported, dtype=float))
         except (TypeError, ValueError) as error:
             if np.shape(reported) == (4,):  # a reported length is not a number: the solver says which
                 lengths, load = reported, self.physical.wrench

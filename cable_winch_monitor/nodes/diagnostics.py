@@ -199,8 +199,9 @@ class DiagnosticsReporter:
         values.update({f"sync error {pair} [m]": f"{error:.4f}"
                        for pair, error in zip(alarm.sync_error_pairs, alarm.sync_errors)})
         if not -pipeline.merger.window.ahead <= age <= pipeline.staleness:
-            return _status("collision alarm", STALE, f"no data: the last sample is {age:.3f} s from the clock (it was "
-                           f"{alarm.level.name}: {alarm.reason})", values, self.hardware_id)
+            when = f"{age:.3f} s old" if age > 0.0 else f"stamped {-age:.3f} s ahead of the clock"
+            return _status("collision alarm", STALE, f"no data: the last sample is {when} (it was {alarm.level.name}: "
+                           f"{alarm.reason})", values, self.hardware_id)
         return _status("collision alarm", ALARM_DIAGNOSTIC[alarm.level], f"{alarm.level.name}: {alarm.reason}", values,
                        self.hardware_id)
 
