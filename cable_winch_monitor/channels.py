@@ -31,6 +31,7 @@ from .model.result import Solution
 
 JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
 WINCH_TOPICS = ("/winch/joint_states", *(f"/winch_{i}/joint_states" for i in range(1, 5)))  # interface.md
+LENGTH_NOISE = "length"  # the noise key of the encoders: the lengths are measurements too (effects.estimate)
 Prediction = Callable[[Solution, Plant, Conditions], float]
 StatesPrediction = Callable[[States], np.ndarray]
 NAN = float("nan")
@@ -174,6 +175,11 @@ def names() -> tuple[str, ...]:
 
 def get(name: str) -> Channel:
     return _declared[name]
+
+
+def noise_keys() -> tuple[str, ...]:
+    """Every key a plant file's `noise:` section may give: the encoders', then each declared channel's."""
+    return tuple(dict.fromkeys((LENGTH_NOISE, *(c.noise_key for c in _declared.values()))))
 
 
 def topic_types() -> dict[str, str]:

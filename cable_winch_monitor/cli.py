@@ -71,6 +71,17 @@ def _positive(text: str) -> float:
     return value
 
 
+def _budget(text: str) -> float | None:
+    """diagnose's --budget: seconds, a finite number >= 0 (0: no limit, None)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0 (0: no limit), got {text!r}")
+    return value if value > 0.0 else None
+
+
 def _solve(args: argparse.Namespace) -> int:
     from .effects import PlantModel
 
@@ -119,8 +130,9 @@ def _stamp_window(args: argparse.Namespace):
         raise UsageError(f"--stamp-window: {error}") from None
 
 
-def _fleet(args: argparse.Namespace, job) -> int:
-    """Run `job` over the bags of the folder args.bag into the new folder args.out; print the table."""
+def _fleet(args: argparse.Namespace, job, **settings: object) -> int:
+    """Run `job` over the bags of the folder args.bag into the new folder args.out; print the table (its JSON
+    with the job's `settings`)."""
     from .fleet import find_bags, run_fleet
 
     if not args.out:
@@ -130,7 +142,7 @@ def _fleet(args: argparse.Namespace, job) -> int:
     summary = run_fleet(find_bags(args.bag), args.out, job, args.workers, args.scheduler)
     print(summary.format())
     _write_json(getattr(args, "json", None), {"bags": summary.rows, "total": summary.total(), "wall": summary.wall,
-                                              "workers": summary.workers})
+                                              "workers": summary.workers, **settings})
     return 0 if summary.ok else 1
 
 
@@ -236,9 +248,9 @@ def _diagnose(args: argparse.Namespace) -> int:
         load_module(path)
     candidates = _effect_names(args.candidates, "--candidates")
     if is_fleet(args.bag):
-        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module))
-    budget = args.budget if args.budget > 0 else None
-    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates, budget, progress=True)
+        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module, args.budget),
+                      budget=args.budget)
+    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates, args.budget, progress=True)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0
@@ -288,9 +300,9 @@ def _add_analysis(sub: argparse._SubParsersAction) -> None:
             p.add_argument("--html", metavar="PATH", help="write a standalone HTML report with plots")
         if name == "diagnose":
             p.add_argument("--candidates", help="comma-separated effects to consider (default: every known one)")
-            p.add_argument("--budget", type=float, default=DIAGNOSE_BUDGET, metavar="SECONDS",
-                           help=f"wall time to spend (default {DIAGNOSE_BUDGET:g} s; 0: no limit); what did not fit "
-                           "in it is reported as skipped")
+            p.add_argument("--budget", type=_budget, default=DIAGNOSE_BUDGET, metavar="SECONDS",
+                           help=f"wall time to spend (default {DIAGNOSE_BUDGET:g} s; 0: no limit), per bag in a fleet; "
+                           "what did not fit in it is reported as skipped")
             p.add_argument("--out", metavar="FOLDER", help="fleet diagnose (bag is a folder of bags): a new folder "
                            "for one JSON result per bag; --json then writes the summary table")
             _add_fleet_options(p, "diagnose")

@@ -62,7 +62,7 @@ def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: fl
 
 
 def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[str] | None,
-                  effect_modules: Sequence[str]) -> Row:
+                  effect_modules: Sequence[str], budget: float | None) -> Row:
     from .analysis.diagnose import diagnose_bag
     from .analysis.report import diagnose_json
     from .effects import load_module
@@ -71,7 +71,7 @@ def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[st
         load_module(path)
     started = time.perf_counter()
     try:
-        result, data = diagnose_bag(bag, plant, candidates)
+        result, data = diagnose_bag(bag, plant, candidates, budget)
     except BagError as error:
         return {"bag": bag.name, "error": str(error)}
     report = out.with_name(out.name + ".json")
@@ -82,11 +82,12 @@ def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[st
 
 
 def diagnose_job(plant: Plant | None = None, candidates: list[str] | None = None,
-                 effect_modules: Sequence[str] = ()) -> Job:
-    """The per-bag diagnose as a picklable job: a row with the measurement rows, the held-out score
-    before and after the effects it found, and the full result (interface.md) in `<out folder>/<bag>.json`."""
+                 effect_modules: Sequence[str] = (), budget: float | None = None) -> Job:
+    """The per-bag diagnose as a picklable job, each bag within `budget` seconds (None: no limit): a row with
+    the measurement rows, the held-out score before and after the effects it found, and the full result
+    (interface.md) in `<out folder>/<bag>.json`."""
     return functools.partial(_diagnose_row, plant=plant, candidates=candidates,
-                             effect_modules=[str(Path(m).resolve()) for m in effect_modules])
+                             effect_modules=[str(Path(m).resolve()) for m in effect_modules], budget=budget)
 
 
 @dataclass

@@ -20,12 +20,16 @@ from pathlib import Path
 from typing import Iterator
 
 from .bagio import fields, records
+from .bagio.clock import clock_offset
 from .bagio.reader import BagMessage, BagReader, ReadReport
-from .bagio.scene import REPLAY_RATE, SceneBuilder, SceneThrottle
+from .bagio.scene import REPLAY_RATE
+from .bagio.topics import require_inputs
 from .bagio.writer import BagWriter
 from .ahead import Published
+from .effects import PlantModel
 from .lookahead import LookaheadPipeline
 from .model.plant import Plant, load_plant
+from .model.result import SolveStatus
 from .monitor.alarm import AlarmLevel
 from .monitor.inputs import StampWindow
 from .monitor.pipeline import MonitorStats
@@ -60,6 +64,7 @@ class ReplaySummary:
     errors: Counter[str] = field(default_factory=Counter)  # pipeline exceptions (as the node's callback errors)
     wall: float = 0.0
     interrupted: bool = False  # stopped by Ctrl-C: the output bag holds what was replayed until then
+    unsolved: dict[str, str] = field(default_factory=dict)  # tension state without a pose -> why, its first sample
 
     @property
     def samples(self) -> int:
@@ -97,6 +102,8 @@ class ReplaySummary:
         lines += [f"  sensor left out: {sensor} on {count} samples ({first:.1f}-{last:.1f} s): {why}"
                   for sensor, (count, first, last, why) in sorted(stats.faults.items())]
         lines.append("tension states: " + (", ".join(f"{s} {n}" for s, n in stats.states.most_common()) or "none"))
+        lines += [f"  {why} (first of {stats.states[state]} samples)" for state, why in self.unsolved.items()
+                  if why != state]
         lines.append("alarm levels: " + ", ".join(f"{level.name} {stats.levels[level.name]}" for level in AlarmLevel))
         lines.append(f"written: {sum(self.written.values())} messages to {self.out} ("
                      + ", ".join(f"{t} {n}" for t, n in sorted(self.written.items())) + ")")
@@ -149,15 +156,18 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     publishes the windows' samples in a second process (ahead.py) meanwhile: the same outputs, on
     two cores (a fleet of bags keeps each replay to one).
 
-    Raises BagError (nothing written) when `bag` holds no bag or `out` exists; damage met
-    while reading is in the summary (`complete` False), never raised.
+    Raises BagError (nothing written) when `bag` holds no bag, lacks a topic the plant's effects read, or
+    `out` exists; damage met while reading is in the summary (`complete` False), never raised.
     """
     started = time.perf_counter()
     plant = plant or load_plant()
+    require_inputs(bag, PlantModel.from_plant(plant, solver).inputs)  # a topic the effects read: before any work
+    stamp_window, clock_note = clock_offset(bag, stamp_window or StampWindow())
     pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window,
                                  second_process=second_process, scene_rate=scene_rate)
     inputs = fields.input_topics(pipeline.model.inputs)
     reader = BagReader(bag, inputs)
+    reader.report.notes += [clock_note] if clock_note else []
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with BagWriter(out) as writer, _fewer_collections():
@@ -173,6 +183,8 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                         raise result
                     stamp = fields.message_stamp(item.message, item.log_time)
                     outputs = _records(item, stamp, result)
+                    if isinstance(result, Published) and result.outcome.status is not SolveStatus.SOLVED:
+                        summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
                 except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue

@@ -1,6 +1,7 @@
 """Every user error of the command line is one line and a non-zero exit, found before the work starts."""
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import pytest
 from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.paths import demo_bag
-from simbags import assert_clean, run_cli
+from simbags import assert_clean, run_cli, simulated
 
 MISSING_FOLDER = Path("/nonexistent-folder/out")
 
@@ -79,3 +80,36 @@ def test_a_binary_metadata_file_is_noted_and_the_mcap_read(tmp_path):
     assert_clean(result, 0)
     assert "metadata.yaml is unreadable" in result.stdout and "not a text file" in result.stdout
     assert "samples: 2049 (solved 2049" in result.stdout
+
+
+@pytest.mark.parametrize("budget", ["-1", "nan", "inf", "soon"])
+def test_a_budget_that_is_no_number_of_seconds_is_a_usage_error(budget):
+    """-1 and nan meant "no limit" (0 says that); the bag is not read."""
+    result = run_cli("diagnose", "/nonexistent-bag", f"--budget={budget}")
+    assert_clean(result, 2)
+    assert f"argument --budget: must be a number of seconds >= 0 (0: no limit), got '{budget}'" in result.stderr
+
+
+def test_fleet_diagnose_keeps_to_its_budget_per_bag(tmp_path):
+    """Each bag of a fleet within --budget (it was ignored: "budget": null); the table's JSON says it too."""
+    fleet = tmp_path / "fleet"
+    fleet.mkdir()
+    shutil.copytree(demo_bag().parent / "lag_slack", fleet / "lag_slack")
+    result = run_cli("diagnose", fleet, "--budget", "0.001", "--candidates", "rope_weight", "--out", tmp_path / "out",
+                     "--json", tmp_path / "table.json")
+    assert_clean(result, 0)
+    report = json.loads((tmp_path / "out" / "lag_slack.json").read_text())
+    assert report["budget"] is not None and report["budget"] <= 0.001
+    assert "candidate rope_weight" in report["skipped"]
+    assert json.loads((tmp_path / "table.json").read_text())["budget"] == 0.001
+
+
+@pytest.mark.parametrize("command", [("diagnose", "--budget", "30"), ("fit", "--effects", "rope_weight")])
+def test_a_bag_too_short_to_hold_data_out_is_refused(tmp_path, command):
+    """15 s of every sensor: diagnose ended in "need at least one array to concatenate", fit printed a held-out
+    score of nan."""
+    bag = simulated(tmp_path, "all_channels", "duration=15")
+    result = run_cli(command[0], bag, *command[1:])
+    assert_clean(result, 2)
+    assert "its measurements span 14.9 s, too short to hold data out" in one_error_line(result)
+    assert "nan" not in result.stdout

@@ -9,7 +9,7 @@ import pytest
 
 from cable_winch_monitor.analysis import report
 from cable_winch_monitor.analysis.data import read_bag
-from cable_winch_monitor.analysis.diagnose import diagnose
+from cable_winch_monitor.analysis.diagnose import Candidate, Diagnosis, Step, diagnose
 from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.analysis.fit import fit_effects
 from cable_winch_monitor.effects import PlantModel, effect_class
@@ -43,7 +43,25 @@ def test_spent_budget_skips_and_says_what(bag):
                               "the identifiability check (ill-conditioned channels)"]  # cheapest first
     text = report.diagnose_text(result)
     assert "skipped (the time budget of 0 s was spent)" in text
+    assert "found: nothing within the time budget -- 3 candidate(s) were not tried: give diagnose a larger " \
+        "--budget" in text and "no candidate effect explains" not in text
     assert report.diagnose_json(result, "all_channels", len(data))["skipped"] == result.skipped
+
+
+def test_a_candidate_stopped_by_the_budget_while_it_improved_is_not_called_no_explanation(bag):
+    """The report's words for a ranking whose best candidate lowered the held-out error but was stopped at
+    the time budget ("no candidate explains the data" stood beside it)."""
+    model, data, sigma = bag
+    train = Evaluator(data.subset(thin(split(data)[0], data.kinds, 30)))
+    fit = fit_effects(model, [effect_class("rope_weight")(plant=model.plant)], train, sigma,
+                      deadline=time.monotonic() - 1.0)
+    result = Diagnosis([Candidate("rope_weight", fit, 19.57, 0.981, -5000.0)], [Step(None, 19.0, 19.57, 1e5)],
+                       None, model, len(train.data), 100)
+    text = report.diagnose_text(result)
+    assert "rope_weight              19.570->0.981" in text and "(not converged)" in text
+    assert "found: nothing within the time budget -- rope_weight (19.570->0.981) lowered the held-out error but " \
+        "stopped at the time budget before converging: give diagnose a larger --budget" in text
+    assert "no candidate effect explains" not in text
 
 
 @pytest.mark.slow

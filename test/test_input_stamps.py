@@ -146,3 +146,34 @@ def test_limits_come_from_the_plant_file(plant):
     assert "beyond the maximum payout 100 m" in merger.add(JointSample(1.0, ["cable_1"], [101.0])).rejected
     assert "at most 1 m/s" in merger.add(JointSample(1.0, ["cable_1"], [99.0], [1.5])).rejected
     assert merger.add(JointSample(1.0, ["cable_1"], [99.0], [0.9])).accepted == [0]
+
+
+def test_a_constant_clock_offset_is_judged_from_and_bad_stamps_are_still_refused(plant):
+    """Stamps 30 s behind their arrival throughout: within a window shifted by that offset; a far-future
+    stamp among them is refused all the same."""
+    pipeline = MonitorPipeline(plant, stamp_window=StampWindow(offset=30.0))
+    outputs = [pipeline.on_joint_state(merged(T0 + 0.1 * k, [20.0 + 0.01 * k] * 4, received=T0 + 30.0 + 0.1 * k))
+               for k in range(100)]
+    assert all(o is not None and o.solution.ok for o in outputs) and not pipeline.stats.rejected
+    assert pipeline.on_joint_state(merged(T0 + 1e6, [21.0] * 4, received=T0 + 40.0)) is None
+    assert pipeline.on_joint_state(merged(T0 + 10.0, [21.0] * 4, received=T0 + 52.0)) is None  # 12 s late
+    assert set(pipeline.stats.rejected) == {"/winch/joint_states: stamp ahead of the clock",
+                                            "/winch/joint_states: stamp behind the clock"}
+
+
+def test_a_recording_whose_stamps_lie_30_s_behind_its_log_times_replays_with_a_note(tmp_path):
+    """Every winch message was refused as "stamp behind the clock", and the replay exited 0 with nothing solved."""
+    from cable_winch_monitor.bagio.reader import BagReader
+    from cable_winch_monitor.bagio.writer import BagWriter
+    from cable_winch_monitor.paths import demo_bag
+    from simbags import assert_clean, run_cli
+
+    late = tmp_path / "late"
+    with BagWriter(late) as writer:
+        for item in BagReader(demo_bag()):
+            writer.write_raw(item.topic, item.msgtype, item.log_time + 30 * 10 ** 9, item.data)
+    result = run_cli("replay", late, "--out", tmp_path / "out", "--quiet")
+    assert_clean(result, 0)
+    assert "note: the winches' header stamps lie 30.00" in result.stdout
+    assert "s behind the log times throughout the first 100 winch messages" in result.stdout
+    assert "samples: 2049 (solved 2049, solver failures 0)" in result.stdout and "stamp behind" not in result.stdout

@@ -46,6 +46,17 @@ CASES = {
     "limits-words": (edited(limits={"max_payout": "far"}), "'plant.limits.max_payout' must be a number"),
     "noise-a-string": (edited(noise="loud"), "'plant.noise' must be a mapping"),
     "noise-a-list": (edited(noise=[1, 2]), "'plant.noise' must be a mapping"),
+    "noise-zero": (edited(noise={"length": 0.0}), "'plant.noise.length' must be a 1-sigma noise in [1e-09, 1e+09]"),
+    "noise-negative": (edited(noise={"tension": -150.0}), "'plant.noise.tension' must be a 1-sigma noise"),
+    "noise-underflowing": (edited(noise={"length": 1e-300}), "'plant.noise.length' must be a 1-sigma noise"),
+    "noise-nan": (edited(noise={"roll": float("nan")}), "'plant.noise.roll' must be a finite number"),
+    "noise-a-boolean": (edited(noise={"depth": True}), "'plant.noise.depth' must be a number, got True"),
+    "mass-a-boolean": (edited(mass=True), "'plant.mass' must be a number, got True"),
+    "weight-not-finite": (edited(mass=1e308), "'plant.mass' = 1e+308 kg: its weight m g = inf N must be finite"),
+    "bounds-a-boolean": (edited(effect_bounds={"rope_weight": {"w": [True, 5.0]}}),
+                         "'plant.effect_bounds.rope_weight.w' must be [low, high]"),
+    "anchors-booleans": (points(anchors=[[True, 2.5, 0.0]] + RECTANGLE[1:]),
+                         "'plant.geometry.anchors' must be a list of [x, y, z] points"),
     "effect-spec-a-list": (edited(effects={"rope_weight": [1, 2]}), "'plant.effects.rope_weight' must be a mapping"),
     "identical-anchors": (points(anchors=[[1.0, 1.0, 0.0]] * 4), "'plant.geometry.anchors': points 1 and 2 are identical"),
     "collinear-anchors": (points(anchors=[[k, 0.0, 0.0] for k in range(4)]),
@@ -97,6 +108,50 @@ def test_the_node_stops_with_one_line_naming_the_problem(tmp_path, name):
         lease.release()
     assert result.returncode == 2
     assert words in result.stderr and "Traceback" not in result.stderr + result.stdout, result.stderr
+
+
+@pytest.mark.parametrize("sections, words", [
+    ({"noise": {**BASE["plant"]["noise"], "tensoin": 150.0}},
+     "unknown key 'plant.noise.tensoin' (known: length, tension, roll, pitch, x, y, depth"),
+    ({"effects": {"rope_weight": {"w": True}}}, "parameter 'w' must be a number, got True"),
+])
+def test_what_only_the_effect_layer_can_check_is_refused_before_any_solve(tmp_path, sections, words):
+    """A noise key no declared channel has (a user's channel may be declared by a module the plant file
+    loads), an effect parameter given as a boolean (`true` was taken as 1 N/m)."""
+    path = write(tmp_path, edited(**sections))
+    result = subprocess.run([sys.executable, "-m", "cable_winch_monitor.cli", "solve", "20.3", "20.1", "20.5", "20.2",
+                             "--config", str(path)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and "Traceback" not in result.stdout + result.stderr
+    assert result.stderr.count("\n") == 1 and words in result.stderr, result.stderr
+
+
+CAGE = """
+from cable_winch_monitor.channels import Channel, declare
+from cable_winch_monitor.effects import Effect, Parameter
+
+declare(Channel("cage_load", "N", "cage_load", ("/cage/load",), "std_msgs/msg/Float64", "data",
+                predict=lambda solution, plant, conditions: float(solution.tensions.sum())))
+
+
+class CageGain(Effect):
+    name = "cage_gain"
+    parameters = (Parameter("k", "-", 0.0, (-1.0, 1.0), 0.01, "gain error of the cage's load cell"),)
+"""
+
+
+def test_a_relative_effect_module_is_found_beside_the_plant_file_and_declares_its_noise_key(tmp_path, monkeypatch):
+    (tmp_path / "plants" / "modules").mkdir(parents=True)
+    (tmp_path / "plants" / "modules" / "cage.py").write_text(CAGE)
+    plant_path = tmp_path / "plants" / "plant.yaml"
+    plant_path.write_text(edited(effect_modules=["modules/cage.py"],
+                                 noise={**BASE["plant"]["noise"], "cage_load": 200.0}))
+    monkeypatch.chdir(tmp_path)  # not the plant file's folder
+    plant = load_plant(Path("plants") / "plant.yaml")
+    assert plant.effect_modules == (str(Path("plants") / "modules" / "cage.py"),)
+    result = subprocess.run([sys.executable, "-m", "cable_winch_monitor.cli", "solve", "20.3", "20.1", "20.5", "20.2",
+                             "--config", "plants/plant.yaml"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert "taut {1,2,4}" in result.stdout
 
 
 def test_yaml_within_the_limits_reads_as_safe_load_does():

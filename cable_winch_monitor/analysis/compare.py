@@ -24,6 +24,7 @@ from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise
 from .follows import Finding, what_follows
 from .motion import describe, motions, shares
+from .unsolved import require_solved
 
 THRESHOLD = 3.0    # [sigma]
 MERGE_GAP = 1.0    # [s] exceedances closer than this belong to one region
@@ -47,6 +48,7 @@ class Comparison:
     ill_conditioned: list[IllConditioned] = field(default_factory=list)  # where the lengths do not determine a channel
     follows: list[Finding] = field(default_factory=list)
     follows_notes: list[str] = field(default_factory=list)
+    unsolved: Counter[str] = field(default_factory=Counter)  # rows the model gives no pose, by why
 
     @property
     def residuals(self) -> np.ndarray:
@@ -58,8 +60,9 @@ def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -
     (among the bag's other topics' `fields` too, where given)."""
     sigma, source = noise(model.plant, data)
     evaluator = Evaluator(data)
+    reasons = require_solved(data.bag, evaluator.solutions(model), "compare")
     predicted = evaluator.predicted(model)
-    result = Comparison(data.bag, model, data, predicted, sigma, source, evaluator.solutions(model))
+    result = Comparison(data.bag, model, data, predicted, sigma, source, evaluator.solutions(model), unsolved=reasons)
     result.channels = channel_stats(result.residuals, data.measured, sigma, data.channels)
     result.score = evaluator.score(model, sigma)
     result.regions = failure_regions(result)
@@ -78,18 +81,20 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
     z = c.residuals[rows] / c.noise
     misses = []
     for ch, name in enumerate(data.channels):
-        hits = exceed[:, ch]
+        hits = exceed[:, ch] & np.isfinite(z[:, ch])
         if hits.any():
-            sign = "above" if np.nanmean(z[hits, ch]) > 0 else "below"
-            misses.append({"channel": name, "count": int(hits.sum()), "mean_sigma": float(np.nanmean(z[hits, ch])),
+            sign = "above" if np.mean(z[hits, ch]) > 0 else "below"
+            misses.append({"channel": name, "count": int(hits.sum()), "mean_sigma": float(np.mean(z[hits, ch])),
                            "measured": sign + " model"})
+    unsolved = int((exceed & ~np.isfinite(z)).any(axis=1).sum())
     start, end = data.times[rows[0]] - data.times[0], data.times[rows[-1]] - data.times[0]
     text = (f"{start:.1f}-{end:.1f} s from the start: payout {payout.min():.1f}-{payout.max():.1f} m, "
             f"{describe(motion)} (mean {speed:+.2f} m/s), {states.most_common(1)[0][0]}; "
-            + ", ".join(f"{m['channel']} {m['measured']} by {abs(m['mean_sigma']):.1f} sigma" for m in misses))
+            + ", ".join([f"{m['channel']} {m['measured']} by {abs(m['mean_sigma']):.1f} sigma" for m in misses]
+                        + ([f"{unsolved} rows not solved"] if unsolved else [])))
     return {"start": float(data.times[rows[0]]), "end": float(data.times[rows[-1]]),
             "payout": [float(payout.min()), float(payout.max())], "speed": speed, "motion": motion,
-            "tension_state": states.most_common(1)[0][0], "channels": misses,
+            "tension_state": states.most_common(1)[0][0], "channels": misses, "unsolved_rows": unsolved,
             "severity": float(np.nansum(np.abs(z[exceed]))), "description": text}
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from .. import channels
 from ..bagio import fields
 from ..bagio.reader import BagError, BagReader
+from ..bagio.topics import missing_input, require_inputs
 from ..channels import JOINT_STATE, Input
 from ..model.conditions import Conditions, derivatives, directions
 from ..monitor.inputs import CableLengthMerger
@@ -69,6 +70,7 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[In
     """Every usable measurement of a bag as a Dataset, with the extra `inputs` the plant's effects read
     (BagError if it is not a bag, or lacks an input's topic) and the `optional` ones it has (candidate
     effects of diagnose)."""
+    require_inputs(bag, inputs)
     required = {spec.key for spec in inputs}
     inputs = tuple(inputs) + tuple(optional)
     names = channels.names()
@@ -106,8 +108,7 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[In
         if not len(points) and spec.key not in required:
             continue
         if not len(points):
-            raise BagError(f"{bag}: the plant's effects read {spec.key} ({spec.msgtype}), which the bag does not "
-                           "have: record that topic, or switch the effect off")
+            raise missing_input(bag, spec)
         points = points[np.argsort(points[:, 0], kind="stable")]
         data.inputs[spec.key] = np.interp(data.times, points[:, 0], points[:, 1])
     return data

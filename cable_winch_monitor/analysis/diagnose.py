@@ -29,6 +29,7 @@ skipped and listed. A progress line shows on a terminal.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,6 +46,7 @@ from .data import Dataset, read_bag, require_measurements
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, split, thin
 from .fit import FitResult, chi_square, fit_effects
 from .follows import Finding, what_follows
+from .unsolved import require_solved, unsolved
 
 PER_KIND_SCREEN = 50   # training rows per sensor kind to screen candidates on
 PER_KIND_FIT = 150     # training rows per sensor kind to fit the selected effects on
@@ -106,6 +108,7 @@ class Diagnosis:
     skipped: list[str] = field(default_factory=list)  # what the time budget left out
     budget: float | None = None  # [s]
     untried: dict[str, str] = field(default_factory=dict)  # candidate -> why it could not be tried
+    unsolved: Counter[str] = field(default_factory=Counter)  # training and held-out rows the model gives no pose
 
     @property
     def selected(self) -> list[str]:
@@ -188,6 +191,8 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     pool = [n for n in pool if n not in untried]
     bar = Progress("diagnose", len(pool), enabled=progress, only_tty=True)
     current, added, final = base, [], None
+    require_solved(data.bag, held.solutions(base), "score a candidate on", "held-out row")
+    not_solved = unsolved(train.solutions(base) + held.solutions(base))
     chi2, count = chi_square(current, train, noise)
     score_now = held.score(current, noise)
     ladder = [Step(None, float(np.sqrt(chi2 / max(count, 1))), score_now, chi2)]
@@ -231,7 +236,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     follows = what_follows(data, held.residuals(current), noise, held_rows, fields)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
                      screen.solves + train.solves + held.solves, channels, follows,
-                     fields.remarks() if fields else [], conditioning, clock.skipped, budget, untried)
+                     fields.remarks() if fields else [], conditioning, clock.skipped, budget, untried, not_solved)
 
 
 def diagnose_bag(bag: str | Path, plant: Plant | None = None, candidates: list[str] | None = None,

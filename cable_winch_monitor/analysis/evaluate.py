@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..bagio.reader import BagError
 from ..effects import PlantModel
 from ..effects.estimate import estimate_recording, fuses
 from ..model.estimation import Estimate
@@ -209,11 +210,16 @@ def noise(plant: Plant, data: Dataset) -> tuple[np.ndarray, dict[str, str]]:
 
 
 def split(data: Dataset) -> tuple[np.ndarray, np.ndarray]:
-    """Training and held-out rows: interleaved blocks in time (see HELD_OUT)."""
+    """Training and held-out rows: interleaved blocks in time (see HELD_OUT); BagError where the bag is too
+    short to hold a held-out block (the first is the third block of at least MIN_BLOCK seconds)."""
     span = data.times[-1] - data.times[0] if len(data) else 0.0
     length = max(span / BLOCKS, MIN_BLOCK)
     block = np.floor((data.times - data.times[0]) / length).astype(int) if len(data) else np.zeros(0, int)
     held = np.isin(block % 10, HELD_OUT)
+    if not held.any():
+        raise BagError(f"{data.bag}: its measurements span {span:.1f} s, too short to hold data out: training and "
+                       f"held-out rows are interleaved blocks of at least {MIN_BLOCK:g} s, so a bag needs more than "
+                       f"{min(HELD_OUT) * MIN_BLOCK:g} s")
     return np.flatnonzero(~held), np.flatnonzero(held)
 
 

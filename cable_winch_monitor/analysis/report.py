@@ -1,15 +1,17 @@
 """Text and JSON (interface.md) renderings of compare, diagnose and fit results."""
 from __future__ import annotations
 
+from collections import Counter
 from typing import Any
 
 import numpy as np
 
 from .compare import Comparison
 from .diagnose import Diagnosis
-from .evaluate import ChannelStats
+from .evaluate import FAILED_PENALTY, ChannelStats
 from .follows import NOTHING, Finding
 from .refit import FitReport
+from .unsolved import describe
 
 
 def _channels(stats: dict[str, ChannelStats]) -> dict[str, Any]:
@@ -41,8 +43,15 @@ def _ill_conditioned(spans: list[Any]) -> list[str]:
     return [f"ill-conditioned: {s.describe()}" for s in spans]
 
 
+def _unsolved(reasons: Counter[str], rows: int) -> list[str]:
+    if not reasons:
+        return []
+    return [f"not solved: {describe(reasons, rows)}; their measurements count as {FAILED_PENALTY:g}-sigma misses"]
+
+
 def compare_json(c: Comparison) -> dict[str, Any]:
     return {"bag": c.bag, "samples": len(c.data), "channels": _channels(c.channels), "score": c.score,
+            "unsolved": {"rows": sum(c.unsolved.values()), "reasons": dict(c.unsolved)},
             "noise_source": c.noise_source, "failure_regions": c.regions, "effects": _effect_values(c.model),
             "ill_conditioned": [s.to_dict() for s in c.ill_conditioned], **_follows_json(c.follows, c.follows_notes)}
 
@@ -52,7 +61,7 @@ def compare_text(c: Comparison) -> str:
     lines = [f"compared {c.bag}: {len(c.data)} measurement samples, model effects: "
              + (", ".join(repr(e) for e in c.model.effects) or "none (rigid ropes)"),
              *_table(c.channels), f"score {c.score:.3f} (1.0 = down to the sensor noise; noise: {', '.join(sources)})",
-             f"failure regions (|error| > 3 sigma): {len(c.regions) or 'none'}"]
+             *_unsolved(c.unsolved, len(c.data)), f"failure regions (|error| > 3 sigma): {len(c.regions) or 'none'}"]
     lines += [f"  {r['description']}" for r in c.regions[:10]]
     return "\n".join(lines + _ill_conditioned(c.ill_conditioned) + _follows_lines(c.follows, c.follows_notes))
 
@@ -75,6 +84,7 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
                         "bic": s.bic} for s in d.ladder],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
             "ill_conditioned": [s.to_dict() for s in d.ill_conditioned], "budget": d.budget, "skipped": d.skipped, "untried": d.untried,
+            "unsolved": {"rows": sum(d.unsolved.values()), "reasons": dict(d.unsolved)},
             "effects": ranked, **_follows_json(d.follows, d.follows_notes)}
 
 
@@ -87,7 +97,8 @@ def _value(name: str, v: dict[str, Any], short: bool = False) -> str:
 
 
 def diagnose_text(d: Diagnosis) -> str:
-    lines = [f"candidates, best first (fitted on {d.train_rows} training rows, scored on {d.heldout_rows} "
+    lines = [*_unsolved(d.unsolved, d.train_rows + d.heldout_rows),
+             f"candidates, best first (fitted on {d.train_rows} training rows, scored on {d.heldout_rows} "
              "held-out rows from interleaved blocks):",
              f"{'effect':<24}{'held-out score':>15}{'delta BIC':>12}  fitted"]
     for c in d.ranking:
@@ -105,11 +116,23 @@ def diagnose_text(d: Diagnosis) -> str:
         lines += [f"correlation {k}: {v:+.3f}" for k, v in d.final.correlations().items()]
         lines += [f"warning: {w}" for w in d.final.warnings]
     else:
-        lines.append("found: nothing -- no candidate effect explains the data significantly better "
-                     "(held-out error and BIC)")
+        lines.append(_nothing_found(d))
     if d.skipped:
         lines.append(f"skipped (the time budget of {d.budget:g} s was spent): {'; '.join(d.skipped)}")
     return "\n".join(lines + _ill_conditioned(d.ill_conditioned) + _follows_lines(d.follows, d.follows_notes))
+
+
+def _nothing_found(d: Diagnosis) -> str:
+    """What is true when nothing was selected: no candidate helps, or the time budget stopped the ones that
+    lowered the held-out error before their fits converged (never judged), or left candidates untried."""
+    stopped = [c for c in d.ranking if c.fit.truncated and c.score_after < c.score_before]
+    untried = sum(item.startswith("candidate ") for item in d.skipped)
+    if not stopped and not untried:
+        return "found: nothing -- no candidate effect explains the data significantly better (held-out error and BIC)"
+    why = [f"{', '.join(f'{c.name} ({c.score_before:.3f}->{c.score_after:.3f})' for c in stopped)} lowered the "
+           "held-out error but stopped at the time budget before converging"] if stopped else []
+    why += [f"{untried} candidate(s) were not tried"] if untried else []
+    return f"found: nothing within the time budget -- {'; '.join(why)}: give diagnose a larger --budget"
 
 
 def fit_json(r: FitReport, bag: str, samples: int) -> dict[str, Any]:

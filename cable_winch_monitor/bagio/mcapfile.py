@@ -81,6 +81,7 @@ class McapFile:
         self.damage: list[Damage] = []
         self.notes: list[str] = []
         self.message_count: int | None = None
+        self.channel_counts: dict[int, int] | None = None  # messages per channel, as the summary lists them
         self._file = path.open("rb")
         head = self._file.read(len(MAGIC))
         if head != MAGIC:
@@ -125,13 +126,15 @@ class McapFile:
                 if opcode == Opcode.CHUNK_INDEX:
                     chunks.append(parse_record(ChunkIndex.read, body, "chunk index", offset))
                 elif opcode == Opcode.STATISTICS:
-                    self.message_count = parse_record(Statistics.read, body, "statistics", offset).message_count
+                    statistics = parse_record(Statistics.read, body, "statistics", offset)
+                    self.message_count, self.channel_counts = statistics.message_count, \
+                        dict(statistics.channel_message_counts)
         except McapDamage as error:
             self.notes.append(f"{self.path.name}: summary section unreadable ({error}): "
                               "reading the file from the start")
             self.schemas.clear()
             self.channels.clear()
-            self.message_count = None
+            self.message_count = self.channel_counts = None
             return None
         if not chunks:
             return None

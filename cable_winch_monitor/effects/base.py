@@ -39,7 +39,7 @@ import numpy as np
 from ..channels import Input
 from ..model.conditions import Conditions, StackedConditions
 from ..model.observations import States
-from ..model.plant import Plant
+from ..model.plant import Plant, file_number
 from ..model.result import Solution
 
 ACTS = ("rope_law", "geometry", "load", "measurement")
@@ -140,7 +140,7 @@ class Effect:
         self.values: dict[str, float] = {}
         for p in self.specs:
             try:
-                value = float(values.get(p.name, p.default))
+                value = file_number(values.get(p.name, p.default))
             except (TypeError, ValueError):
                 raise EffectError(f"effect '{self.name}': parameter '{p.name}' must be a number, "
                                   f"got {values[p.name]!r}") from None

@@ -44,7 +44,7 @@ BUILT_IN = {
 
 def length_noise(model: PlantModel) -> float | None:
     """The encoders' 1-sigma noise [m] (`noise.length` in the plant file), None where not given."""
-    value = model.plant.noise.get("length")
+    value = model.plant.noise.get(channels.LENGTH_NOISE)
     return float(value) if value is not None and math.isfinite(value) and value > 0.0 else None
 
 
@@ -114,16 +114,17 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
     law = model.rope_law
     try:
         lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
-    except (TypeError, ValueError):  # not four numbers: the solver's input check says what is wrong
+        load = model.load(conditions)
+    except (TypeError, ValueError):  # not four numbers, or an effect's hook failed: the solve says what is wrong
         return forward_estimate(model.solve(reported, None, conditions), np.full(4, np.nan))
     observations = observations_for(model, measured, [conditions])
     if not observations:  # lengths alone: the forward kinematics, warm-started as the solver is
         return forward_estimate(model.solve(reported, warm, conditions), reported)
     if model.refining:
-        return _estimate_refined(model, lengths[None], observations, model.load(conditions)[None], [conditions],
-                                 [warm_start], live=True)[0]
+        return _estimate_refined(model, lengths[None], observations, load[None], [conditions], [warm_start],
+                                 live=True)[0]
     return estimate(model.physical, lengths, observations, length_noise(model),
-                    law.EA, law.weight if law.EA is not None else 0.0, model.load(conditions), warm_start)
+                    law.EA, law.weight if law.EA is not None else 0.0, load, warm_start)
 
 
 def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
@@ -144,10 +145,12 @@ def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mappin
         return out
     if not model.refining:
         return recording_batch(model, reported, measured, conditions, warm_starts).estimates()
-    lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
-    observations = observations_for(model, measured, conditions)
-    loads = np.array([model.load(at) for at in conditions])
-    return _estimate_refined(model, lengths, observations, loads, conditions, warm_starts)
+    lengths, loads, hooked = model.batch_inputs(reported, conditions)
+    estimates = _estimate_refined(model, lengths, observations_for(model, measured, conditions), loads, conditions,
+                                  warm_starts)
+    for k in hooked:
+        estimates[k] = unhooked(model, reported[k], conditions[k])
+    return estimates
 
 
 def recording_batch(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
@@ -155,9 +158,17 @@ def recording_batch(model: PlantModel, reported: np.ndarray, measured: Mapping[s
                     warm_starts: Sequence[Estimate | None] | None = None) -> BatchEstimate:
     """`estimate_recording`'s estimates as arrays, for a model that fuses and whose geometry does not
     depend on the pose (not `refining`): what a second process can compute and send back cheaply."""
-    lengths = np.array([model.true_lengths(row, at) for row, at in zip(reported, conditions)])
-    loads = np.array([model.load(at) for at in conditions])
-    return _batch(model, lengths, observations_for(model, measured, conditions), loads, warm_starts)
+    lengths, loads, hooked = model.batch_inputs(reported, conditions)
+    batch = _batch(model, lengths, observations_for(model, measured, conditions), loads, warm_starts)
+    for k in hooked:
+        batch.fallback[k] = unhooked(model, reported[k], conditions[k])
+        batch.status[k] = batch.fallback[k].solution.status.value
+    return batch
+
+
+def unhooked(model: PlantModel, reported: np.ndarray, conditions: Conditions) -> Estimate:
+    """A sample where an effect's hook failed: the solve, which says which and why (invalid input)."""
+    return forward_estimate(model.solve(reported, None, conditions), reported)
 
 
 def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation], loads: np.ndarray,

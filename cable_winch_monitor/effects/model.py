@@ -33,7 +33,7 @@ from ..model.result import Solution, SolveStatus, failed
 from ..model.solve import METHODS, solve
 from .base import Effect, EffectError, RopeLaw
 from .pulley import wrap
-from .registry import effect_class, load_module
+from .registry import USER_MODULES, effect_class, load_module
 
 REFINE_STEPS = 6
 REFINE_TOL = 1e-7  # [m] pose change at which the pose-dependent geometry has settled
@@ -71,6 +71,37 @@ def effects_from_mapping(section: Any, where: str, plant: Plant | None = None) -
     return effects
 
 
+def _call(effect: Effect, hook: str, *args: Any) -> Any:
+    """An effect's hook called; anything it raises comes out as an EffectError naming the effect and the hook:
+    a user's effect may raise anything, and the sample (or the command) is refused with that line."""
+    try:
+        return getattr(effect, hook)(*args)
+    except Exception as error:  # noqa: BLE001 - a user's code may raise anything; it is named, never raised raw
+        raise EffectError(f"effect '{effect.name}': its {hook.removesuffix('_states')} hook raised "
+                          f"{type(error).__name__}: {error}") from None
+
+
+def _finite(effect: Effect, hook: str, value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """A hook's result as `shape` finite numbers, else an EffectError saying what it gave."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.shape != shape or not np.isfinite(array).all():
+        shown = array.tolist() if array is not None else repr(value)
+        raise EffectError(f"effect '{effect.name}': its {hook} hook gave {what} that {'is' if what[0] == 'a' else 'are'}"
+                          f" not {' x '.join(map(str, shape))} finite numbers: {shown}")
+    return array
+
+
+def _check_predicted(predicted: dict[str, np.ndarray], posed: np.ndarray, who: str) -> None:
+    """EffectError where a channel is not predicted as a finite number at a state with a pose."""
+    for name, values in predicted.items():
+        bad = posed & ~np.isfinite(values)
+        if bad.any():
+            raise EffectError(f"{who} gave {name} = {values[int(np.argmax(bad))]} at a solved state")
+
+
 def _check_effect_bounds(plant: Plant) -> None:
     """Every effect and parameter the plant file's effect_bounds names exists."""
     for name, params in plant.effect_bounds.items():
@@ -79,6 +110,14 @@ def _check_effect_bounds(plant: Plant) -> None:
         if unknown:
             raise EffectError(f"key 'plant.effect_bounds.{name}.{unknown[0]}': effect '{name}' has no such parameter "
                               f"(known: {', '.join(sorted(known))})")
+
+
+def _check_noise_keys(plant: Plant) -> None:
+    """Every key of the plant file's noise section is a declared channel's (or the encoders')."""
+    unknown = sorted(set(plant.noise) - set(channels.noise_keys()))
+    if unknown:
+        raise EffectError(f"unknown key 'plant.noise.{unknown[0]}' (known: {', '.join(channels.noise_keys())}; a "
+                          "user's channel needs its module in plant.effect_modules)")
 
 
 @dataclass(frozen=True)
@@ -104,7 +143,10 @@ class PlantModel:
             for path in plant.effect_modules:
                 load_module(path)
             _check_effect_bounds(plant)
-            return cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant)), solver)
+            _check_noise_keys(plant)
+            model = cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant)), solver)
+            _ = model.physical, model.rope_law  # the effects' plant and rope hooks, run once: a failure is said now
+            return model
         except EffectError as error:
             raise PlantConfigError(f"plant file: {error}") from None
 
@@ -125,14 +167,14 @@ class PlantModel:
         """The plant as the geometry effects make it (centre of gravity, mass, ...)."""
         plant = self.plant
         for effect in self.effects:
-            plant = effect.plant(plant)
+            plant = _call(effect, "plant", plant)
         return plant
 
     @cached_property
     def rope_law(self) -> RopeLaw:
         law = RopeLaw()
         for effect in self.effects:
-            law = effect.rope(law)
+            law = _call(effect, "rope", law)
         return law
 
     @cached_property
@@ -190,16 +232,23 @@ class PlantModel:
         return law.EA, law.weight if law.EA is not None else 0.0, geometry, self.solver
 
     def true_lengths(self, reported: np.ndarray, conditions: Conditions = NO_CONDITIONS) -> np.ndarray:
+        """The true lengths for the reported ones by the geometry effects; EffectError where a hook raises or
+        makes finite lengths not finite."""
         lengths = np.asarray(reported, dtype=float)
-        for effect in self.effects:
-            lengths = effect.lengths(lengths, conditions)
+        for effect in self._lengtheners:
+            given = lengths
+            lengths = _call(effect, "lengths", given, conditions)
+            if np.isfinite(given).all() and np.shape(given) == (4,):
+                lengths = _finite(effect, "lengths", lengths, (4,), "lengths")
         return lengths
 
     def load(self, conditions: Conditions = NO_CONDITIONS) -> np.ndarray:
-        """The external wrench on the platform at these conditions: gravity, then the load effects."""
+        """The external wrench on the platform at these conditions: gravity, then the load effects; EffectError
+        where a hook raises or gives a wrench that is not six finite numbers."""
         wrench = self.physical.wrench
         for effect in self._loaders:
-            wrench = effect.load(wrench, self.physical, conditions)
+            wrench = _finite(effect, "load", _call(effect, "load", wrench, self.physical, conditions), (6,),
+                             "a wrench")
         return wrench
 
     def _solve_once(self, plant: Plant, lengths: np.ndarray, warm_start: Solution | None,
@@ -220,6 +269,8 @@ class PlantModel:
         try:
             lengths = self.true_lengths(np.asarray(reported, dtype=float), conditions)
             load = self.load(conditions)
+        except EffectError as error:  # an effect's hook failed on this sample (its lengths are numbers)
+            return failed(SolveStatus.INVALID_INPUT, str(error), self.solver, np.asarray(reported, dtype=float))
         except (TypeError, ValueError) as error:
             if np.shape(reported) == (4,):  # a reported length is not a number: the solver says which
                 lengths, load = reported, self.physical.wrench
@@ -230,7 +281,10 @@ class PlantModel:
         for _ in range(REFINE_STEPS if self.refining else 0):
             if not solution.ok:
                 break
-            anchors, refined = self.refine(lengths[None], States.of(self.physical, [solution]))
+            try:
+                anchors, refined = self.refine(lengths[None], States.of(self.physical, [solution]))
+            except EffectError as error:
+                return failed(SolveStatus.INVALID_INPUT, str(error), self.solver, lengths)
             previous = solution
             solution = self._solve_once(self.physical.with_changes(anchors=anchors[0]), refined[0], solution, load)
             if solution.ok and np.abs(solution.points_b - previous.points_b).max() < REFINE_TOL:
@@ -245,7 +299,7 @@ class PlantModel:
         if plant.sheaves:
             anchors, lengths, _ = wrap(plant, lengths, states.points_b)
         for effect in self._refiners:
-            anchors, lengths = effect.refine_states(plant, anchors, lengths, states)
+            anchors, lengths = _call(effect, "refine_states", plant, anchors, lengths, states)
         return anchors, lengths
 
     def solve_batch(self, reported: np.ndarray, conditions: Sequence[Conditions] | None = None,
@@ -256,7 +310,7 @@ class PlantModel:
         conditions = [NO_CONDITIONS] * len(reported) if conditions is None else list(conditions)
         if not self.batchable:
             return self._solve_each(reported, conditions, warm_start)
-        lengths, loads, hooked = self._batch_inputs(reported, conditions)
+        lengths, loads, hooked = self.batch_inputs(reported, conditions)
         solutions = self.solve_true_batch(lengths, loads, warm_start).solutions()
         for k in hooked:  # an effect's hook failed on this row: `solve` says why
             solutions[k] = self.solve(reported[k], None, conditions[k])
@@ -280,18 +334,18 @@ class PlantModel:
             warm = solutions[-1] if solutions[-1].ok else warm
         return solutions
 
-    def _batch_inputs(self, reported: np.ndarray, conditions: list[Conditions]
-                      ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    def batch_inputs(self, reported: np.ndarray, conditions: Sequence[Conditions]
+                     ) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """True lengths (N, 4) and loads (N, 6) of every row by the effects' hooks, and the rows where a
-        hook raised (NaN there: the batch leaves them to `solve`)."""
+        hook failed (NaN lengths and gravity there: the batch leaves them to `solve`, which says why)."""
+        reported = np.asarray(reported, dtype=float).reshape(-1, 4)
         lengths, loads = reported.copy(), np.tile(self.physical.wrench, (len(reported), 1))
         hooked = []
         if not (self._lengtheners or self._loaders):
             return lengths, loads, hooked
         for k, at in enumerate(conditions):
             try:
-                for effect in self._lengtheners:
-                    lengths[k] = effect.lengths(lengths[k], at)
+                lengths[k] = self.true_lengths(lengths[k], at)
                 loads[k] = self.load(at)
             except (TypeError, ValueError):
                 lengths[k], loads[k] = np.nan, self.physical.wrench
@@ -320,9 +374,16 @@ class PlantModel:
 
     def predict_states(self, states: States, conditions: StackedConditions) -> dict[str, np.ndarray]:
         """`predict` for stacked states (row k of `conditions` is state k's): arrays (n,) by channel."""
-        predicted = channels.predicted_states(states, conditions)
+        try:
+            predicted = channels.predicted_states(states, conditions)
+        except Exception as error:  # noqa: BLE001 - a user's channel may raise anything; it is named
+            raise EffectError(f"a channel's prediction raised {type(error).__name__}: {error}") from None
+        posed = np.isfinite(states.position).all(axis=1) & np.isfinite(states.rotation).all(axis=(1, 2)) \
+            & np.isfinite(states.tensions).all(axis=1)
+        _check_predicted(predicted, posed, "a channel's prediction")
         for effect in self._measurers:
-            effect.measure_states(predicted, states, self.physical, conditions)
+            _call(effect, "measure_states", predicted, states, self.physical, conditions)
+            _check_predicted(predicted, posed, f"effect '{effect.name}': its measure hook")
         return predicted
 
     def effects_config(self) -> dict[str, dict[str, Any]]:
@@ -336,6 +397,6 @@ class PlantModel:
         files = []
         for effect in self.effects:
             module = inspect.getmodule(type(effect))
-            if module is not None and module.__name__.startswith("cable_winch_monitor_user_effects."):
+            if module is not None and module.__name__.startswith(USER_MODULES):
                 files.append(str(Path(module.__file__).resolve()))
         return sorted(set(files))

@@ -25,6 +25,7 @@ from .sensor import TensionSensorBending
 from .sheave import SheaveFriction, SheaveGeometry
 
 GROUP = "cable_winch_monitor.effects"
+USER_MODULES = "cable_winch_monitor_user_effects."  # the package user modules are imported into
 BUILTINS: tuple[type[Effect], ...] = (RopeElasticity, RopeWeight, EncoderScale, EncoderOffset, SheaveFriction,
                                       CogOffset, PayloadMass, SheaveGeometry, TensionSensorBending, InclinometerOffset,
                                       LoadPinCalibration, PulleyGeometry)
@@ -33,7 +34,12 @@ _entry_points_loaded = False
 
 
 def register(cls: type[Effect]) -> type[Effect]:
-    """Add an effect class (usable as a decorator); its name must be new, snake_case, its `acts` known."""
+    """Add an effect class (usable as a decorator); its name must be new, snake_case, its `acts` known.
+
+    The built-ins are registered before anything else, so that a user's effect named like one is refused
+    whenever it comes; a class is the one already known only if it is that class, or the same definition
+    (module and name) imported again."""
+    _register_builtins()
     if not (isinstance(cls, type) and issubclass(cls, Effect)) or not cls.name:
         raise EffectError(f"{cls!r} is not an Effect subclass with a name")
     if not cls.name.replace("_", "").isalnum() or cls.name != cls.name.lower():
@@ -41,10 +47,19 @@ def register(cls: type[Effect]) -> type[Effect]:
     if cls.acts not in ACTS:
         raise EffectError(f"effect '{cls.name}': acts={cls.acts!r}, must be one of {', '.join(ACTS)}")
     known = _registry.get(cls.name)
-    if known is not None and known is not cls and known.__qualname__ != cls.__qualname__:
-        raise EffectError(f"effect '{cls.name}' is defined twice ({known.__module__} and {cls.__module__})")
+    if known is not None and (known.__module__, known.__qualname__) != (cls.__module__, cls.__qualname__):
+        raise EffectError(f"effect '{cls.name}' is defined twice ({_origin(known)} and {_origin(cls)}): "
+                          "give one of them another name")
     _registry[cls.name] = cls
     return cls
+
+
+def _origin(cls: type[Effect]) -> str:
+    """Where an effect class is defined: its module, or the file of a user's module."""
+    module = sys.modules.get(cls.__module__)
+    if cls.__module__.startswith(USER_MODULES) and getattr(module, "__file__", None):
+        return module.__file__
+    return cls.__module__
 
 
 def _load_entry_points() -> None:
@@ -71,7 +86,7 @@ def load_module(path: str | Path) -> list[str]:
     path = Path(path).resolve()
     if not path.is_file():
         raise EffectError(f"effect module {path}: no such file")
-    module_name = f"cable_winch_monitor_user_effects.{path.stem}_{abs(hash(str(path))) % 10**8}"
+    module_name = f"{USER_MODULES}{path.stem}_{abs(hash(str(path))) % 10**8}"
     if module_name not in sys.modules:
         spec = importlib.util.spec_from_file_location(module_name, path)
         module = importlib.util.module_from_spec(spec)

@@ -23,6 +23,9 @@ CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
 DEFAULT_MAX_PAYOUT = 3000.0  # [m] deeper than any shaft sunk with a hanging platform
 DEFAULT_MAX_PAYOUT_SPEED = 5.0  # [m/s] sinking winches run below 1 m/s
 ALARM_KEYS = ("warning_margin", "critical_margin", "hysteresis", "slack_tolerance")
+NOISE_RANGE = (1e-9, 1e9)  # a 1-sigma noise in its channel's unit (m, N, rad, ...): beyond it no sensor, and
+                           # the estimator's weights 1/sigma^2 lose their meaning (1e-300 m made them singular)
+MAX_WEIGHT = 1e12  # [N] m g of a platform at most (100,000 kt); above ~1e200 N the solvers' squares overflow
 
 
 class PlantConfigError(ValueError):
@@ -123,11 +126,18 @@ def seed002_rectangle(a: float, b: float, h: float, k1: float, k2: float) -> tup
     return corners.copy(), corners.copy(), np.array([k1 * a, k2 * b, -h])
 
 
+def file_number(value: Any) -> float:
+    """A number as a plant file gives it; TypeError for a boolean (YAML's `true` is not 1) or a non-number."""
+    if isinstance(value, bool):
+        raise TypeError(f"a boolean is not a number: {value!r}")
+    return float(value)
+
+
 def _number(section: Mapping[str, Any], key: str, where: str, positive: bool = False) -> float:
     if key not in section:
         raise PlantConfigError(f"plant file: missing key '{where}{key}'")
     try:
-        value = float(section[key])
+        value = file_number(section[key])
     except (TypeError, ValueError):
         raise PlantConfigError(f"plant file: key '{where}{key}' must be a number, got {section[key]!r}") from None
     if not np.isfinite(value) or (positive and value <= 0.0):
@@ -137,6 +147,8 @@ def _number(section: Mapping[str, Any], key: str, where: str, positive: bool = F
 
 def _points(value: Any, key: str, count: int | None, dim: int = 3) -> np.ndarray:
     try:
+        if any(isinstance(v, bool) for v in np.ravel(np.asarray(value, dtype=object))):
+            raise TypeError("booleans are not coordinates")
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise PlantConfigError(f"plant file: key '{key}' must be a list of [x, y, z] points") from None
@@ -194,6 +206,18 @@ def _numbers(section: Any, where: str, keys: tuple[str, ...] | None = None) -> d
     if unknown:
         raise PlantConfigError(f"plant file: unknown key '{where}.{unknown[0]}' (known: {', '.join(keys)})")
     return {str(key): _number(section, key, where + ".") for key in section}
+
+
+def _noise(section: Any) -> dict[str, float]:
+    """`plant.noise`: the 1-sigma noise of each channel by its noise key, each within NOISE_RANGE (the keys
+    are checked against the declared channels once user modules are loaded: effects.model)."""
+    noise = _numbers(section, "plant.noise")
+    low, high = NOISE_RANGE
+    for key, value in noise.items():
+        if not low <= value <= high:
+            raise PlantConfigError(f"plant file: key 'plant.noise.{key}' must be a 1-sigma noise in [{low:g}, "
+                                   f"{high:g}] (the channel's unit), got {value:g}")
+    return noise
 
 
 def _effects(section: Any) -> dict[str, dict[str, Any]]:
@@ -272,7 +296,7 @@ def _effect_bounds(section: Any) -> dict[str, dict[str, tuple[float, float]]]:
         out[str(name)] = {}
         for param, pair in params.items():
             try:
-                low, high = (float(v) for v in pair)
+                low, high = (file_number(v) for v in pair)
             except (TypeError, ValueError):
                 raise PlantConfigError(f"plant file: key '{where}.{param}' must be [low, high], got {pair!r}") from None
             if not (np.isfinite(low) and np.isfinite(high) and low < high):
@@ -282,16 +306,18 @@ def _effect_bounds(section: Any) -> dict[str, dict[str, tuple[float, float]]]:
     return out
 
 
-def _modules(value: Any) -> tuple[str, ...]:
+def _modules(value: Any, folder: Path | None) -> tuple[str, ...]:
+    """`plant.effect_modules`: file paths, a relative one taken from `folder` (the plant file's) where given."""
     if value is None:
         return ()
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
         raise PlantConfigError("plant file: key 'plant.effect_modules' must be a list of file paths")
-    return tuple(value)
+    return tuple(str(folder / v) if folder is not None and not Path(v).is_absolute() else v for v in value)
 
 
-def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
-    """Build a Plant from the parsed YAML document; errors name the offending key."""
+def plant_from_mapping(config: Mapping[str, Any], name: str = "plant", folder: Path | None = None) -> Plant:
+    """Build a Plant from the parsed YAML document (read from a file in `folder`, where relative paths in it
+    start); errors name the offending key."""
     if not isinstance(config, Mapping) or "plant" not in config:
         raise PlantConfigError("plant file: top-level key 'plant' is missing")
     section = config["plant"]
@@ -302,6 +328,9 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
     geometry = section["geometry"]
     mass = _number(section, "mass", "plant.", positive=True)
     g = _number(section, "g", "plant.", positive=True)
+    if not mass * g <= MAX_WEIGHT:
+        raise PlantConfigError(f"plant file: key 'plant.mass' = {mass:g} kg: its weight m g = {mass * g:g} N must "
+                               f"be finite and at most {MAX_WEIGHT:g} N")
     explicit = [key for key in ("anchors", "attachments", "centre_of_gravity") if key in geometry]
     if explicit:
         if len(explicit) != 3:
@@ -348,10 +377,10 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant") -> Plant:
         outline=_outline(section.get("outline")),
         max_payout=max_payout,
         max_payout_speed=max_payout_speed,
-        noise=_numbers(section.get("noise"), "plant.noise"),
+        noise=_noise(section.get("noise")),
         alarm=_numbers(section.get("alarm"), "plant.alarm", ALARM_KEYS),
         effects=_effects(section.get("effects")),
-        effect_modules=_modules(section.get("effect_modules")),
+        effect_modules=_modules(section.get("effect_modules"), folder),
         sheaves=_sheaves(geometry.get("sheaves")),
         effect_bounds=_effect_bounds(section.get("effect_bounds")),
         model_error=_model_error(section.get("model_error")),
@@ -377,6 +406,6 @@ def load_plant(path: str | Path | None = None) -> Plant:
     except YamlLimitError as error:
         raise PlantConfigError(f"plant file {path}: {error}") from None
     try:
-        return plant_from_mapping(config, name=path.stem)
+        return plant_from_mapping(config, name=path.stem, folder=path.parent)
     except PlantConfigError as error:
         raise PlantConfigError(f"{path}: {error}") from None

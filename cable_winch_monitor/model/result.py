@@ -88,6 +88,16 @@ class Solution:
             return f"single cable {self.single_cable + 1}: pose indeterminate"
         return self.status.value.replace("_", " ")
 
+    @property
+    def failure(self) -> str:
+        """Why there is no pose, in one line ('' when solved): the tension state, and what is wrong with an
+        invalid input (a bad length, an effect's hook that failed)."""
+        if self.ok:
+            return ""
+        if self.status is SolveStatus.INVALID_INPUT and self.message:
+            return f"{self.tension_state}: {self.message}"
+        return self.tension_state
+
     @computed_once
     def quaternion(self) -> np.ndarray | None:
         return None if self.rotation is None else quaternion_from_rotation(self.rotation)

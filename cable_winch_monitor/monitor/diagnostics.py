@@ -6,9 +6,12 @@ the collision alarm (with what its clearance is based on), model-versus-measurem
 residuals and the sensor fusion (the sensors the estimate used, those it rejected or left
 out because they contradict the others, those stuck or silent, the model's estimated error
 per rope). Ages and rates are taken against the caller's clock: the node's (under
-`use_sim_time` the bag's /clock), or replay's log time. The live node publishes them, and
-replay writes them once a second of log time, so that a recording's faults can be read
-back from its output bag.
+`use_sim_time` the bag's /clock), or replay's log time: a reading stamped further ahead of
+the clock than the stamp window allows is an error like a stale one, the alarm of a sample
+older than the staleness limit is no data (STALE) rather than its last level, and a clock
+that went back (a bag played again) is said for a while after the node forgot its stamps.
+The live node publishes them, and replay writes them once a second of log time, so that a
+recording's faults can be read back from its output bag.
 """
 from __future__ import annotations
 
@@ -24,10 +27,10 @@ from .pipeline import MonitorOutput, MonitorPipeline
 from .residuals import Residuals
 from .sensors import sensors_used
 
-OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+OK, WARN, ERROR, STALE = 0, 1, 2, 3  # diagnostic_msgs/DiagnosticStatus levels
 Fields = dict[str, Any]
 RATE_WINDOW = 2.0          # [s] of node time over which input rates are counted
-REJECTION_HOLD = 10.0      # [s] inputs stay WARN this long after a rejection
+REJECTION_HOLD = 10.0      # [s] inputs stay WARN this long after a rejection or a jump of the clock back
 RESIDUAL_WINDOW = 200      # latest residuals per channel in the RMS
 RESIDUAL_WARN = 3.0        # RMS / noise above which the model vs measurement status warns
 ALARM_DIAGNOSTIC = {AlarmLevel.OK: OK, AlarmLevel.WARNING: WARN, AlarmLevel.CRITICAL: ERROR,
@@ -55,12 +58,28 @@ class DiagnosticsReporter:
         self._rejected_seen = 0
         self._last_rejection_time = -np.inf
         self.throughput: deque[tuple[float, int, int]] = deque()  # node time, winch messages, samples solved
+        self.clock_jumps = 0
+        self.last_clock_jump = ""
+        self._last_clock_jump_time = -np.inf
 
     def note_readings(self, cables: list[int], now: float) -> None:
-        """Cables whose reading was just accepted, at node time `now` [s]."""
+        """Cables whose reading was just accepted, at node time `now` [s] (NaN: the clock has not started)."""
+        if not np.isfinite(now):
+            return
         for cable in cables:
             self.arrivals[cable].append(now)
             self._prune(cable, now)
+
+    def note_clock_jump(self, back: float, now: float) -> None:
+        """The node clock went `back` seconds back to `now` and the pipeline forgot its stamps: the arrival
+        times and rates kept are from that future too."""
+        for arrivals in self.arrivals:
+            arrivals.clear()
+        self.throughput.clear()
+        self._last_rejection_time = -np.inf
+        self.clock_jumps += 1
+        self.last_clock_jump = f"clock went back {back:.3f} s to {now:.3f} s: stamp history reset"
+        self._last_clock_jump_time = now
 
     def note_residuals(self, residuals: Residuals) -> None:
         for channel, value, noise in zip(residuals.channels, residuals.values, residuals.noise):
@@ -92,7 +111,7 @@ class DiagnosticsReporter:
         last = last if last is not None else sample_view(pipeline.last, pipeline.fusing)
         winch = winch or winch_view(pipeline, self.rates(now))
         statuses = [self._solver(pipeline, now, node, last, winch), self.inputs(pipeline, now, winch),
-                    self._alarm(pipeline, last), self._model(), self._status("sensor fusion", *last.fusion)]
+                    self._alarm(pipeline, last, now), self._model(), self._status("sensor fusion", *last.fusion)]
         return {"header": {"stamp": {"sec": stamp[0], "nanosec": stamp[1]}, "frame_id": ""}, "status": statuses}
 
     def _status(self, name: str, level: int, message: str, values: dict[str, object]) -> Fields:
@@ -125,10 +144,10 @@ class DiagnosticsReporter:
     def inputs(self, pipeline: MonitorPipeline, now: float, winch: "WinchView | None" = None) -> Fields:
         """The inputs' status at `now` [s]: each cable's stamp, age and rate, the messages used and rejected
         (the winches' as `winch` saw them, where replay merged them ahead of the other messages)."""
-        stats, staleness = pipeline.stats, pipeline.staleness
+        stats, staleness, ahead = pipeline.stats, pipeline.staleness, pipeline.merger.window.ahead
         winch = winch or winch_view(pipeline, self.rates(now))
         values: dict[str, object] = {}
-        missing, stale = [], []
+        missing, stale, early = [], [], []
         for name, reading, rate in zip(CABLE_NAMES, winch.readings, winch.rates):
             values[f"{name} rate [Hz]"] = f"{rate:.1f}"
             if reading is None:
@@ -140,6 +159,8 @@ class DiagnosticsReporter:
             values[f"{name} age [s]"] = f"{age:.3f}"
             if age > staleness:
                 stale.append(f"{name} ({age:.3f} s old)")
+            elif age < -ahead:
+                early.append(f"{name} ({-age:.3f} s after the clock)")
         messages = {**{t: n for t, n in stats.messages.items() if t not in winch.messages}, **winch.messages}
         used = {**{t: n for t, n in stats.used.items() if t not in winch.messages}, **winch.used}
         rejected = {**{key: n for key, n in stats.rejected.items() if key.split(": ", 1)[0] not in winch.messages},
@@ -154,6 +175,8 @@ class DiagnosticsReporter:
         values["callback errors"] = self.callback_errors
         values["last callback error"] = self.last_callback_error
         values["waiting"] = winch.waiting
+        values["clock jumps back"] = self.clock_jumps
+        values["last clock jump"] = self.last_clock_jump
         total = sum(rejected.values()) + self.callback_errors
         if total > self._rejected_seen:
             self._rejected_seen, self._last_rejection_time = total, now
@@ -162,16 +185,31 @@ class DiagnosticsReporter:
             problems.append("missing: " + ", ".join(missing))
         if stale:
             problems.append(f"stale (> {staleness:g} s): " + ", ".join(stale))
+        if early:
+            problems.append(f"stamped ahead of the clock (> {ahead:g} s): " + ", ".join(early))
+        jumped = now - self._last_clock_jump_time <= REJECTION_HOLD
+        if jumped:
+            problems.append(self.last_clock_jump)
         recent = now - self._last_rejection_time <= REJECTION_HOLD
         if recent:
             problems.append(f"inputs rejected: {last_rejection or self.last_callback_error}")
-        level = ERROR if missing or stale else WARN if recent else OK
+        level = ERROR if missing or stale or early else WARN if recent or jumped else OK
         return _status("inputs", level, "; ".join(problems) or "all four cables fresh", values, self.hardware_id)
 
-    def _alarm(self, pipeline: MonitorPipeline, last: "SampleView") -> Fields:
+    def _alarm(self, pipeline: MonitorPipeline, last: "SampleView", now: float) -> Fields:
+        """The last sample's alarm; no data (STALE) once that sample is older than the staleness limit, or
+        stamped further ahead of the clock than the stamp window allows: a level is never held without data."""
         values: dict[str, object] = {f"samples {level}": count for level, count in pipeline.stats.levels.items()}
         level, message, latest = last.alarm
-        return self._status("collision alarm", level, message, {**values, **latest})
+        values = {**values, **latest}
+        if last.stamp is not None:
+            age = now - last.stamp
+            values["age [s]"] = f"{age:.3f}"
+            if not -pipeline.merger.window.ahead <= age <= pipeline.staleness:
+                when = f"{age:.3f} s old" if age > 0.0 else f"stamped {-age:.3f} s ahead of the clock"
+                return self._status("collision alarm", STALE, f"no data: the last sample is {when} (it was {message})",
+                                    values)
+        return self._status("collision alarm", level, message, values)
 
     def _model(self) -> Fields:
         if not self.residuals:
@@ -199,13 +237,14 @@ class SampleView(NamedTuple):
     solver: tuple[int, str, dict[str, object]]
     alarm: tuple[int, str, dict[str, object]]
     fusion: tuple[int, str, dict[str, object]]
+    stamp: float | None = None  # [s] the sample's
 
 
 def sample_view(output: MonitorOutput | None, fusing: bool) -> SampleView:
     """The diagnostics of a sample's outputs (None: no sample yet)."""
     if output is None:
         fusion = (OK, "no estimate yet" if fusing else "lengths taken as exact (no noise.length in the plant file)", {})
-        return SampleView((OK, "no complete sample yet", {}), (OK, "no sample yet", {}), fusion)
+        return SampleView((OK, "no complete sample yet", {}), (OK, "no sample yet", {}), fusion, None)
     solution, alarm = output.solution, output.alarm
     solver = (SOLVER_DIAGNOSTIC[solution.status], solution.tension_state,
               {"last stamp": f"{output.stamp:.6f}", "last status": solution.status.value,
@@ -221,7 +260,7 @@ def sample_view(output: MonitorOutput | None, fusing: bool) -> SampleView:
     values.update({f"sync error {pair} [m]": f"{error:.4f}"
                    for pair, error in zip(alarm.sync_error_pairs, alarm.sync_errors)})
     return SampleView(solver, (ALARM_DIAGNOSTIC[alarm.level], f"{alarm.level.name}: {alarm.reason}", values),
-                      _fusion(output, fusing))
+                      _fusion(output, fusing), output.stamp)
 
 
 def _fusion(output: MonitorOutput, fusing: bool) -> tuple[int, str, dict[str, object]]:

@@ -44,18 +44,27 @@ class StampWindow:
     the other winches that are still reporting. A stamp outside is refused before it can
     become the reading later stamps are compared with, so a far-future stamp costs one
     message, not the cable. Without an arrival time (offline use) only the order of the
-    stamps is checked: nothing else tells a pause from a bad stamp.
+    stamps is checked: nothing else tells a pause from a bad stamp. `offset` is how far the
+    arrival clock runs ahead of the stamps' clock throughout (a recording whose recorder and
+    winches kept different clocks: bagio.clock); arrivals are judged less it.
     """
 
     ahead: float = 2.0
     behind: float = 10.0
     skew: float = 2.0
+    offset: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("ahead", "behind", "skew"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"stamp window '{name}' must be a positive number of seconds, got {value}")
+        if not math.isfinite(self.offset):
+            raise ValueError(f"stamp window offset must be a number of seconds, got {self.offset}")
+
+    def holds(self, lag: float) -> bool:
+        """A stamp `lag` seconds before its arrival (less the offset) lies within the window."""
+        return -self.ahead <= lag - self.offset <= self.behind
 
 
 @dataclass(frozen=True)
@@ -96,6 +105,7 @@ class CableLengthMerger:
         winches still reporting (`_reporting_others`)."""
         name, window = CABLE_NAMES[cable], self.window
         if math.isfinite(received):
+            received -= window.offset
             if stamp - received > window.ahead:
                 return (f"stamp ahead of the clock: {name} at {stamp:.6f} s is {stamp - received:.6g} s after its "
                         f"arrival (window {window.ahead:g} s)")

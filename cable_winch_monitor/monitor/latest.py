@@ -62,6 +62,18 @@ class LatestSamplePipeline(MonitorPipeline):
                 "winch messages": self.stats.winch, "winch messages lost before the node": self.unseen,
                 "waiting": self.waiting}
 
+    def restart(self) -> None:
+        """Forget every stamp, keep the counts: the clock went back (a bag played again), so each reading kept,
+        the estimator's windows and the model's error learnt since, the conditions' history, the last sample
+        and the alarm's level are from a future that will not come. The pipeline starts again as it was made
+        (its own constructor says how)."""
+        with self.lock:
+            counts = self.stats
+            MonitorPipeline.__init__(self, self.plant, self.solver, self.staleness, self.merger.window,
+                                     background=True)
+            self.stats = counts
+            self._pending = None
+
     @property
     def waiting(self) -> int:
         """Complete samples merged but neither solved nor skipped yet (0 or 1)."""

@@ -82,7 +82,8 @@ class MonitorOutput:
 
     def outcome(self, predicted: dict[str, float] | None) -> "Outcome":
         return Outcome(self.stamp, self.solution.status, self.solution.tension_state, self.alarm.level.name,
-                       dict(self.model.faults) if self.model is not None else {}, predicted, self.residuals)
+                       dict(self.model.faults) if self.model is not None else {}, predicted, self.residuals,
+                       "" if self.solution.ok else self.solution.failure)
 
 
 class Outcome(NamedTuple):
@@ -96,6 +97,7 @@ class Outcome(NamedTuple):
     faults: Mapping[str, str]             # sensors left out at the sample, with why
     predicted: dict[str, float] | None    # what every channel reads of its state (None: not solved)
     residuals: Residuals | None
+    failure: str = ""                     # why it was not solved
 
 
 class Solved(NamedTuple):

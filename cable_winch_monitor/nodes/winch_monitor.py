@@ -19,6 +19,8 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.clock import JumpThreshold, TimeJump
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.event_handler import PublisherEventCallbacks
@@ -151,6 +153,9 @@ class WinchMonitorNode(Node):
                                      self._guarded(spec.topic, self._on_input, spec), SENSOR_QOS)
         self.create_service(CheckCableLengths, "~/check_cable_lengths", self._check_cable_lengths)
         self.create_timer(value("diagnostics_period"), self._guarded("diagnostics", self._publish_diagnostics))
+        self._clock_jumps = self.get_clock().create_jump_callback(  # a bag played again (--loop) under sim time
+            JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-int(value("staleness") * 1e9)),
+                          on_clock_change=False), post_callback=self._guarded("clock", self._on_clock_jump))
         self._stopping = threading.Event()
         self._worker = threading.Thread(target=self._work, name="winch_monitor solver", daemon=True)
         self._worker.start()
@@ -173,7 +178,20 @@ class WinchMonitorNode(Node):
         return self.get_parameter(name).value
 
     def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
+        """The node clock [s]; NaN while it has not started (use_sim_time before the first /clock): the
+        arrival of a message is then not known, and its stamp is not judged against it."""
+        clock = self.get_clock()
+        nanoseconds = clock.now().nanoseconds
+        return nanoseconds * 1e-9 if nanoseconds or not clock.ros_time_is_active else float("nan")
+
+    def _on_clock_jump(self, jump: TimeJump) -> None:
+        """The clock went back by more than the staleness limit (a bag played again): every stamp kept is from a
+        future that will not come, and would refuse the new messages as not increasing. Forget them, say so."""
+        back = -jump.delta.nanoseconds * 1e-9
+        with self.pipeline.lock:
+            self.pipeline.restart()
+            self.reporter.note_clock_jump(back, self._now())
+        self.get_logger().warning(f"clock went back {back:.3f} s: stamp history reset")
 
     def _guarded(self, where: str, handler: Callable[..., None], *args: Any) -> Callable[..., None]:
         """A callback that reports and swallows any exception, so that one bad message cannot stop the node."""

@@ -69,7 +69,7 @@ def hidden_effects(plant: Plant, config: Mapping[str, Any]) -> tuple[dict[str, d
     effects, then the scenario's; user measurement effects in their order."""
     section = plant.raw.get("plant", {}) if isinstance(plant.raw, Mapping) else {}
     try:
-        for path in section.get("effect_modules", []) or []:
+        for path in plant.effect_modules:
             load_module(path)
     except EffectError as error:
         raise ScenarioError(f"plant file: {error}") from None
