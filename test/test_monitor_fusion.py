@@ -201,5 +201,6 @@ def test_default_gate_thresholds_are_scipys_chi_square_quantiles():
     they must be scipy's quantiles to the bit, and other probabilities still come from scipy."""
     for dof, threshold in enumerate(DEFAULT_THRESHOLDS, 1):
         assert threshold == float(chdtri(dof, 1.0 - DEFAULT_PROBABILITY))
-    assert chi_square_threshold(9) == float(chdtri(9, 1.0 - DEFAULT_PROBABILITY))
+    assert chi_square_threshold(17) == float(chdtri(17, 1.0 - DEFAULT_PROBABILITY))
+    assert chi_square_threshold(1, 0.9973) == pytest.approx(9.0, rel=1e-3)  # 3 sigma of one channel
     assert chi_square_threshold(2, 0.99) == pytest.approx(-2.0 * np.log(0.01))  # two channels: exponential

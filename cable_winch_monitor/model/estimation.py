@@ -27,7 +27,7 @@ ropes. The admissible row of least cost is kept.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Mapping, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -36,7 +36,6 @@ from .batched_elastic import solve_batch_elastic
 from .elastic import solve_elastic
 from .energy import TENSION_TOL, solve_energy
 from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
-from .gate import DEFAULT_PROBABILITY, GateResult, chi_square_threshold, gate_sensors
 from .observations import Observation
 from .plant import Plant
 from .prior import Prior
@@ -46,6 +45,7 @@ from .ropes import Ropes
 METHOD = "estimate"
 SEARCH_SIGMA = 3.0        # a residual beyond this many sigma makes the taut set doubtful
 SLACK_SEARCH = 1e-3       # [sigma] a slack rope overstretched by more makes the taut set doubtful
+RULED_OUT = 100.0         # [sigma^2] a start set the load pins price above this is solved only if theirs fails
 
 
 def _neighbour_table() -> list[list[int]]:
@@ -181,18 +181,18 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
     exact). Live, pass the previous sample's estimate as warm_start. Never raises."""
     array, reason = validate_lengths(lengths)
     if array is None:
-        return _unfused(failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan)), np.full(4, np.nan),
+        return unfused(failed(SolveStatus.INVALID_INPUT, reason, METHOD, np.full(4, np.nan)), np.full(4, np.nan),
                         sigma_length)
     try:
         problem = Problem.build(plant, array[None], sigma_length, observations, Ropes.of(axial_stiffness, rope_weight),
                                 load, prior=prior)
     except ValueError as error:
-        return _unfused(failed(SolveStatus.INVALID_INPUT, str(error), METHOD, array), array, sigma_length)
+        return unfused(failed(SolveStatus.INVALID_INPUT, str(error), METHOD, array), array, sigma_length)
     try:
         with np.errstate(all="ignore"):
             return _estimate(problem, _warm_rows(problem, [warm_start])).estimate(0)
     except (ValueError, np.linalg.LinAlgError) as error:
-        return _unfused(failed(SolveStatus.SOLVER_FAILED, f"estimator failed: {error}", METHOD, array), array,
+        return unfused(failed(SolveStatus.SOLVER_FAILED, f"estimator failed: {error}", METHOD, array), array,
                         sigma_length)
 
 
@@ -217,48 +217,6 @@ def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Obs
         problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads, anchors, prior)
         return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, same_samples,
                          forward)
-
-
-def estimate_gated(plant: Plant, lengths: object, observations: Sequence[Observation],
-                   sensors: Mapping[str, Sequence[str]], probability: float = DEFAULT_PROBABILITY,
-                   **options: Any) -> tuple[Estimate, dict[str, GateResult]]:
-    """`estimate` leaving out the sensors that disagree beyond reason: while a sensor (a name and its
-    channels) fails its Mahalanobis gate, the worst one (largest d^2 against its threshold) is left
-    out and the rest estimated again; a sensor left out is gated by what taking it back in would
-    cost (`gate_taken_in`). Returns the estimate of the trusted sensors and every sensor's gate.
-    `options` are `estimate`'s (sigma_length, axial_stiffness, rope_weight, load, warm_start)."""
-    left_out: set[str] = set()
-    while True:
-        kept = [o for o in observations if not any(o.name in sensors[s] for s in left_out)]
-        fused = estimate(plant, lengths, kept, **options)
-        if not fused.fused:
-            return fused, {}
-        gates = gate_sensors(fused.residuals, {s: c for s, c in sensors.items() if s not in left_out}, probability)
-        failing = {s: g.chi_square / g.threshold for s, g in gates.items() if not g.passed}
-        if not failing or len(gates) - len(failing) < 1:
-            for sensor in left_out:
-                taken_in = estimate(plant, lengths, kept + [o for o in observations if o.name in sensors[sensor]],
-                                    **{**options, "warm_start": fused})
-                gate = gate_taken_in(fused, taken_in, sensors[sensor], probability)
-                if gate is not None:
-                    gates[sensor] = gate
-            return fused, gates
-        left_out.add(max(failing, key=failing.get))
-
-
-def gate_taken_in(without: Estimate, taken_in: Estimate, names: Sequence[str],
-                  probability: float = DEFAULT_PROBABILITY) -> GateResult | None:
-    """The gate of a sensor left out of the estimate `without`, by what taking it in costs: the rise of
-    the minimised chi-square from `without` to `taken_in` (the same sample estimated with the sensor's
-    channels `names` as well). Linearised, that rise is the innovation's y^T S^-1 y with S = H P H^T +
-    R, the spread of the prediction beside the sensor's own noise, as a Kalman filter gates. Against
-    the sensor's noise alone, a load pin of stiff ropes, whose tension the encoders predict only
-    to tens of sigma, would fail for ever once left out. None where `taken_in` used none of `names`
-    or failed."""
-    dof = sum(name in taken_in.residuals for name in names)
-    if not dof or not taken_in.ok or not without.ok:
-        return None
-    return GateResult(max(0.0, taken_in.chi_square - without.chi_square), chi_square_threshold(dof, probability), dof)
 
 
 def _warm_rows(problem: Problem, warm_starts: Sequence[Estimate | None]) -> Rows | None:
@@ -393,9 +351,13 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         if pinned is not None:
             pending = np.zeros(0, int)
     solved = np.zeros(count, bool)
+    deferred = _ruled_out(problem, best, pinned)
+    start_rows = best.take(deferred)
     for stage, search in enumerate((NEIGHBOURS, NEIGHBOURS, ALL_SETS)):
         owner, codes = _candidates(best, pending, visited, search) if stage or pinned is None else pinned
         fresh = np.flatnonzero(~solved)
+        if not stage:  # the start's own set where the load pins rule it out: only if what they read fails
+            fresh = np.setdiff1d(fresh, deferred)
         listed = np.concatenate([fresh, owner])
         current = np.where(solved & _admissible(best), best.cost, np.inf)
         hopeful = _pinned_cost(problem, best.sample[owner], codes) <= current[owner] * (1.0 + 1e-9)
@@ -412,6 +374,8 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         replaced = owner[better]
         for name in ("taut", "rotation", "position", "mu", "converged", "cost", "residuals", "steps"):
             getattr(best, name)[replaced] = getattr(candidates, name)[better]
+        if not stage and deferred.size:
+            _solve_deferred(problem, best, deferred, start_rows)
         solved[:] = True
         searched = np.unique(listed)  # with the rows whose every candidate was hopeless
         pending = searched[_doubtful(best.take(searched), misfit=misfit and stage == 0)]
@@ -442,6 +406,31 @@ def _unloaded(problem: Problem, best: Rows) -> Rows:
     for name in ("taut", "rotation", "position", "mu", "converged", "cost", "residuals", "steps"):
         getattr(best, name)[rows[better]] = getattr(candidates, name)[better]
     return best
+
+
+def _ruled_out(problem: Problem, start: Rows, pinned: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    """The rows whose start set leaves slack a rope whose load pin reads it far loaded (its cost at least
+    RULED_OUT whatever the pose, `_pinned_cost`) while the set the pins read costs less: solved first,
+    the start's set only where that one fails (on elastic ropes replayed with a rigid plant file, the
+    rigid forward kinematics' three taut ropes against the pins' four: half the rows)."""
+    if pinned is None or not pinned[0].size:
+        return np.zeros(0, int)
+    owner, codes = pinned
+    samples = start.sample[owner]
+    start_bound = _pinned_cost(problem, samples, start.taut[owner] @ BITS)
+    return owner[(start_bound > RULED_OUT) & (_pinned_cost(problem, samples, codes) < start_bound)]
+
+
+def _solve_deferred(problem: Problem, best: Rows, deferred: np.ndarray, start_rows: Rows) -> None:
+    """Solve the start's own set of the deferred rows whose pinned set was not admissible; keep the better."""
+    redo = np.flatnonzero(~_admissible(best.take(deferred)))
+    if not redo.size:
+        return
+    candidates = solve_rows(problem, start_rows.take(redo))
+    rows = deferred[redo]
+    better = _admissible(candidates) & (~_admissible(best.take(rows)) | (candidates.cost < best.cost[rows]))
+    for name in ("taut", "rotation", "position", "mu", "converged", "cost", "residuals", "steps"):
+        getattr(best, name)[rows[better]] = getattr(candidates, name)[better]
 
 
 def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.ndarray) \
@@ -545,7 +534,7 @@ def _assemble(problem: Problem, best: Rows, unsolved: dict[int, Solution]) -> Ba
         out.cost[rows] = best.cost
     for i, solution in unsolved.items():
         out.status[i] = solution.status.value
-        out.fallback[i] = _unfused(solution, problem.lengths[i], problem.sigma_length)
+        out.fallback[i] = unfused(solution, problem.lengths[i], problem.sigma_length)
     return out
 
 
@@ -563,7 +552,7 @@ def _marginal(problem: Problem, rows: Rows) -> np.ndarray:
     return out
 
 
-def _unfused(solution: Solution, reported: np.ndarray, sigma_length: float) -> Estimate:
+def unfused(solution: Solution, reported: np.ndarray, sigma_length: float) -> Estimate:
     """A forward-kinematics result as an estimate that used nothing but the lengths."""
     return Estimate(solution, reported, np.zeros(4), sigma_length, {}, (), None)
 

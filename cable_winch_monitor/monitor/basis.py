@@ -42,10 +42,11 @@ def _tilt_map(attachments: bytes) -> np.ndarray:
     return np.vstack([-slopes[1], slopes[0]])   # a rope paid out further lowers its point: z = -length
 
 
-def tilt_sigma(plant: Plant, length_covariance: np.ndarray) -> float:
-    """The 1-sigma [rad] (largest over directions) of the tilt that lengths with this covariance (4, 4) give."""
+def tilt_sigmas(plant: Plant, length_covariance: np.ndarray) -> np.ndarray:
+    """The 1-sigma [rad] (largest over directions) of the tilt that lengths with these covariances (N, 4, 4)
+    give, (N,)."""
     mapping = _tilt_map(np.ascontiguousarray(plant.attachments, dtype=float).tobytes())
-    return math.sqrt(max(float(np.linalg.eigvalsh(mapping @ length_covariance @ mapping.T)[-1]), 0.0))
+    return np.sqrt(np.maximum(np.linalg.eigvalsh(mapping @ length_covariance @ mapping.T)[:, -1], 0.0))
 
 
 def judged(measured: Clearance | None, model: Clearance | None, tilt_measured: bool, corroborated: bool,
