@@ -150,7 +150,7 @@ class AheadPublisher:
         if future is not None and self.pool is not None:
             try:
                 path = future.result()
-            except BrokenProcessPool:
+            except Exception:  # noqa: BLE001 - lost, or failed in the worker: published here, where it fails as itself
                 self._lost()
                 path = None
             if path is not None:

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -34,7 +34,7 @@ from ..effects import PlantModel
 from ..effects.estimate import length_noise, observations_for
 from ..model.batched import BatchSolution
 from ..model.conditions import Conditions
-from ..model.estimation import BatchEstimate, estimate_batch, forward_kinematics
+from ..model.estimation import BatchEstimate, estimate_batch, forward_kinematics, unfused
 from ..model.fusion import Problem, Rows
 from ..model.gate import chi_square_threshold
 from ..model.geometry import roll_pitch_yaw
@@ -121,6 +121,12 @@ class MonitorEstimator:
         self.last_forward: Solution | None = None  # the model's prediction of the last sample it could solve
         self.predictions: list[tuple[float, float, float]] = []  # the model's stamp, roll, pitch lately
 
+    def __getstate__(self) -> dict[str, Any]:
+        """What it has learnt, without the model (a user's effects need not pickle: whoever restores it gives
+        the model back) and without the node's update thread (its pending update taken)."""
+        pending = self.pending.result() if isinstance(self.pending, Future) else self.pending
+        return {**self.__dict__, "model": None, "background": None, "pending": pending}
+
     def run(self, samples: Sequence[SampleInput]) -> list[tuple[Estimated, int]]:
         """Estimate consecutive samples (in stamp order); returns, for each run of them in one update window,
         what was estimated and the index of its first sample in `samples`. The window's end updates the
@@ -147,8 +153,9 @@ class MonitorEstimator:
     def _estimate(self, samples: Sequence[SampleInput]) -> Estimated:
         model = self.model
         stamps = np.array([s.stamp for s in samples])
-        lengths = np.array([model.true_lengths(np.asarray(s.reported, dtype=float), s.conditions) for s in samples])
-        loads = np.array([model.load(s.conditions) for s in samples])
+        reported = np.array([s.reported for s in samples], dtype=float)
+        lengths, loads, hooked = model.batch_inputs(reported, [s.conditions for s in samples])
+        lengths[hooked] = reported[hooked]  # estimated as reported, published as the hook's failure (below)
         prior = self.error.prior(stamps, lengths)
         forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.last_forward)
         last = np.flatnonzero(forward.ok)
@@ -157,6 +164,9 @@ class MonitorEstimator:
         left_out = tuple(sorted(self.left_out))
         kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured]
         batch = self._batch(lengths, kept, [s.conditions for s in samples], loads, prior, forward)
+        for k in hooked:  # an effect's hook failed on this sample: the model's own solve says why
+            batch.fallback[k] = unfused(model.solve(reported[k], None, samples[k].conditions), reported[k],
+                                        self.sigma_length)
         rejected, followed = self._screen(batch, lengths, kept, samples, loads, prior, forward)
         self._try_left_out(lengths, measured, kept, samples, loads, prior, forward, batch)
         self._remember(samples, lengths, kept, rejected, followed, batch, prior)
