@@ -123,6 +123,19 @@ class BagReader:
         self.report.damage += [f"skipped: {error}" for error in errors]
         return good
 
+    def listed_types(self) -> dict[str, str]:
+        """Topic -> message type of the delivered channels the files' summaries list, before any message is
+        read (a file cut short lists none: its channels appear in `report.types` as they are read)."""
+        out: dict[str, str] = {}
+        for file in self.files:
+            with McapFile(file) as mcap:
+                for channel in mcap.channels.values():
+                    schema = mcap.schemas.get(channel.schema_id)
+                    msgtype = schema.name if schema is not None else ""
+                    if not self._verdict(channel.topic, msgtype, channel.message_encoding):
+                        out.setdefault(channel.topic, msgtype)
+        return out
+
     def _verdict(self, topic: str, msgtype: str, encoding: str) -> str:
         """Why a channel's messages are not delivered ('' if they are)."""
         if encoding != "cdr":

@@ -18,6 +18,7 @@ from typing import Sequence
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
@@ -36,8 +37,15 @@ class Player(Node):
     def __init__(self, topics: dict[str, str]):
         super().__init__(NODE_NAME)
         self.clock = self.create_publisher(Clock, "/clock", QOS)
-        self.publishers_ = {topic: self.create_publisher(message_class(msgtype), topic, QOS)
-                            for topic, msgtype in topics.items()}
+        self.publishers_: dict[str, Publisher] = {}
+        for topic, msgtype in topics.items():
+            self.publisher(topic, msgtype)
+
+    def publisher(self, topic: str, msgtype: str) -> Publisher:
+        """The topic's publisher, made at its first message where the bag's summary did not list it."""
+        if topic not in self.publishers_:
+            self.publishers_[topic] = self.create_publisher(message_class(msgtype), topic, QOS)
+        return self.publishers_[topic]
 
     def listened(self) -> bool:
         """Something subscribes to one of the winches' topics."""
@@ -60,12 +68,12 @@ def play(bag: str | Path, rate: float = 1.0, clock: bool = True, wait: float = 3
     rclpy.init()
     node = None
     try:
-        node = Player({topic: msgtype for topic, msgtype in reader.report.types.items()
+        node = Player({topic: msgtype for topic, msgtype in reader.listed_types().items()
                        if topics is None or topic in topics})
         deadline = time.monotonic() + wait
         while not node.listened() and time.monotonic() < deadline:
             rclpy.spin_once(node, timeout_sec=0.05)
-        published = _publish(node, reader, rate, clock, until)
+        published = _publish(node, reader, rate, clock, until, topics)
         print(f"played {published} messages of {bag}")
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -76,14 +84,15 @@ def play(bag: str | Path, rate: float = 1.0, clock: bool = True, wait: float = 3
         rclpy.try_shutdown()
 
 
-def _publish(node: Player, reader: BagReader, rate: float, clock: bool, until: float) -> int:
-    """Every message at its log time (`rate` times as fast), /clock before it, the first `until` seconds;
+def _publish(node: Player, reader: BagReader, rate: float, clock: bool, until: float,
+             topics: Sequence[str] | None) -> int:
+    """Every message (of `topics`, None: all the reader delivers) at its log time (`rate` times as fast), /clock before it, the first `until` seconds;
     the count published."""
     started, first, count = time.monotonic(), None, 0
     for item in reader:
-        publisher = node.publishers_.get(item.topic)
-        if publisher is None:
+        if topics is not None and item.topic not in topics:
             continue
+        publisher = node.publisher(item.topic, item.msgtype)
         first = item.log_time if first is None else first
         if (item.log_time - first) * 1e-9 > until:
             break
