@@ -163,7 +163,7 @@ def test_a_burst_of_1000_messages_in_one_second_is_accounted_for(live):
     assert good + bad == arrived and good <= 900 and bad <= 100
     assert arrived >= 900, "more than a tenth of the burst lost"
     complete = solver_value(statuses, "complete samples")
-    assert complete == (solver_value(statuses, "samples") + solver_value(statuses, "skipped (a newer sample came first)")
+    assert complete == (solver_value(statuses, "samples") + solver_value(statuses, "skipped (behind by more than the backlog)")
                         + solver_value(statuses, "waiting"))
     assert live.client.solve(GOOD).pose is not None
     live.process.assert_alive()

@@ -1,35 +1,44 @@
-"""The live monitor under load: merge every winch message, solve only the newest complete sample.
+"""The live monitor under load: merge every winch message, solve the waiting samples together, newest last.
 
 Merging a message costs microseconds, solving a sample milliseconds. A node that solved
 every sample in its callback fell seconds behind at 500 Hz while its DDS queue grew, and
-dropped messages unseen. Here the callback only merges; a worker takes the newest
-complete sample when it is free, and a complete sample replaced by a newer one before
-the worker took it is counted as skipped. So the work waiting is never more than one
-sample, and every complete sample is either solved or counted.
+dropped messages unseen. Here the callback only merges; a worker takes every complete
+sample waiting when it is free and estimates them together, in order (the estimator's
+batch is the replay's: the same states as one at a time, for a fraction of the cost), so
+a stall of the machine costs no sample and leaves the node's state the replay's. Only a
+sample more than `backlog` seconds (of stamps) older than the newest is dropped unsolved,
+and counted as skipped: the work waiting never outgrows the backlog, and the outputs are
+never more than that behind the winches.
 """
 from __future__ import annotations
 
 import threading
+from collections import deque
 from typing import Any, Hashable
 
-from .pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 from .inputs import JointSample
+from .pipeline import CompleteSample, MonitorOutput, MonitorPipeline
+
+BACKLOG = 0.3  # [s] of sample stamps the worker may be behind the newest sample before the oldest are skipped
 
 
 class LatestSamplePipeline(MonitorPipeline):
-    """MonitorPipeline for a callback thread (`offer`, `on_measurement`, `on_input`) and a worker (`take`, `solve`).
+    """MonitorPipeline for a callback thread (`offer`, `on_measurement`, `on_input`) and a worker (`take`,
+    `solve_all`).
 
     `lock` guards every piece of state; hold it to read the counters from a third thread.
     """
 
-    def __init__(self, *args: Any, **kwargs: Any):
+    def __init__(self, *args: Any, backlog: float = BACKLOG, **kwargs: Any):
         super().__init__(*args, background=True, **kwargs)  # the model error's updates beside the samples
+        self.backlog = backlog
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
-        self._pending: tuple[Hashable, CompleteSample] | None = None
+        self._pending: deque[tuple[Hashable, CompleteSample]] = deque()
         self.unseen = 0  # winch messages the transport dropped before they were offered (as far as known)
         self.complete = 0  # complete samples merged
-        self.skipped = 0  # complete samples replaced by a newer one before a solve
+        self.skipped = 0  # complete samples dropped unsolved: more than the backlog behind the newest
+        self.generation = 0  # restarts so far
 
     def offer(self, sample: JointSample, tag: Hashable = None) -> bool:
         """Merge a winch message; True if it made a complete sample (kept with `tag` for the worker)."""
@@ -38,27 +47,45 @@ class LatestSamplePipeline(MonitorPipeline):
             if complete is None:
                 return False
             self.complete += 1
-            self.skipped += self._pending is not None
-            self._pending = (tag, complete)
+            self._pending.append((tag, complete))
+            while self._pending[0][1].stamp < complete.stamp - self.backlog:
+                self._pending.popleft()
+                self.skipped += 1
             self._ready.notify()
             return True
 
-    def take(self, timeout: float) -> tuple[Hashable, CompleteSample] | None:
-        """The newest complete sample and its tag, waiting up to `timeout` [s] for one (None: none came)."""
+    def take(self, timeout: float) -> list[tuple[Hashable, CompleteSample]]:
+        """Every complete sample waiting, oldest first, with its tag; waits up to `timeout` [s] for one
+        (empty: none came)."""
         with self.lock:
-            if self._pending is None:
+            if not self._pending:
                 self._ready.wait(timeout)
-            pending, self._pending = self._pending, None
-            return pending
+            taken = list(self._pending)
+            self._pending.clear()
+            return taken
 
-    def solve(self, sample: CompleteSample) -> MonitorOutput:
-        """Solve a sample from `take`: equilibrium, alarm and load-pin residuals."""
+    def solve_all(self, samples: list[CompleteSample]) -> list[MonitorOutput]:
+        """Solve samples from `take` together, in order: equilibrium, alarm and load-pin residuals of each
+        (none where the pipeline restarted meanwhile: the samples are from a future that will not come).
+        The estimate, the long part, runs without the lock (its state is the worker's alone), so that the
+        callbacks merge the messages as they come meanwhile."""
         with self.lock:
-            return super().solve(sample)
+            conditions = [self.conditions(sample) for sample in samples]
+            estimator, generation = self.estimator, self.generation
+        solved = self.solve_samples(samples, conditions, estimator)
+        with self.lock:
+            if generation != self.generation:
+                return []
+            outputs = []
+            for sample, at, ahead in zip(samples, conditions, solved):
+                output, outcome = self.judge(sample, ahead, at)
+                self.note(outcome)
+                outputs.append(output)
+            return outputs
 
     def counters(self) -> dict[str, int]:
         """The node's own counts, for /diagnostics."""
-        return {"complete samples": self.complete, "skipped (a newer sample came first)": self.skipped,
+        return {"complete samples": self.complete, "skipped (behind by more than the backlog)": self.skipped,
                 "winch messages": self.stats.winch, "winch messages lost before the node": self.unseen,
                 "waiting": self.waiting}
 
@@ -72,9 +99,10 @@ class LatestSamplePipeline(MonitorPipeline):
             MonitorPipeline.__init__(self, self.plant, self.solver, self.staleness, self.merger.window,
                                      background=True)
             self.stats = counts
-            self._pending = None
+            self._pending.clear()
+            self.generation += 1
 
     @property
     def waiting(self) -> int:
-        """Complete samples merged but neither solved nor skipped yet (0 or 1)."""
-        return int(self._pending is not None)
+        """Complete samples merged but neither solved nor skipped yet."""
+        return len(self._pending)

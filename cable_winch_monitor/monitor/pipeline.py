@@ -33,13 +33,13 @@ from ..model.estimation import Estimate
 from ..model.plant import Plant
 from ..model.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
-from .basis import CORROBORATING_PINS, Basis, judged, tilt_sigma
+from .basis import CORROBORATING_PINS, Basis, judged, tilt_sigmas
 from .clearance import Clearance, solution_clearance, solution_clearances
 from .estimator import Estimated, MonitorEstimator, SampleInput
 from .inputs import (CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason,
                      small_mean)
 from .residuals import Residuals, noise_levels, residuals
-from .sensors import LatestReadings, StuckReadings, sensor_of
+from .sensors import LatestReadings, PayoutHistory, StuckReadings, sensor_of
 
 
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
@@ -191,7 +191,7 @@ class MonitorPipeline:
         self.pins = StuckReadings()
         self.heard: dict[str, float] = {}  # load pin -> the stamp of its latest finite reading
         self.estimator = MonitorEstimator(self.model, background) if self.fusing else None  # background: updates
-        self.payout: tuple[float, float, float] = (math.nan, math.nan, 0.0)  # stamp, mean length, mean speed
+        self.payouts = PayoutHistory()  # the recent complete samples' mean payouts, to carry readings by
 
     def _reject(self, topic: str, reason: str) -> None:
         self.stats.rejected[f"{topic}: {reason.split(':')[0]}"] += 1
@@ -225,7 +225,7 @@ class MonitorPipeline:
             return None
         speeds = [r.velocity for r in readings]
         speed = small_mean(speeds)
-        self.payout = (sample.stamp, small_mean(lengths.tolist()), speed if math.isfinite(speed) else 0.0)
+        self.payouts.add(sample.stamp, small_mean(lengths.tolist()), speed if math.isfinite(speed) else 0.0)
         complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings], speeds)
         if not self.fusing:
             return complete
@@ -235,7 +235,7 @@ class MonitorPipeline:
     def measured(self, sample: CompleteSample) -> tuple[dict[str, float], dict[str, float]]:
         """What the sensors read at a complete sample and when: its load pins (but a stuck one) and the
         latest other readings within the staleness limit."""
-        values, taken = self.readings.at(sample.stamp, small_mean(sample.lengths.tolist()))
+        values, taken = self.readings.at(sample.stamp, small_mean(sample.lengths.tolist()), self.payouts.at)
         for name, value in zip(channels.TENSION_CHANNELS, sample.tensions):
             if math.isfinite(value):
                 self.heard[name] = sample.stamp
@@ -247,23 +247,18 @@ class MonitorPipeline:
         """The sensors heard before whose readings are not at a sample stamped `stamp`: stuck at a constant,
         or silent (no reading for SILENT staleness limits: one reading late is not a fault), with why."""
         out = {sensor_of(name): f"stuck at {value:.6g} since {since:.3f} s" for name, (value, since) in self.stuck().items()}
-        heard = {**self.heard, **{name: when for name, (when, _, _) in self.readings.values.items()}}
+        heard = {**self.heard, **self.readings.latest()}
         for name, when in heard.items():
             sensor = sensor_of(name)
             if name not in measured and sensor not in out and stamp - when > SILENT * self.staleness:
                 out[sensor] = f"silent for {stamp - when:.1f} s"
         return out
 
-    def payout_at(self, stamp: float) -> float:
-        """The mean payout [m] at `stamp`, carried from the latest complete sample by its payout speed."""
-        taken, length, speed = self.payout
-        return length + speed * (stamp - taken)
-
     def keep_reading(self, stamp: float, values: dict[str, float]) -> None:
         """A sensor's readings, kept for the samples to come (where they are fused: the lengths taken
         as exact, only the residuals read them)."""
         if self.fusing:
-            self.readings.add(stamp, values, self.payout_at(stamp))
+            self.readings.add(stamp, values)
 
     def stuck(self) -> dict[str, tuple[float, float]]:
         """The channels stuck at a constant now: the value and since when [s]."""
@@ -290,13 +285,15 @@ class MonitorPipeline:
             return NO_CONDITIONS
         return self.tracker.update(sample.stamp, sample.lengths, np.array(sample.speeds), self.inputs_at(sample.stamp))
 
-    def solve_samples(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions]) -> list[Solved]:
-        """Estimate (or solve) consecutive complete samples at their conditions: the node's one at a time,
-        replay's a window at once, with the same answers."""
-        if self.estimator is not None:
+    def solve_samples(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions],
+                      estimator: MonitorEstimator | None = None) -> list[Solved]:
+        """Estimate (or solve) consecutive complete samples at their conditions: the node's as they come,
+        replay's a window at once, with the same answers. `estimator`: the pipeline's, as it was taken."""
+        estimator = estimator or self.estimator
+        if estimator is not None:
             inputs = [SampleInput(s.stamp, s.lengths, s.sensors, s.taken, c) for s, c in zip(samples, conditions)]
             out: list[Solved] = []
-            for estimated, start in self.estimator.run(inputs):
+            for estimated, start in estimator.run(inputs):
                 stop = start + len(estimated)
                 out += self._estimated(estimated, samples[start:stop], conditions[start:stop])
             return out
@@ -311,14 +308,14 @@ class MonitorPipeline:
         predictions = estimated.forward.solutions()
         model_clearances = solution_clearances(self.model.physical, predictions)
         rows = self._solved([e.solution for e in estimates], estimates, conditions)
-        plant = self.model.physical
+        tilts = tilt_sigmas(self.model.physical, estimated.prior.length_covariance).tolist()
         out = []
         for k, row in enumerate(rows):
             faults = {**samples[k].faults, **{sensor: "contradicts the other sensors" for sensor in
                                              estimated.left_out + estimated.rejected[k]}}
             view = ModelView(predictions[k], model_clearances[k], estimated.length_error[k],
                              estimated.length_sigma[k], estimated.pin_error[k], estimated.pin_sigma[k],
-                             tilt_sigma(plant, estimated.prior.length_covariance[k]), estimated.rejected[k],
+                             tilts[k], estimated.rejected[k],
                              tuple(sorted(set(estimated.left_out) | set(samples[k].faults))), faults)
             out.append(row._replace(model=view))
         return out

@@ -2,8 +2,8 @@
 sensor each belongs to.
 
 A sensor is a load pin (one channel) or a topic's instrument (the inclinometer's roll and
-pitch, the position gauge's x, y and depth, a user's declared channel). A reading is
-fused with the samples stamped within the staleness limit of it; the depth gauge's is
+pitch, the position gauge's x, y and depth, a user's declared channel). A sample fuses
+each channel's latest reading stamped at or before it, within the staleness limit; the depth gauge's is
 first carried to the sample's stamp by the payout since it was taken (the platform hangs
 on vertical ropes: its depth follows the mean payout), as a stale depth reading of a
 moving platform would otherwise be centimetres off. A channel whose readings repeat to
@@ -13,14 +13,17 @@ the estimator's to say (monitor.estimator).
 from __future__ import annotations
 
 import math
+from collections import deque
 from functools import lru_cache
-from typing import Mapping
+from typing import Callable, Mapping
 
 from .. import channels
 from ..model.estimation import Estimate
 
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 STUCK = 5  # a sensor repeating its reading to the bit this many times running is stuck
+HISTORY = 16  # readings kept per channel: those that came before a sample but are stamped after it, and one more
+PAYOUTS = 1024  # complete samples whose payout is kept: a staleness limit's worth at up to 2 kHz
 
 
 _SENSORS: dict[str, str] = {}  # declared channel -> its sensor (a declared channel keeps its topics)
@@ -55,29 +58,45 @@ def _sensors_used(used_names: tuple[str, ...], declared: tuple[str, ...]) -> tup
 
 
 class LatestReadings:
-    """The latest finite reading of each channel read off a sensor topic, with its stamp and the mean
-    payout [m] then; a channel whose readings repeat to the bit is stuck (`StuckReadings`) and not given."""
+    """The recent finite readings of each channel read off a sensor topic, with their stamps and the mean
+    payout [m] then; a channel whose readings repeat to the bit is stuck (`StuckReadings`) and not given.
+
+    A sample takes each channel's latest reading stamped at or before it, whatever came first: the node
+    receives the sensors' topics each in its own order (a reading stamped after a winch sample may be
+    taken before it when the callbacks are busy), a replay in log order; both take the same readings."""
 
     def __init__(self, staleness: float):
         self.staleness = staleness
-        self.values: dict[str, tuple[float, float, float]] = {}
+        self.values: dict[str, deque[tuple[float, float]]] = {}  # channel -> (stamp, value), recent ones
         self.stuck = StuckReadings()
 
-    def add(self, stamp: float, values: Mapping[str, float], payout: float) -> None:
+    def add(self, stamp: float, values: Mapping[str, float]) -> None:
         for name, value in values.items():
             if math.isfinite(value) and math.isfinite(stamp):
-                self.values[name] = (stamp, value, payout)
+                self.values.setdefault(name, deque(maxlen=HISTORY)).append((stamp, value))
                 self.stuck.add(name, value, stamp)
 
-    def at(self, stamp: float, payout: float) -> tuple[dict[str, float], dict[str, float]]:
-        """The readings stamped within the staleness limit of `stamp`, carried to the mean payout then, and
-        the stamp each was taken at (a stuck channel's left out)."""
+    def latest(self) -> dict[str, float]:
+        """Each channel's latest stamp."""
+        return {name: history[-1][0] for name, history in self.values.items()}
+
+    def at(self, stamp: float, payout: float, payout_at: Callable[[float], float]
+           ) -> tuple[dict[str, float], dict[str, float]]:
+        """Each channel's latest reading stamped at or before `stamp` and within the staleness limit of it,
+        carried to the mean payout then (`payout`; `payout_at` gives it at the reading's stamp), and the stamp
+        it was taken at (a stuck channel's left out)."""
         out, taken = {}, {}
-        for name, (when, value, then) in self.values.items():
-            if abs(stamp - when) <= self.staleness and not self.stuck.is_stuck(name):
-                carry = CARRIED.get(name, 0.0) * (payout - then) if carry_known(payout, then) else 0.0
-                out[name] = value + carry
-                taken[name] = when
+        for name, history in self.values.items():
+            if self.stuck.is_stuck(name):
+                continue
+            for when, value in reversed(history):
+                if when <= stamp:
+                    if stamp - when <= self.staleness:
+                        per_metre = CARRIED.get(name)
+                        then = payout_at(when) if per_metre is not None else math.nan
+                        out[name] = value + (per_metre * (payout - then) if carry_known(payout, then) else 0.0)
+                        taken[name] = when
+                    break
         return out, taken
 
 
@@ -103,6 +122,31 @@ class StuckReadings:
     def stuck(self) -> dict[str, tuple[float, float]]:
         """The stuck channels: the value each is stuck at and since when [s]."""
         return {name: (value, since) for name, (value, count, since) in self.last.items() if count >= STUCK}
+
+
+class PayoutHistory:
+    """The mean payout [m] of the recent complete samples, to carry a reading to a sample by: the payout at
+    a reading's stamp is interpolated between the samples around it (beyond the newest, carried by its
+    payout speed), whenever the reading came."""
+
+    def __init__(self) -> None:
+        self.samples: deque[tuple[float, float, float]] = deque(maxlen=PAYOUTS)  # stamp, payout, payout speed
+
+    def add(self, stamp: float, payout: float, speed: float) -> None:
+        self.samples.append((stamp, payout, speed))
+
+    def at(self, stamp: float) -> float:
+        """The mean payout at `stamp` (NaN before the first sample kept)."""
+        later = None
+        for sample in reversed(self.samples):
+            when, payout, speed = sample
+            if when <= stamp:
+                if later is None:
+                    return payout + speed * (stamp - when)
+                after, beyond, _ = later
+                return payout + (beyond - payout) * (stamp - when) / (after - when) if after > when else payout
+            later = sample
+        return math.nan
 
 
 def carry_known(payout: float, then: float) -> bool:

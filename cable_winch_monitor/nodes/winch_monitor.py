@@ -42,8 +42,8 @@ from ..model.solve import METHODS
 from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
 from ..monitor.inputs import StampWindow
 from ..monitor.diagnostics import DiagnosticsReporter
-from ..monitor.latest import LatestSamplePipeline
-from ..monitor.pipeline import MonitorOutput
+from ..monitor.latest import BACKLOG, LatestSamplePipeline
+from ..monitor.pipeline import CompleteSample, MonitorOutput
 from ..monitor.residuals import Residuals
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
 from .winch_input import WinchInput
@@ -63,6 +63,10 @@ LATCHED_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=History
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_THROTTLE = 5.0  # [s] between log lines about rejected input
 WORKER_POLL = 0.1  # [s] the solving worker checks this often whether the node is shutting down
+# [s] how long the solving worker may hold the interpreter while a message waits: Python's 5 ms default let a
+# callback that takes and releases it several times wait tens of milliseconds behind a busy worker, so that a
+# sensor's reading sent before a winch message was merged after it.
+SWITCH_INTERVAL = 5e-4
 # The publishers go without rclpy's default QoS-event handlers (a warning logged here on an incompatible
 # subscriber, which warns on its own side too): each publisher's two are waitables the executor polls at
 # every wake, and the twenty cost the node 0.6-0.9 ms of its publish-to-pose latency. The subscriptions
@@ -85,6 +89,10 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
     ("staleness", 0.5, ParameterDescriptor(
         description="[s] a sample is solved only when no cable's latest length is older than this",
         floating_point_range=_range(0.001, 60.0), read_only=True)),
+    ("backlog", BACKLOG, ParameterDescriptor(
+        description="[s] complete samples waiting while the solver is busy are solved together, in order; one more "
+                    "than this (of stamps) behind the newest is skipped",
+        floating_point_range=_range(0.0, 10.0), read_only=True)),
     ("stamp_ahead", StampWindow.ahead, ParameterDescriptor(
         description="[s] a winch stamp later than its arrival on the node clock by more than this is refused",
         floating_point_range=_range(0.001, 1e10), read_only=True)),
@@ -116,7 +124,8 @@ class WinchMonitorNode(Node):
         value = self._parameter
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
         window = StampWindow(value("stamp_ahead"), value("stamp_behind"), value("stamp_skew"))
-        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window)
+        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window,
+                                             backlog=value("backlog"))
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0
@@ -140,10 +149,8 @@ class WinchMonitorNode(Node):
         self.tf_static_pub.publish(build(TFMessage, frames.static_tf((now.sec, now.nanosec), plant)))
         self.outline_pub.publish(build(MarkerArray, self.scene.outline((now.sec, now.nanosec))))
 
-        self.winch_inputs = [WinchInput(topic) for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")])]
-        for winch in self.winch_inputs:
-            winch.subscription = self.create_subscription(JointState, winch.topic, self._winch_callback(winch),
-                                                          SENSOR_QOS)
+        # The sensors' subscriptions come first: where a reading and a winch message wait together, the executor
+        # takes them in this order, so that a sample has the readings sent before it (as a replay in log order).
         for topic, msgtype in channels.topic_types().items():  # inclinometer, depth gauge, declared sensors
             if topic not in WINCH_TOPICS:
                 self.create_subscription(message_class(msgtype), topic,
@@ -151,6 +158,10 @@ class WinchMonitorNode(Node):
         for spec in self.pipeline.model.inputs:  # what the plant's effects read (a shaft temperature)
             self.create_subscription(message_class(spec.msgtype), spec.topic,
                                      self._guarded(spec.topic, self._on_input, spec), SENSOR_QOS)
+        self.winch_inputs = [WinchInput(topic) for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")])]
+        for winch in self.winch_inputs:
+            winch.subscription = self.create_subscription(JointState, winch.topic, self._winch_callback(winch),
+                                                          SENSOR_QOS)
         self.create_service(CheckCableLengths, "~/check_cable_lengths", self._check_cable_lengths)
         self.create_timer(value("diagnostics_period"), self._guarded("diagnostics", self._publish_diagnostics))
         self._clock_jumps = self.get_clock().create_jump_callback(  # a bag played again (--loop) under sim time
@@ -167,12 +178,16 @@ class WinchMonitorNode(Node):
         super().destroy_node()
 
     def _work(self) -> None:
-        """Solve the newest complete sample whenever there is one, until the node shuts down."""
+        """Solve the complete samples waiting whenever there are some, until the node shuts down."""
         while not self._stopping.is_set():
             taken = self.pipeline.take(WORKER_POLL)
-            if taken is not None:
-                stamp, sample = taken
-                self._guarded("solver", lambda: self._publish(stamp, self.pipeline.solve(sample)))()
+            if taken:
+                self._guarded("solver", self._solve, taken)()
+
+    def _solve(self, taken: list[tuple[fields.Stamp, CompleteSample]]) -> None:
+        outputs = self.pipeline.solve_all([sample for _, sample in taken])
+        for (stamp, _), output in zip(taken, outputs):
+            self._publish(stamp, output)
 
     def _parameter(self, name: str) -> Any:
         return self.get_parameter(name).value
@@ -285,6 +300,7 @@ class WinchMonitorNode(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Entry point `winch_monitor`: ROS arguments (--ros-args -p ..., --params-file) are honoured."""
+    sys.setswitchinterval(SWITCH_INTERVAL)
     rclpy.init(args=args)
     try:
         node = WinchMonitorNode()
