@@ -34,19 +34,21 @@ from ..model.solve import METHODS, solve
 from .base import Effect, EffectError, RopeLaw
 from .pulley import wrap
 from .registry import USER_MODULES, effect_class, load_module
+from .tracked import tracked_parameters
 
 REFINE_STEPS = 6
 REFINE_TOL = 1e-7  # [m] pose change at which the pose-dependent geometry has settled
 NO_CONDITIONS = Conditions()
 
 
-def _overrides(cls: type[Effect], hook: str) -> bool:
+def overrides(cls: type[Effect], hook: str) -> bool:
+    """The effect class writes this hook of its own (it acts there)."""
     return getattr(cls, hook) is not getattr(Effect, hook)
 
 
 def refines(cls: type[Effect]) -> bool:
     """The effect makes the geometry depend on the pose (it writes a refine hook)."""
-    return _overrides(cls, "refine") or _overrides(cls, "refine_states")
+    return overrides(cls, "refine") or overrides(cls, "refine_states")
 
 
 def effects_from_mapping(section: Any, where: str, plant: Plant | None = None) -> list[Effect]:
@@ -144,6 +146,7 @@ class PlantModel:
                 load_module(path)
             _check_effect_bounds(plant)
             _check_noise_keys(plant)
+            tracked_parameters(plant)
             model = cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant)), solver)
             _ = model.physical, model.rope_law  # the effects' plant and rope hooks, run once: a failure is said now
             return model
@@ -183,12 +186,12 @@ class PlantModel:
 
     @cached_property
     def _measurers(self) -> tuple[Effect, ...]:
-        return tuple(sorted((e for e in self.effects if _overrides(type(e), "measure")
-                             or _overrides(type(e), "measure_states")), key=lambda e: e.order))
+        return tuple(sorted((e for e in self.effects if overrides(type(e), "measure")
+                             or overrides(type(e), "measure_states")), key=lambda e: e.order))
 
     @cached_property
     def _loaders(self) -> tuple[Effect, ...]:
-        return tuple(e for e in self.effects if _overrides(type(e), "load"))
+        return tuple(e for e in self.effects if overrides(type(e), "load"))
 
     @cached_property
     def inputs(self) -> tuple[Input, ...]:
@@ -222,13 +225,13 @@ class PlantModel:
 
     @cached_property
     def _lengtheners(self) -> tuple[Effect, ...]:
-        return tuple(e for e in self.effects if _overrides(type(e), "lengths"))
+        return tuple(e for e in self.effects if overrides(type(e), "lengths"))
 
     def solve_key(self) -> tuple:
         """Everything a solve depends on besides the sample: two models with equal keys have the same equilibria."""
         law = self.rope_law
         geometry = tuple((e.name, tuple(e.values.items())) for e in self.effects
-                         if refines(type(e)) or any(_overrides(type(e), hook) for hook in ("plant", "lengths", "load")))
+                         if refines(type(e)) or any(overrides(type(e), hook) for hook in ("plant", "lengths", "load")))
         return law.EA, law.weight if law.EA is not None else 0.0, geometry, self.solver
 
     def true_lengths(self, reported: np.ndarray, conditions: Conditions = NO_CONDITIONS) -> np.ndarray:

@@ -18,6 +18,7 @@ from ..paths import default_plant_file
 from .safe_yaml import YamlLimitError, load_yaml_file
 from .plant_checks import degenerate_points
 from .prior import ModelErrorConfigError, ModelErrorSpec
+from .track import TrackConfigError, TrackSpec
 
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
 DEFAULT_MAX_PAYOUT = 3000.0  # [m] deeper than any shaft sunk with a hanging platform
@@ -86,6 +87,7 @@ class Plant:
     sheaves: tuple[Sheave, ...] = ()  # one per cable where the plant file describes pulleys (anchors: where ropes meet them)
     effect_bounds: Mapping[str, Mapping[str, tuple[float, float]]] = field(default_factory=dict)  # effect -> param -> (lo, hi)
     model_error: ModelErrorSpec = field(default_factory=ModelErrorSpec)  # how far and fast the model may be off
+    track: TrackSpec = field(default_factory=TrackSpec)  # the parameters tracked live, and how they may be used
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -384,6 +386,7 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant", folder: P
         sheaves=_sheaves(geometry.get("sheaves")),
         effect_bounds=_effect_bounds(section.get("effect_bounds")),
         model_error=_model_error(section.get("model_error")),
+        track=_track(section),
         raw=config,
     )
 
@@ -393,6 +396,14 @@ def _model_error(section: Any) -> ModelErrorSpec:
     try:
         return ModelErrorSpec.from_mapping(section)
     except ModelErrorConfigError as error:
+        raise PlantConfigError(f"plant file: {error}") from None
+
+
+def _track(section: Mapping[str, Any]) -> TrackSpec:
+    """`plant.track` and its settings (model.track.TrackSpec; the effect layer checks the names)."""
+    try:
+        return TrackSpec.from_section(section)
+    except TrackConfigError as error:
         raise PlantConfigError(f"plant file: {error}") from None
 
 
