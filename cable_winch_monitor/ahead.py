@@ -90,7 +90,7 @@ class SamplePublisher:
         pipeline = self.pipeline
         estimator, level, tracker, scene, self.second = pickle.loads(state)
         if estimator is not None:
-            estimator.model = pipeline.model
+            estimator.attach(pipeline.model)
         pipeline.estimator, pipeline.alarms.level, pipeline.tracker, self.throttle.last = estimator, level, tracker, \
             scene
 

@@ -258,7 +258,8 @@ def _diagnose(args: argparse.Namespace) -> int:
 
 def _fit(args: argparse.Namespace) -> int:
     from .analysis import report
-    from .analysis.refit import fit_command, write_plant
+    from .analysis.refit import fit_command
+    from .effects.plantfile import write_plant
 
     _check_writable(args.json, "--json")
     _check_writable(args.write_config, "--write-config")
@@ -267,7 +268,7 @@ def _fit(args: argparse.Namespace) -> int:
     print(report.fit_text(result))
     _write_json(args.json, report.fit_json(result, data.bag, len(data)))
     if args.write_config:
-        write_plant(result.fit.model, args.write_config)
+        write_plant(result.fit.model, args.write_config, "cable-winch-monitor fit")
         print(f"plant file with the effects on: {args.write_config}")
     return 0
 

@@ -1,14 +1,11 @@
 """`fit`: fit chosen effects on the training part, compare before and after on training and held-out data,
-and write a plant file with the effects on (which the live node and replay then use)."""
+and write a plant file with the effects on (effects.plantfile; the live node and replay then use it)."""
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
-import yaml
 
 from ..effects import PlantModel, effect_class
 from .data import Dataset
@@ -51,17 +48,3 @@ def fit_command(base: PlantModel, data: Dataset, names: Sequence[str]) -> FitRep
     before = {k: _scores(base, e, sigma) for k, e in parts.items()}
     after = {k: _scores(fit.model, e, sigma) for k, e in parts.items()}
     return FitReport(fit, list(names), before, after, source)
-
-
-def write_plant(model: PlantModel, path: str | Path) -> None:
-    """The plant file of `model.plant` with `model`'s effects switched on (and their user modules listed)."""
-    config = copy.deepcopy(dict(model.plant.raw))
-    section = dict(config.get("plant", {}))
-    section["effects"] = model.effects_config()
-    modules = model.user_modules()
-    if modules:
-        section["effect_modules"] = modules
-    else:
-        section.pop("effect_modules", None)
-    config["plant"] = section
-    Path(path).write_text("# written by cable-winch-monitor fit\n" + yaml.safe_dump(config, sort_keys=False))

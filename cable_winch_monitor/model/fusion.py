@@ -206,6 +206,13 @@ def residuals(problem: Problem, rows: Rows, live: np.ndarray) -> np.ndarray:
     return _residuals(problem, rows, live, False)[0]
 
 
+def residuals_and_balance(problem: Problem, rows: Rows) -> tuple[np.ndarray, np.ndarray]:
+    """Every row's normalised residuals (n, 4 + m) and its force and moment imbalance (n, 6) at its state,
+    for derivatives of both with respect to the problem's own parameters (a load, the rope law)."""
+    residual, _, constraint, _ = _residuals(problem, rows, np.arange(len(rows.sample)), False)
+    return residual, constraint
+
+
 def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bool):
     """Normalised residuals r (n, 4+m), their Jacobian A (n, 4+m, 10), constraint c (n, 6) and C (n, 6, 10)."""
     plant = problem.plant
@@ -340,20 +347,24 @@ def prior_jacobian(problem: Problem, rows: Rows) -> np.ndarray:
     return out
 
 
-def reduced_normal(problem: Problem, rows: Rows, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def reduced_normal(problem: Problem, rows: Rows, jacobian: np.ndarray,
+                   balance_jacobian: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Each row's part of the Gauss-Newton normal equations of k parameters that all rows share and that
-    enter their weighed residuals with `jacobian` (n, 4 + m, k), the row's own state (pose and tensions,
-    on its equilibrium) optimised again for any change of them (its Schur complement): (n, k, k) and the
-    gradient (n, k) at the rows' states, as a fixed-lag smoother takes a bias's information from a
-    window of samples."""
+    enter their weighed residuals with `jacobian` (n, 4 + m, k), and their balance with `balance_jacobian`
+    (n, 6, k; None: not at all), the row's own state (pose and tensions, on its equilibrium) optimised
+    again for any change of them (its Schur complement): (n, k, k) and the gradient (n, k) at the rows'
+    states, as a fixed-lag smoother takes a bias's information from a window of samples."""
     live = np.arange(len(rows.sample))
     residual, state_jacobian, _, balance = _residuals(problem, rows, live, True)
     system, _ = _kkt(state_jacobian, residual, balance, ~rows.taut, rows.mu)
     coupling = np.zeros((live.size, 16, jacobian.shape[2]))
     coupling[:, :10] = np.swapaxes(state_jacobian, 1, 2) @ jacobian
+    if balance_jacobian is not None:  # the state moves to keep its balance as well
+        coupling[:, 10:] = balance_jacobian
     response = np.linalg.solve(system, coupling)[:, :10]       # the state's best move per unit of each parameter
     projected = jacobian - state_jacobian @ response
-    return np.swapaxes(jacobian, 1, 2) @ projected, np.einsum("nki,nk->ni", projected, residual)
+    left = jacobian if balance_jacobian is None else projected  # the same where the balance does not move
+    return np.swapaxes(left, 1, 2) @ projected, np.einsum("nki,nk->ni", projected, residual)
 
 
 def _size(step: np.ndarray, reach: np.ndarray) -> np.ndarray:

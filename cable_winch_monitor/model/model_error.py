@@ -104,11 +104,7 @@ class ModelError:
         middle = stamp - 0.5 * self.spec.period
         elapsed = 0.0 if reference is None else max(middle - reference, 0.0)
         predicted = covariance + elapsed * self.walk
-        design = _design(payouts[rows.sample])
-        chain = np.zeros((len(rows.sample), 8, SIZE))
-        chain[:, 0:4, LENGTHS] = design
-        chain[:, 4:8, PINS] = design
-        info, gradient = reduced_normal(problem, rows, prior_jacobian(problem, rows) @ chain)
+        info, gradient = reduced_normal(problem, rows, state_jacobian(problem, rows, payouts))
         information = np.linalg.inv(predicted) + info.sum(axis=0)
         information = 0.5 * (information + information.T)
         step = -np.linalg.solve(information, gradient.sum(axis=0))
@@ -121,6 +117,10 @@ class ModelError:
     def apply(self, state: "ErrorState") -> None:
         self.mean, self.covariance, self.reference = state
         self.updates += 1
+
+    def shift(self, change: np.ndarray) -> None:
+        """Move the expected error by `change` (16,): the model changed, and explains that much of it now."""
+        self.mean = self.mean + change
 
     def rescale(self, consistency: float) -> None:
         """Match the part of the error that changes within a window to what a window's samples showed: the
@@ -150,6 +150,22 @@ class ModelError:
         design = _design(np.asarray(payouts, dtype=float).reshape(-1, 4))
         covariance = design @ self.covariance[block, block] @ np.swapaxes(design, 1, 2)
         return design @ self.mean[block], np.sqrt(np.diagonal(covariance, axis1=1, axis2=2))
+
+
+def state_jacobian(problem: Problem, rows: Rows, payouts: np.ndarray) -> np.ndarray:
+    """(n, 4 + m, 16) derivative of the rows' weighed residuals with respect to the error's states, at the
+    rows' states and the payouts (N, 4) [m] of the problem's samples."""
+    return prior_jacobian(problem, rows) @ chain(payouts[rows.sample])
+
+
+def chain(payouts: np.ndarray) -> np.ndarray:
+    """(n, 8, 16) how the expected length corrections (4) and load-pin errors (4) at payouts (n, 4) [m] move
+    with the error's states."""
+    design = _design(payouts)
+    out = np.zeros((len(payouts), 8, SIZE))
+    out[:, 0:4, LENGTHS] = design
+    out[:, 4:8, PINS] = design
+    return out
 
 
 class ErrorState(NamedTuple):

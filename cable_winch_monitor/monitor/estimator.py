@@ -43,6 +43,8 @@ from ..model.prior import Prior
 from ..model.result import Solution
 from ..model.ropes import Ropes
 from .sensors import sensor_of
+from .sensitivity import WindowSamples
+from .tracking import ParameterTracker, ParameterView, TrackState
 
 CARRIED = ("roll", "pitch")  # readings carried to the sample's stamp by the model's own rate of change
 CARRY_WINDOW = 1.0    # [s] of the model's predictions that give that rate
@@ -76,6 +78,8 @@ class Estimated:
     length_sigma: np.ndarray              # (N, 4) its 1-sigma [m]
     pin_error: np.ndarray                 # (N, 4) the load pins' estimated error [N] (reading minus model)
     pin_sigma: np.ndarray                 # (N, 4) its 1-sigma [N]
+    parameters: ParameterView | None = None  # the tracked plant parameters (None: the plant file tracks none)
+    parameters_due: list[bool] | None = None  # which samples publish them
 
     def __len__(self) -> int:
         return len(self.batch)
@@ -86,11 +90,13 @@ class _Window:
     """The samples of the current update window, kept for its update."""
 
     index: int
+    reported: list[np.ndarray] = field(default_factory=list)
     lengths: list[np.ndarray] = field(default_factory=list)
     measured: list[dict[str, float]] = field(default_factory=list)
     conditions: list[Conditions] = field(default_factory=list)
     stamps: list[float] = field(default_factory=list)
     states: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None] = field(default_factory=list)
+    followed: list[bool] = field(default_factory=list)  # the state follows the sensors: the model could not explain it
     rejected: dict[str, int] = field(default_factory=dict)     # sensor -> samples it was rejected at
     measuring: dict[str, int] = field(default_factory=dict)    # sensor -> samples it was measured at
     tried: dict[str, list[bool]] = field(default_factory=dict)  # left-out sensor -> did it agree at each try
@@ -101,7 +107,8 @@ class MonitorEstimator:
     """The estimator of one stream of samples (a live node's, a replay's), with its model error and faults."""
 
     def __init__(self, model: PlantModel, background: bool = False):
-        self.model = model
+        self.base = model  # the plant file's; `model` is it with the tracked values in use
+        self.tracker = ParameterTracker.of(model)
         # the node works each window's update out in a thread of its own beside the samples (`background`)
         self.background = ThreadPoolExecutor(1, thread_name_prefix="model error") if background else None
         self.pending: Future | ErrorState | None = None  # the last window's update, taken at the next window's end
@@ -112,8 +119,7 @@ class MonitorEstimator:
         self.sigma_length = sigma_length
         sigma_pin = float(model.plant.noise.get("tension", math.nan))
         self.error = ModelError(model.plant.model_error, sigma_length, sigma_pin if sigma_pin > 0.0 else 1.0)
-        law = model.rope_law
-        self.ropes = Ropes.of(law.EA, law.weight if law.EA is not None else 0.0)
+        self._use(model)
         self.origin: float | None = None
         self.window: _Window | None = None
         self.left_out: dict[str, float] = {}   # sensor -> the stamp from which it is left out
@@ -125,7 +131,18 @@ class MonitorEstimator:
         """What it has learnt, without the model (a user's effects need not pickle: whoever restores it gives
         the model back) and without the node's update thread (its pending update taken)."""
         pending = self.pending.result() if isinstance(self.pending, Future) else self.pending
-        return {**self.__dict__, "model": None, "background": None, "pending": pending}
+        return {**self.__dict__, "model": None, "base": None, "background": None, "pending": pending}
+
+    def attach(self, model: PlantModel) -> None:
+        """Give the plant file's model back to an estimator restored from a pickle."""
+        self.base = model
+        self._use(model if self.tracker is None else self.tracker.model(model))
+
+    def _use(self, model: PlantModel) -> None:
+        """Estimate with `model` (the plant file's, or it with tracked values in use) from now on."""
+        self.model = model
+        law = model.rope_law
+        self.ropes = Ropes.of(law.EA, law.weight if law.EA is not None else 0.0)
 
     def run(self, samples: Sequence[SampleInput]) -> list[tuple[Estimated, int]]:
         """Estimate consecutive samples (in stamp order); returns, for each run of them in one update window,
@@ -172,7 +189,9 @@ class MonitorEstimator:
         self._remember(samples, lengths, kept, rejected, followed, batch, prior)
         length_error, length_sigma = self.error.length_errors(lengths)
         pin_error, pin_sigma = self.error.pin_errors(lengths)
-        return Estimated(batch, forward, prior, rejected, left_out, length_error, length_sigma, pin_error, pin_sigma)
+        tracked = (None, None) if self.tracker is None else (self.tracker.view(), self.tracker.due(stamps.tolist()))
+        return Estimated(batch, forward, prior, rejected, left_out, length_error, length_sigma, pin_error, pin_sigma,
+                         *tracked)
 
     def _batch(self, lengths: np.ndarray, measured: Sequence[Mapping[str, float]], conditions: Sequence[Conditions],
                loads: np.ndarray, prior: Prior, forward: BatchSolution) -> BatchEstimate:
@@ -324,10 +343,12 @@ class MonitorEstimator:
     def _remember(self, samples: Sequence[SampleInput], lengths: np.ndarray, measured: list[dict[str, float]],
                   rejected: list[tuple[str, ...]], followed: np.ndarray, batch: BatchEstimate, prior: Prior) -> None:
         """Keep the samples of the window for its update: those the model could not explain (`followed`)
-        only for how far it was off, not for what its error is."""
+        only for how far it was off, not for what its error is (the tracked parameters are learnt from
+        their states, which the sensors agree on)."""
         window = self.window
         misfits = self._length_misfit(batch, prior)
         for k, sample in enumerate(samples):
+            window.reported.append(sample.reported)
             window.lengths.append(lengths[k])
             window.measured.append(measured[k])
             window.conditions.append(sample.conditions)
@@ -335,9 +356,10 @@ class MonitorEstimator:
             estimated = k not in batch.fallback and batch.status[k] == "solved"
             if estimated:
                 window.misfits.append(float(misfits[k]))
-            solved = estimated and not followed[k] and self._plausible(batch, k)
+            solved = estimated and self._plausible(batch, k)
             window.states.append((batch.taut[k], batch.rotation[k], batch.position[k], batch.tensions[k])
                                  if solved else None)
+            window.followed.append(bool(followed[k]))
             for sensor in {sensor_of(n) for n in measured[k]} | set(rejected[k]):
                 window.measuring[sensor] = window.measuring.get(sensor, 0) + 1
             for sensor in rejected[k]:
@@ -360,7 +382,7 @@ class MonitorEstimator:
         window, self.window = self.window, None
         end = self.origin + (window.index + 1) * self.error.spec.period
         if self.pending is not None:
-            self.error.apply(self.pending.result() if isinstance(self.pending, Future) else self.pending)
+            self._apply(*(self.pending.result() if isinstance(self.pending, Future) else self.pending), end)
         job = self._update(window, end)
         self.pending = self.background.submit(job) if self.background is not None else job()
         if window.misfits:
@@ -372,14 +394,38 @@ class MonitorEstimator:
             if verdicts and sum(verdicts) >= TAKEN_BACK_SHARE * len(verdicts):
                 self.left_out.pop(sensor, None)
 
-    def _update(self, window: _Window, end: float) -> Callable[[], ErrorState]:
-        """The work of a window's update (the error's state as it is now read when it runs)."""
-        solved = [k for k, state in enumerate(window.states) if state is not None]
-        if not solved:
-            unchanged = ErrorState(self.error.mean.copy(), self.error.covariance.copy(), self.error.reference)
-            return lambda: unchanged
-        prior = self.error.white(np.array(window.stamps), np.array(window.lengths))
-        return lambda: self._updated(window, end, solved, prior)
+    def _apply(self, error: ErrorState, tracked: TrackState | None, end: float) -> None:
+        """A window's update taken at `end` [s]: the model's error, and the tracked parameters; where their
+        values in use moved, the model changes and its error moves by what the model now explains."""
+        self.error.apply(error)
+        if tracked is not None:
+            moved = self.tracker.apply(tracked, end)
+            if np.any(moved != 0.0):
+                self.error.shift(-tracked.signature @ moved)
+                self._use(self.tracker.model(self.base))
+
+    def _update(self, window: _Window, end: float) -> Callable[[], tuple[ErrorState, TrackState | None]]:
+        """The work of a window's update (the error's and the tracker's state as they are now read when it
+        runs)."""
+        states = [k for k, state in enumerate(window.states) if state is not None]
+        solved = [k for k in states if not window.followed[k]]
+        prior = self.error.white(np.array(window.stamps), np.array(window.lengths)) if states else None
+        samples = self._tracked_samples(window, states, prior)
+        base, tracker, period = self.base, self.tracker, self.error.spec.period
+
+        def job() -> tuple[ErrorState, TrackState | None]:
+            error = self._updated(window, end, solved, prior) if solved else \
+                ErrorState(self.error.mean.copy(), self.error.covariance.copy(), self.error.reference)
+            return error, None if tracker is None else tracker.updated(base, samples, end, period)
+        return job
+
+    def _tracked_samples(self, window: _Window, solved: list[int], white: Prior | None) -> WindowSamples | None:
+        """What the tracker learns from in a window: its estimated states and the readings they fused."""
+        if self.tracker is None or not solved:
+            return None
+        rows = tuple(np.array([window.states[k][j] for k in solved]) for j in range(4))
+        return WindowSamples(np.array(window.reported), window.measured, window.conditions,
+                             (np.array(solved), *rows), white, self.sigma_length)
 
     def _updated(self, window: _Window, end: float, solved: list[int], white: Prior) -> ErrorState:
         lengths = np.array(window.lengths)

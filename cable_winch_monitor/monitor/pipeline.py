@@ -40,6 +40,7 @@ from .inputs import (CableLengthMerger, InputLimits, InputSeries, JointSample, S
                      small_mean)
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import LatestReadings, PayoutHistory, StuckReadings, sensor_of
+from .tracking import ParameterView
 
 
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
@@ -60,6 +61,8 @@ class ModelView:
     rejected: tuple[str, ...]     # sensors rejected at this sample (they contradict the others)
     left_out: tuple[str, ...]     # sensors left out while they are found faulty (contradicting, stuck, silent)
     faults: Mapping[str, str] = field(default_factory=dict)  # each of those sensors: why
+    parameters: ParameterView | None = None  # the tracked plant parameters (None: none tracked)
+    parameters_due: bool = False  # this sample publishes them (the first of each second of stamps)
 
 
 @dataclass(frozen=True)
@@ -295,20 +298,22 @@ class MonitorPipeline:
             out: list[Solved] = []
             for estimated, start in estimator.run(inputs):
                 stop = start + len(estimated)
-                out += self._estimated(estimated, samples[start:stop], conditions[start:stop])
+                out += self._estimated(estimated, samples[start:stop], conditions[start:stop], estimator.model)
             return out
         lengths = np.array([s.lengths for s in samples]).reshape(-1, 4)
         solutions = self.model.solve_batch(lengths, conditions, self._warm_start())
         return self._solved(solutions, [None] * len(solutions), conditions)
 
     def _estimated(self, estimated: Estimated, samples: Sequence[CompleteSample],
-                   conditions: Sequence[Conditions]) -> list[Solved]:
-        """The solved samples of an estimator's run, with the model's own prediction beside each."""
+                   conditions: Sequence[Conditions], model: PlantModel) -> list[Solved]:
+        """The solved samples of an estimator's run under `model` (the estimator's: the plant file's, with the
+        tracked values in use), with the model's own prediction beside each."""
         estimates = estimated.batch.estimates()
         predictions = estimated.forward.solutions()
-        model_clearances = solution_clearances(self.model.physical, predictions)
-        rows = self._solved([e.solution for e in estimates], estimates, conditions)
-        tilts = tilt_sigmas(self.model.physical, estimated.prior.length_covariance).tolist()
+        model_clearances = solution_clearances(model.physical, predictions)
+        rows = self._solved([e.solution for e in estimates], estimates, conditions, model)
+        tilts = tilt_sigmas(model.physical, estimated.prior.length_covariance).tolist()
+        due = estimated.parameters_due or [False] * len(rows)
         out = []
         for k, row in enumerate(rows):
             faults = {**samples[k].faults, **{sensor: "contradicts the other sensors" for sensor in
@@ -316,16 +321,18 @@ class MonitorPipeline:
             view = ModelView(predictions[k], model_clearances[k], estimated.length_error[k],
                              estimated.length_sigma[k], estimated.pin_error[k], estimated.pin_sigma[k],
                              tilts[k], estimated.rejected[k],
-                             tuple(sorted(set(estimated.left_out) | set(samples[k].faults))), faults)
+                             tuple(sorted(set(estimated.left_out) | set(samples[k].faults))), faults,
+                             estimated.parameters, due[k])
             out.append(row._replace(model=view))
         return out
 
     def _solved(self, solutions: list[Solution], estimates: list[Estimate | None],
-                conditions: Sequence[Conditions]) -> list[Solved]:
+                conditions: Sequence[Conditions], model: PlantModel | None = None) -> list[Solved]:
         """Each solution with its clearance, estimate and what every channel reads there (None where not
-        solved), computed together."""
-        clearances = solution_clearances(self.model.physical, solutions)
-        predicted = self.model.predict_solutions(solutions, conditions)
+        solved), computed together, under `model` (None: the plant file's)."""
+        model = model or self.model
+        clearances = solution_clearances(model.physical, solutions)
+        predicted = model.predict_solutions(solutions, conditions)
         names = list(predicted)
         rows = zip(*(values.tolist() for values in predicted.values()))
         return [Solved(solution, clearance, estimate, dict(zip(names, row)) if solution.ok else None)
