@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2.storage_mcap import McapWriter
@@ -19,7 +20,8 @@ from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.bagio.writer import BagWriter
-from cable_winch_monitor.paths import demo_bag
+from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.paths import default_plant_file, demo_bag
 from cable_winch_monitor.replay import replay
 
 BAG = demo_bag()  # bags/all_channels
@@ -61,16 +63,22 @@ def mcap_messages(bag: Path) -> list[tuple[str, int, bytes]]:
 
 @pytest.fixture(scope="module")
 def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """bags/all_channels replayed by the generic path and by the fast path (as `out`, in two directories)."""
+    """bags/all_channels replayed by the generic path and by the fast path (as `out`, in two directories), the
+    bundled plant tracking its encoders' offsets (so that /model/parameters is written too)."""
     generic, fast = (tmp_path_factory.mktemp(name) / "out" for name in ("generic", "fast"))
+    config = yaml.safe_load(default_plant_file().read_text())
+    config["plant"]["track"] = ["encoder_offset"]
+    plant_file = tmp_path_factory.mktemp("plant") / "tracking.yaml"
+    plant_file.write_text(yaml.safe_dump(config))
+    plant = load_plant(plant_file)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(records, "encoder", generic_encoder)
         patch.setattr(records, "sample_encoder", generic_encoder)
         patch.setattr(records, "scene_encoder", lambda: generic_encoder(records.OUTPUT_TYPES[records.SCENE]))
         patch.setattr(BagWriter, "_append", generic_append)
         patch.setattr(BagWriter, "_close_chunk", generic_close_chunk)
-        replay(BAG, generic, progress=False)
-    replay(BAG, fast, progress=False)
+        replay(BAG, generic, plant, progress=False)
+    replay(BAG, fast, plant, progress=False)
     return generic, fast
 
 
@@ -122,6 +130,11 @@ EDGE_CASES = [
       "linear_acceleration_covariance": [-1.0] * 9}),
     ("sensor_msgs/msg/JointState",
      {"header": header(), "name": ["cable_1", "cable_2"], "position": [1.0, 2.0], "velocity": [], "effort": [3.0]}),
+    ("cable_winch_monitor_msgs/msg/ModelParameters",
+     {"header": header(frame_id="ab"), "names": ["rope_elasticity.EA", "encoder_offset.d_1", ""], "units": ["N", "m"],
+      "values": [6.8e7, -0.05, NAN], "sigmas": [1e5], "in_use": [True, False, True], "values_in_use": [],
+      "file_values": [7.5e7, 0.0, 1.0], "tolerances": [3.4e6, 0.01, 1.0], "excited": [False],
+      "drifting": [True, False], "drifting_since": [NAN, 12.5, -1.0], "updated": NAN}),
 ]
 
 

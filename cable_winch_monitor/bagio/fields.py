@@ -22,6 +22,7 @@ from ..monitor.inputs import JointSample
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from ..monitor.sensors import sensors_used
+from ..monitor.tracking import ParameterView
 
 FRAME = "shaft"
 NAN = float("nan")
@@ -143,6 +144,15 @@ def model_error(stamp: Stamp, output: MonitorOutput) -> Fields:
             "model_clearance": NAN if clearance is None else float(clearance.value),
             "basis": output.basis.text if output.basis is not None else "",
             "sensors_rejected": list(view.rejected), "sensors_left_out": list(view.left_out)}
+
+
+def model_parameters(stamp: Stamp, view: ParameterView) -> Fields:
+    """The tracked plant parameters: estimate, 1-sigma, in use, the value used, drift."""
+    return {"header": header(stamp), "names": list(view.names), "units": list(view.units),
+            "values": view.values.tolist(), "sigmas": view.sigmas.tolist(), "in_use": view.in_use.tolist(),
+            "values_in_use": view.used.tolist(), "file_values": view.files.tolist(),
+            "tolerances": view.tolerances.tolist(), "excited": view.excited.tolist(),
+            "drifting": view.drifting.tolist(), "drifting_since": view.since.tolist(), "updated": float(view.stamp)}
 
 
 def model_residuals(stamp: Stamp, residuals: Residuals) -> Fields:

@@ -26,11 +26,12 @@ from .typestore import knows, typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
 POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
-MODEL_ERROR = "/model/error"
+MODEL_ERROR, PARAMETERS = "/model/error", "/model/parameters"
 TF, TF_STATIC, SCENE, OUTLINE = "/tf", "/tf_static", "/platform/scene", "/platform/outline"
 DIAGNOSTICS = "/diagnostics"
 OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/TensionDistribution",
                 ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals", MODEL_ERROR: f"{MSGS}/ModelError",
+                PARAMETERS: f"{MSGS}/ModelParameters",
                 TF: "tf2_msgs/msg/TFMessage", TF_STATIC: "tf2_msgs/msg/TFMessage",
                 SCENE: "visualization_msgs/msg/MarkerArray", OUTLINE: "visualization_msgs/msg/MarkerArray",
                 DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray"}
@@ -98,14 +99,17 @@ def alarm_record(stamp: fields.Stamp, alarm: Alarm) -> Record:
 def output_records(stamp: fields.Stamp, output: MonitorOutput, solved: list[Record] | None = None,
                    alarmed: Record | None = None) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: pose and /tf (only if solved),
-    tension distribution, collision alarm, the model's error (where the sample was estimated), residuals
-    (if any). `solved` and `alarmed`: the first three
+    tension distribution, collision alarm, the model's error (where the sample was estimated), the tracked
+    plant parameters (at the first sample of each second of stamps), residuals (if any). `solved` and
+    `alarmed`: the first three
     as `solution_records` gave them for the output's solution, the alarm's as `alarm_record` gave it,
     where they were encoded already (replay encodes them ahead)."""
     records = solution_records(stamp, output.solution, output.estimate) if solved is None else list(solved)
     records.append(alarm_record(stamp, output.alarm) if alarmed is None else alarmed)
     if output.model is not None:
         records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))
+        if output.model.parameters_due and output.model.parameters is not None:
+            records.append(_record(PARAMETERS, fields.model_parameters(stamp, output.model.parameters)))
     return records + residual_records(stamp, output.residuals)
 
 

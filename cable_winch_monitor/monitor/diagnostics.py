@@ -5,7 +5,8 @@ because a newer one came first), the inputs (per cable stamp, age and rate; reje
 the collision alarm (with what its clearance is based on), model-versus-measurement
 residuals and the sensor fusion (the sensors the estimate used, those it rejected or left
 out because they contradict the others, those stuck or silent, the model's estimated error
-per rope). Ages and rates are taken against the caller's clock: the node's (under
+per rope); a sixth where the plant file tracks parameters (each one's value, sigma, use,
+whether it is held, and a WARNING naming a parameter that drifted from the plant file). Ages and rates are taken against the caller's clock: the node's (under
 `use_sim_time` the bag's /clock), or replay's log time: a reading stamped further ahead of
 the clock than the stamp window allows is an error like a stale one, the alarm of a sample
 older than the staleness limit is no data (STALE) rather than its last level, and a clock
@@ -26,6 +27,7 @@ from .alarm import AlarmLevel
 from .pipeline import MonitorOutput, MonitorPipeline
 from .residuals import Residuals
 from .sensors import sensors_used
+from .tracking import ParameterView
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3  # diagnostic_msgs/DiagnosticStatus levels
 Fields = dict[str, Any]
@@ -112,6 +114,8 @@ class DiagnosticsReporter:
         winch = winch or winch_view(pipeline, self.rates(now))
         statuses = [self._solver(pipeline, now, node, last, winch), self.inputs(pipeline, now, winch),
                     self._alarm(pipeline, last, now), self._model(), self._status("sensor fusion", *last.fusion)]
+        if last.tracking is not None:
+            statuses.append(self._status("parameter tracking", *last.tracking))
         return {"header": {"stamp": {"sec": stamp[0], "nanosec": stamp[1]}, "frame_id": ""}, "status": statuses}
 
     def _status(self, name: str, level: int, message: str, values: dict[str, object]) -> Fields:
@@ -238,6 +242,7 @@ class SampleView(NamedTuple):
     alarm: tuple[int, str, dict[str, object]]
     fusion: tuple[int, str, dict[str, object]]
     stamp: float | None = None  # [s] the sample's
+    tracking: tuple[int, str, dict[str, object]] | None = None  # the tracked plant parameters (None: none)
 
 
 def sample_view(output: MonitorOutput | None, fusing: bool) -> SampleView:
@@ -259,8 +264,9 @@ def sample_view(output: MonitorOutput | None, fusing: bool) -> SampleView:
         values["based on"] = output.basis.text
     values.update({f"sync error {pair} [m]": f"{error:.4f}"
                    for pair, error in zip(alarm.sync_error_pairs, alarm.sync_errors)})
+    parameters = output.model.parameters if output.model is not None else None
     return SampleView(solver, (ALARM_DIAGNOSTIC[alarm.level], f"{alarm.level.name}: {alarm.reason}", values),
-                      _fusion(output, fusing), output.stamp)
+                      _fusion(output, fusing), output.stamp, None if parameters is None else tracking(parameters))
 
 
 def _fusion(output: MonitorOutput, fusing: bool) -> tuple[int, str, dict[str, object]]:
@@ -287,6 +293,30 @@ def _fusion(output: MonitorOutput, fusing: bool) -> tuple[int, str, dict[str, ob
         message = "left out: " + "; ".join(f"{sensor} ({why})" for sensor, why in sorted(faults.items())) + \
             "; " + message
     return (WARN if faults else OK), message, values
+
+
+def tracking(view: ParameterView) -> tuple[int, str, dict[str, object]]:
+    """The tracked parameters: a WARNING naming each that drifted (value, sigma, since when), else how many are
+    in use and which are held; each one's value, sigma, value in use and state."""
+    values: dict[str, object] = {}
+    drifts, held = [], []
+    for k, name in enumerate(view.names):
+        unit = "" if view.units[k] in ("", "-") else f" {view.units[k]}"
+        state = "in use" if view.in_use[k] else "tracking (sigma above the bound: the file's value in use)"
+        if not view.excited[k]:
+            held.append(name)
+            state += "; held: the motion did not excite it"
+        values[name] = f"{view.values[k]:.6g} +- {view.sigmas[k]:.2g}{unit}"
+        values[f"{name} in use"] = f"{view.used[k]:.6g}{unit} (file {view.files[k]:.6g})"
+        values[f"{name} state"] = state
+        if view.drifting[k]:
+            drifts.append(f"{name} = {view.values[k]:.6g} +- {view.sigmas[k]:.2g}{unit} (file {view.files[k]:.6g}, "
+                          f"tolerance {view.tolerances[k]:.3g}) since {view.since[k]:.1f} s")
+    values["updated at [s]"] = f"{view.stamp:.3f}"
+    if drifts:
+        return WARN, "drift: " + "; ".join(drifts), values
+    message = f"{int(np.sum(view.in_use))} of {len(view.names)} tracked values in use, none drifted"
+    return OK, message + (f"; held: {', '.join(held)}" if held else ""), values
 
 
 class WinchView(NamedTuple):

@@ -30,8 +30,8 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelError, ModelResiduals, TensionDistribution
-from cable_winch_monitor_msgs.srv import CheckCableLengths
+from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelError, ModelParameters, ModelResiduals, TensionDistribution
+from cable_winch_monitor_msgs.srv import CheckCableLengths, WritePlantFile
 
 from .. import channels
 from ..bagio import fields, frames, records
@@ -136,12 +136,14 @@ class WinchMonitorNode(Node):
         self.alarm_pub = publisher(CollisionAlarm, "/platform/collision_alarm", OUTPUT_QOS)
         self.residuals_pub = publisher(ModelResiduals, "/model/residuals", OUTPUT_QOS)
         self.model_error_pub = publisher(ModelError, records.MODEL_ERROR, OUTPUT_QOS)
+        self.parameters_pub = publisher(ModelParameters, records.PARAMETERS, OUTPUT_QOS)
         self.diagnostics_pub = publisher(DiagnosticArray, "/diagnostics", 10)
         self.tf_pub = publisher(TFMessage, "/tf", TF_QOS)
         self.scene_pub = publisher(MarkerArray, "/platform/scene", OUTPUT_QOS)
         self._output_publishers = {records.POSE: self.pose_pub, records.TF: self.tf_pub,
                                    records.TENSION: self.tension_pub, records.ALARM: self.alarm_pub,
-                                   records.RESIDUALS: self.residuals_pub, records.MODEL_ERROR: self.model_error_pub}
+                                   records.RESIDUALS: self.residuals_pub, records.MODEL_ERROR: self.model_error_pub,
+                                   records.PARAMETERS: self.parameters_pub}
         self.scene, self.scene_throttle = SceneBuilder(plant), SceneThrottle(value("scene_rate"))
         self.tf_static_pub = publisher(TFMessage, "/tf_static", LATCHED_QOS)
         self.outline_pub = publisher(MarkerArray, "/platform/outline", LATCHED_QOS)
@@ -163,6 +165,7 @@ class WinchMonitorNode(Node):
             winch.subscription = self.create_subscription(JointState, winch.topic, self._winch_callback(winch),
                                                           SENSOR_QOS)
         self.create_service(CheckCableLengths, "~/check_cable_lengths", self._check_cable_lengths)
+        self.create_service(WritePlantFile, "~/write_plant_file", self._write_plant_file)
         self.create_timer(value("diagnostics_period"), self._guarded("diagnostics", self._publish_diagnostics))
         self._clock_jumps = self.get_clock().create_jump_callback(  # a bag played again (--loop) under sim time
             JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-int(value("staleness") * 1e9)),
@@ -296,6 +299,22 @@ class WinchMonitorNode(Node):
             self.reporter.note_callback_error("~/check_cable_lengths", error)
             self.get_logger().error(f"check_cable_lengths: {type(error).__name__}: {error}")
             return rejected_response(f"internal error: {type(error).__name__}: {error}")
+
+
+    def _write_plant_file(self, request: WritePlantFile.Request,
+                          response: WritePlantFile.Response) -> WritePlantFile.Response:
+        """Write the plant file with the tracked values the model uses now (where the plant file tracks some)."""
+        with self.pipeline.lock:
+            estimator = self.pipeline.estimator
+        tracker = estimator.tracker if estimator is not None else None
+        try:
+            if tracker is None:
+                raise ValueError("the plant file tracks no parameters (plant.track), or its lengths are taken as exact")
+            response.message = tracker.write(estimator.base, request.path, f"the {NODE_NAME} node's tracked values")
+            response.success = True
+        except (OSError, ValueError) as error:
+            response.success, response.message = False, str(error)
+        return response
 
 
 def main(args: Sequence[str] | None = None) -> int:
