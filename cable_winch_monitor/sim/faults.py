@@ -1,15 +1,17 @@
 """Sensor faults a scenario can script: what a broken sensor reports instead of the truth.
 
-Each fault names a sensor -- a load pin (`tension_cable_1` .. `tension_cable_4`), the
-inclinometer (`imu`) or the position gauge (`position`) -- and acts from `start` for
-`duration` seconds (to the end of the run without one):
+Each fault names a sensor -- a load pin (`tension_cable_1` .. `tension_cable_4`), a winch's
+drum encoder (`encoder_cable_1` .. `encoder_cable_4`), the inclinometer (`imu`) or the
+position gauge (`position`) -- and acts from `start` for `duration` seconds (to the end of
+the run without one):
 
 - `stuck`: the sensor keeps reporting the reading it made when the fault began (a frozen
   load pin, a hung driver), to the bit;
 - `offset`: it reports the truth plus a constant (`value` [N] or [m]; for the
-  inclinometer `roll` and `pitch` [rad]), as a pin knocked off its zero or an
-  inclinometer knocked off its mounting;
-- `silent`: it reports nothing (a load pin's effort is NaN, the other sensors send no message).
+  inclinometer `roll` and `pitch` [rad]), as a pin knocked off its zero, an encoder that
+  slipped on its drum, or an inclinometer knocked off its mounting;
+- `silent`: it reports nothing (a load pin's effort or an encoder's position is NaN, the
+  other sensors send no message).
 
 The simulator's truth is unaffected: these are the sensors' lies, for the monitor to find.
 """
@@ -21,8 +23,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..channels import TENSION_CHANNELS
+from ..model.plant import CABLE_NAMES
 
-SENSORS = (*TENSION_CHANNELS, "imu", "position")
+ENCODERS = tuple(f"encoder_{name}" for name in CABLE_NAMES)
+SENSORS = (*TENSION_CHANNELS, *ENCODERS, "imu", "position")
 KINDS = ("stuck", "offset", "silent")
 
 
@@ -49,7 +53,13 @@ class SensorFaults:
 
     def pin(self, cable: int, t: float, value: float) -> float:
         """What load pin `cable` (0-based) reports at time `t` for the reading `value` [N]."""
-        name = TENSION_CHANNELS[cable]
+        return self._reading(TENSION_CHANNELS[cable], t, value)
+
+    def encoder(self, cable: int, t: float, value: float) -> float:
+        """What the encoder of winch `cable` (0-based) reports at time `t` for the reading `value` [m]."""
+        return self._reading(ENCODERS[cable], t, value)
+
+    def _reading(self, name: str, t: float, value: float) -> float:
         for k, fault in enumerate(self.faults):
             if fault.sensor == name and fault.active(t):
                 value = self._faulty(k, fault, value)

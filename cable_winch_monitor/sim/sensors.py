@@ -104,8 +104,9 @@ class Sensors:
         effort = self._noisy(tensions, joints["tension_noise"]) if joints["effort"] else []
         t = self._time(stamp)
         effort = [self.faults.pin(i, t, float(value)) for i, value in zip(cables, effort)]
+        position = self._noisy(lengths[cables], joints["length_noise"])
         return {"header": header(stamp, ""), "name": [CABLE_NAMES[i] for i in cables],
-                "position": self._noisy(lengths[cables], joints["length_noise"]),
+                "position": [self.faults.encoder(i, t, float(value)) for i, value in zip(cables, position)],
                 "velocity": self._noisy(speeds[cables], joints["velocity_noise"]) if joints["velocity"] else [],
                 "effort": effort}
 
