@@ -84,8 +84,9 @@ def basis_of(reason: str) -> str:
     return found.group(1) if found else "none given"
 
 
-def score(out: Path, bag: Path, policy: AlarmPolicy | None = None) -> SafetyScore:
-    """The safety outputs of the output bag `out` against the truth of the simulated recording `bag`."""
+def score(out: Path, bag: Path, policy: AlarmPolicy | None = None, start: float = -np.inf) -> SafetyScore:
+    """The safety outputs of the output bag `out` against the truth of the simulated recording `bag`, over its
+    samples stamped `start` [s] or later."""
     policy = policy or AlarmPolicy()
     truth = _truth(Path(bag))
     alarms, tensions = {}, {}
@@ -94,7 +95,7 @@ def score(out: Path, bag: Path, policy: AlarmPolicy | None = None) -> SafetyScor
     result = SafetyScore()
     for stamp, alarm in sorted(alarms.items()):
         row = truth.get(stamp)
-        if row is None or stamp not in tensions:
+        if row is None or stamp not in tensions or stamp < start * 1e9:
             continue
         result.samples += 1
         result.basis[basis_of(alarm.reason)] += 1
