@@ -78,10 +78,13 @@ def tracked(bag: Path) -> Tracked:
 
 
 def tracking_statuses(bag: Path) -> list[tuple[float, int, str, dict[str, str]]]:
-    """Each /diagnostics message's parameter-tracking status: log time [s], level, message, values."""
+    """Each /diagnostics message's parameter-tracking status: log time [s], level, message, values (every
+    message has one, before the first sample too)."""
     out = []
     for item in BagReader(bag, {DIAGNOSTICS: OUTPUT_TYPES[DIAGNOSTICS]}):
-        status = next(s for s in item.message.status if s.name.endswith("parameter tracking"))
+        found = [s for s in item.message.status if s.name.endswith("parameter tracking")]
+        assert len(found) == 1, f"/diagnostics at {item.log_time * 1e-9:.3f} s: {[s.name for s in item.message.status]}"
+        status = found[0]
         out.append((item.log_time * 1e-9, status.level, status.message, {v.key: v.value for v in status.values}))
     return out
 

@@ -106,9 +106,10 @@ class DiagnosticsReporter:
     def build(self, pipeline: MonitorPipeline, now: float, stamp: tuple[int, int],
               node: Mapping[str, int] | None = None, last: "SampleView | None" = None,
               winch: "WinchView | None" = None) -> Fields:
-        """All five statuses at time `now` [s], stamped `stamp` (sec, nanosec); `node`: the live node's own
-        counters (complete samples, skipped, winch messages, lost before the node, waiting); `last`: what
-        they say of the latest sample (default: the pipeline's own latest output); `winch`: the winches'
+        """All five statuses at time `now` [s], and a sixth where the plant file tracks parameters (from the
+        start, so that a reader finds it in every message), stamped `stamp` (sec, nanosec); `node`: the live
+        node's own counters (complete samples, skipped, winch messages, lost before the node, waiting); `last`:
+        what they say of the latest sample (default: the pipeline's own latest output); `winch`: the winches'
         inputs as they were at `now` (default: the pipeline's now; replay merges them ahead)."""
         last = last if last is not None else sample_view(pipeline.last, pipeline.fusing)
         winch = winch or winch_view(pipeline, self.rates(now))
@@ -116,6 +117,8 @@ class DiagnosticsReporter:
                     self._alarm(pipeline, last, now), self._model(), self._status("sensor fusion", *last.fusion)]
         if last.tracking is not None:
             statuses.append(self._status("parameter tracking", *last.tracking))
+        elif pipeline.estimator is not None and pipeline.estimator.tracker is not None:
+            statuses.append(self._status("parameter tracking", OK, "no estimate yet", {}))
         return {"header": {"stamp": {"sec": stamp[0], "nanosec": stamp[1]}, "frame_id": ""}, "status": statuses}
 
     def _status(self, name: str, level: int, message: str, values: dict[str, object]) -> Fields:
