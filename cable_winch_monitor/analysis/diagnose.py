@@ -177,10 +177,10 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     line on a terminal if `progress`."""
     clock = Budget(budget)
     train_rows, held_rows = split(data)
-    screen = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)))
-    train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)))
+    screen = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)), base)
+    train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)), base)
     held_rows = thin(held_rows, data.kinds, PER_KIND_SCORE)
-    held = Evaluator(data.subset(held_rows))
+    held = Evaluator(data.subset(held_rows), base)
     pool = sorted((n for n in (candidates or available()) if base.get(n) is None and available()[n].fittable()),
                   key=_cost)
     untried = {n: "the bag lacks " + ", ".join(i.key for i in available()[n].inputs if i.key not in data.inputs)
