@@ -34,7 +34,8 @@ MAX_SPANS = 8                                 # spans listed per channel
 
 @dataclass(frozen=True)
 class IllConditioned:
-    """`channel` moves by up to `sigma_per_mm` noise levels per mm along `mode` in the time `spans` [s]."""
+    """`channel` moves by up to `sigma_per_mm` noise levels per mm along `mode` in the time `spans` [s from the
+    start of the recording]."""
 
     channel: str
     mode: str
@@ -83,7 +84,7 @@ def ill_conditioned(model: PlantModel, data: Dataset, noise: np.ndarray) -> list
     change = _changes(model, data, winch, steps) / noise  # sigma per mm
     internal = np.fmax(np.abs(change[:, 0]), np.abs(change[:, 1]))
     worst = np.linalg.norm(change[:, 2:], axis=1) * 2.0  # the worst mode of 1 mm per cable has norm 2 mm
-    times = data.times[winch]
+    times = data.times[winch] - data.times[0]  # from the start of the recording, as every report says
     gap = 3.0 * float(np.median(np.diff(times))) if times.size > 1 else 1.0
     out = []
     for c, name in enumerate(data.channels):
