@@ -9,14 +9,16 @@ import numpy as np
 import pytest
 import yaml
 from effectbags import ELASTIC, SEED002, plant_file, simulate_bag
+from labbags import EA, HIDDEN, LAB_PLANT, lab_bag
 
 from cable_winch_monitor.analysis import report
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
-from cable_winch_monitor.analysis.evaluate import Evaluator
+from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.analysis.motion import MOTIONS, SHIFTING, STANDING, motions
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.effects import PlantModel
+from cable_winch_monitor.effects import PlantModel, effect_class
+from cable_winch_monitor.model.conditions import directions
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
@@ -91,3 +93,18 @@ def test_slow_channel_off_by_many_sigma_is_a_failure_region(tmp_path):
         "below model"
     assert region["end"] - region["start"] > 50.0 and region["start"] < 2.0  # seconds from the start, all along
     assert "failure regions (|error| > 3 sigma): 1" in report.compare_text(result)
+
+
+def test_a_thinned_subset_keeps_the_direction_each_winch_last_moved_in(tmp_path):
+    """Friction holds the slip of the last motion through a stop: the direction is a matter of the whole
+    recording, and a thinned subset (the rows a fit uses) keeps it; found again from the subset's own rows,
+    a short move between them is missed and the friction acts the wrong way."""
+    data = read_bag(lab_bag(tmp_path))
+    rows = thin(split(data)[1], data.kinds, 150)
+    subset = data.subset(rows)
+    np.testing.assert_array_equal(subset.directions, data.directions[rows])
+    assert np.mean(directions(subset.speeds) != data.directions[rows]) > 0.05  # what the subset alone would say
+    model = PlantModel.from_plant(load_plant(LAB_PLANT))
+    truth = model.with_effects([effect_class(name)(values, model.plant) for name, values in HIDDEN.items()]
+                               + [effect_class("rope_elasticity")({"EA": EA}, model.plant)])
+    assert Evaluator(subset, model).score(truth, noise(model.plant, data)[0]) < 1.3  # the truth explains them

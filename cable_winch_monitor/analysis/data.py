@@ -46,14 +46,17 @@ class Dataset:
     channels: tuple[str, ...] = field(default_factory=channels.names)
     sources: tuple[str, ...] = (WINCH,)
     inputs: dict[str, np.ndarray] = field(default_factory=dict)
+    held: np.ndarray | None = None  # (n, 4) directions of motion found over the whole recording (subsets)
 
     def __len__(self) -> int:
         return len(self.times)
 
     @property
     def directions(self) -> np.ndarray:
-        """Direction of motion of each winch at each row, held through stops (model.conditions)."""
-        return directions(self.speeds)
+        """Direction of motion of each winch at each row, held through stops (model.conditions): found over
+        the whole recording, so that a subset's rows keep the direction their winch last moved in (a
+        thinned subset may have no row of a short move)."""
+        return self.held if self.held is not None else directions(self.speeds)
 
     def conditions(self) -> list[Conditions]:
         keys = list(self.inputs)
@@ -64,7 +67,7 @@ class Dataset:
     def subset(self, rows: np.ndarray) -> "Dataset":
         return Dataset(self.bag, self.times[rows], self.kinds[rows], self.lengths[rows], self.speeds[rows],
                        self.accelerations[rows], self.measured[rows], self.channels, self.sources,
-                       {k: v[rows] for k, v in self.inputs.items()})
+                       {k: v[rows] for k, v in self.inputs.items()}, self.directions[rows])
 
 
 def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[Input, ...] = ()) -> Dataset:
