@@ -204,7 +204,7 @@ def _unidentified(fit: FitResult, effects: Sequence[Effect], evaluator: Evaluato
                                or ("cannot be told apart" in w and f"{label} " in w) for w in warnings)]
         if own:
             out.append(f"{effect.name}: not identified ({own[0].split(': ', 1)[-1]})")
-        elif labels and len(undetermined) == len(labels):
+        elif labels and len(undetermined) == len(labels) and not set(labels) <= set(fit.at_bound):
             out.append(f"{effect.name}: not identified (none of its parameters is determined by this bag)")
     return out
 
