@@ -56,7 +56,7 @@ PER_KIND_QUICK_SCORE = 50  # ... and held-out rows to rank them by
 PER_KIND_SCREEN = 50   # training rows per sensor kind to fit the promising candidates on
 PER_KIND_FIT = 150     # training rows per sensor kind to fit the selected effects on
 PER_KIND_SCORE = 150   # held-out rows per sensor kind to judge fits on
-NOISE_FLOOR = 1.05     # held-out score at which nothing is left to explain
+NOISE_FLOOR = 1.1      # held-out score at which nothing is left to explain
 FOUND_SCORE = 1.3      # a final held-out score above this: the added effects explain the error only in part
 MAX_STEPS = 6
 

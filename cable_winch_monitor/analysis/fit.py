@@ -33,6 +33,9 @@ from ..effects import Effect, Parameter, PlantModel
 from .evaluate import Evaluator
 
 MAX_EVALUATIONS = 60
+# converged when a step lowers the chi-square by less than this share: at a good fit, hundredths of a sigma^2,
+# what the estimates' own tolerance moves it by (smaller falls are its noise: steps kept being tried on them)
+FTOL = 1e-5
 UNIDENTIFIED_SPREAD = 0.1  # 1-sigma uncertainty / width of the bounds (a load cell on a slack cable: 0.12)
 UNIDENTIFIED_CORRELATION = 0.98
 AT_BOUND = 0.01     # a value within 1 % of a bound ended on it (bounds span decades: relative to the bound) ...
@@ -138,7 +141,7 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
         return FitResult(base.with_effects(effects), [], np.zeros(0), np.zeros(0), np.zeros((0, 0)), chi2, count, 1)
     try:
         result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
-                               method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
+                               method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=FTOL,
                                max_nfev=max_evaluations)
     except _OutOfTime:
         return _truncated(model_at(best[0][1]), free, start + best[0][1] * scale, best[0][0], best[0][2].size,
