@@ -197,14 +197,14 @@ def _bound_warnings(fit: FitResult) -> list[str]:
 
 def _unidentified(fit: FitResult, effects: Sequence[Effect], evaluator: Evaluator, warnings: list[str]) -> list[str]:
     """Effects the bag does not determine: for the effect's own reason, or none of its free parameters
-    identified (each not identified, at a bound, or indistinguishable from another)."""
+    identified (each with an uncertainty beyond UNIDENTIFIED_SPREAD of its range, or at a bound; parameters
+    correlated with each other are still determined together)."""
     out = []
     for effect in effects:
         own = effect.warnings(evaluator.conditions)
         labels = [f"{name}.{p.name}" for name, p in fit.free if name == effect.name]
         undetermined = [label for label in labels if label in fit.at_bound
-                        or any(w.startswith(f"{label}: not identified")
-                               or ("cannot be told apart" in w and f"{label} " in w) for w in warnings)]
+                        or any(w.startswith(f"{label}: not identified") for w in warnings)]
         if own:
             out.append(f"{effect.name}: not identified ({own[0].split(': ', 1)[-1]})")
         elif labels and len(undetermined) == len(labels) and not set(labels) <= set(fit.at_bound):
