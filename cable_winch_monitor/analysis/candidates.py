@@ -12,12 +12,20 @@ Acceptable: a real gain (Delta BIC below MAX_DELTA_BIC on the training and on th
 held-out rows, the held-out score falling by MIN_GAIN) and a fit that is a finding (no
 value at a bound, none implausible, converged, identified: `FitResult.refusals`). A
 candidate that gains but is refused is reported and passed over; the next one is taken.
-Among the acceptable, those with the fewest parameters whose held-out gain (in chi-square)
-is at least PARSIMONY of the best's are the finalists: four encoder scales mimic the
-elastic stretch of four ropes (T_i l / EA per rope) almost as well as EA does, and an
-over-flexible stand-in taken first blocks the physical effect behind it. Finalists alike in
-size are told apart by their joint fit with the effects added before (diagnose): a centre
-of gravity a few millimetres off tilts the platform almost as an AHRS mounted tilted reads.
+The acceptable candidates best by held-out score, and the one with the fewest parameters
+among those close to the best gain, are the finalists: each is refitted jointly with the
+effects added before (diagnose), since one fitted alone is judged with the others holding
+what they took over from it (an encoder's zero, after its scale took part of it, gains
+less than an inclinometer offset that only looks like it). Of the joint fits, the one with
+the fewest parameters whose held-out gain (in chi-square) is at least PARSIMONY of the
+best's is taken: four encoder scales mimic the elastic stretch of four ropes (T_i l / EA
+per rope) almost as well as EA does, and an over-flexible stand-in taken first blocks the
+physical effect behind it; a centre of gravity a few millimetres off tilts the platform
+almost as an AHRS mounted tilted reads. A lead with many parameters is tried against pairs
+of smaller acceptable candidates with no more parameters together (`rivals`): eight load-pin
+zeros and gains take over the tension share of a winch's zero and of the centre of gravity
+in one step, where each of the two physical effects explains only part; if the pair explains
+as much, its better member is added (the other follows in the next round).
 """
 from __future__ import annotations
 
@@ -37,7 +45,8 @@ MIN_GAIN = 0.02        # relative fall of the held-out score an effect must brin
 QUICK_EVALUATIONS = 3  # a screening fit: the start and two Gauss-Newton steps (one from the last round's values)
 SHORTLIST = 3          # acceptable candidates fitted fully per round before one is picked
 PARSIMONY = 0.9        # a simpler candidate with this share of the best held-out gain is picked instead
-FINALISTS = 2          # candidates alike in size and gain refitted jointly before one is picked
+FINALISTS = 2          # the best acceptable candidates refitted jointly (on the screening's fit rows) before one is picked
+PAIRS = 2              # pairs of smaller candidates refitted jointly against a lead with as many parameters as both
 SCREEN_SHARE = 0.5     # share of the time left a screening round may take (split among its candidates)
 SETTLE_SHARE = 0.3     # share of the time left one full fit may take
 
@@ -92,7 +101,7 @@ class Round:
     def __init__(self, current: PlantModel, rows: tuple[tuple[Evaluator, Evaluator], tuple[Evaluator, Evaluator]],
                  noise: np.ndarray, number: int):
         self.current, self.rows, self.noise, self.number = current, rows, noise, number
-        self.score = rows[1][1].score(current, noise)
+        self.scores = [held.score(current, noise) for _, held in rows]  # the screening's, the fits'
         # the model's own parameters count in every trial alike
         self.chi2 = [[chi_square(current, evaluator, noise) for evaluator in part] for part in rows]
 
@@ -106,9 +115,8 @@ class Round:
         fit = fit_effects(self.current, [effect], train, self.noise, deadline,
                           QUICK_EVALUATIONS - (start is not None) if quick else MAX_EVALUATIONS)
         held_bic = chi_square(fit.model, held, self.noise)[0] - held_chi2 + len(fit.free) * np.log(max(held_count, 1))
-        before = held.score(self.current, self.noise) if quick else self.score
-        return Candidate(name, fit, before, held.score(fit.model, self.noise), fit.bic - train_chi2, float(held_bic),
-                         screened=quick, refused=[] if quick else fit.refusals(name))
+        return Candidate(name, fit, self.scores[part], held.score(fit.model, self.noise), fit.bic - train_chi2,
+                         float(held_bic), screened=quick, refused=[] if quick else fit.refusals(name))
 
 
 def screen(round_: Round, names: list[str], before: list[Candidate], budget: Budget, bar: Progress) -> list[Candidate]:
@@ -153,13 +161,34 @@ def settle(round_: Round, trials: list[Candidate], budget: Budget, bar: Progress
 
 
 def finalists(candidates: list[Candidate]) -> list[Candidate]:
-    """The acceptable candidates to choose among, best first: those with the fewest parameters among those
-    with PARSIMONY of the best gain, at most FINALISTS (empty: nothing acceptable)."""
-    acceptable = [c for c in candidates if c.acceptable]
+    """The acceptable candidates to refit jointly before one is picked: the FINALISTS best by held-out score
+    and, where not among them, the one with the fewest parameters among those with PARSIMONY of the best
+    gain (empty: nothing acceptable)."""
+    acceptable = sorted((c for c in candidates if c.acceptable), key=lambda c: c.score_after)
     if not acceptable:
         return []
-    best = max(c.gain for c in acceptable)
-    close = [c for c in acceptable if c.gain >= PARSIMONY * best]
-    fewest = min(len(c.fit.free) for c in close)
-    return sorted((c for c in close if len(c.fit.free) == fewest), key=lambda c: c.score_after)[:FINALISTS]
+    simplest = min((c for c in acceptable if c.gain >= PARSIMONY * acceptable[0].gain),
+                   key=lambda c: (len(c.fit.free), c.score_after))
+    return acceptable[:FINALISTS] + ([simplest] if simplest not in acceptable[:FINALISTS] else [])
 
+
+def preferred(joints: list[tuple[Candidate, FitResult, float]], score: float) -> list[tuple[Candidate, FitResult, float]]:
+    """Joint fits (candidate, fit, held-out score) in the order to take them from a model at held-out `score`:
+    the fewest parameters among those with PARSIMONY of the best joint gain first, then by score."""
+    if not joints:
+        return []
+    best = max(score ** 2 - after ** 2 for _, _, after in joints)
+    close = [j for j in joints if score ** 2 - j[2] ** 2 >= PARSIMONY * best]
+    return sorted(close, key=lambda j: (len(j[0].fit.free), j[2])) + \
+        sorted((j for j in joints if j not in close), key=lambda j: j[2])
+
+
+def rivals(lead: Candidate, candidates: list[Candidate]) -> list[tuple[Candidate, Candidate]]:
+    """Pairs of acceptable candidates, each with fewer parameters than `lead` and no more together, that
+    might explain as much (best held-out scores first, at most PAIRS), the better of each pair first."""
+    size = len(lead.fit.free)
+    smaller = sorted((c for c in candidates if c.acceptable and c is not lead and len(c.fit.free) < size),
+                     key=lambda c: c.score_after)
+    pairs = [(a, b) for i, a in enumerate(smaller) for b in smaller[i + 1:]
+             if len(a.fit.free) + len(b.fit.free) <= size]
+    return sorted(pairs, key=lambda p: -(p[0].gain + p[1].gain))[:PAIRS]

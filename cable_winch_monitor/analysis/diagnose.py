@@ -10,14 +10,15 @@ highly redundant): candidates are screened and fitted on a small spread, the cho
 refitted jointly on a larger one.
 
 Forward stepwise, a round per effect added (analysis.candidates): every candidate not in
-the model is screened cheaply, the promising ones are fitted to convergence, and the
-acceptable one with the fewest parameters among those close to the best gain is picked;
-a candidate that gains but is refused (a value at a bound, implausible, not converged,
-not identified) is reported and passed over, never the end of the ladder. The picked
-effect is refitted jointly with those added before, from the last optimum, to
-convergence; if the joint fit refuses it (a value at a bound, or no lower training error)
-the next acceptable candidate is tried. Rounds go on while the held-out score is above the
-sensor-noise floor and something is acceptable.
+the model is screened cheaply, the promising ones are fitted to convergence, the best few
+refitted jointly with the effects added before (a lead with many parameters against pairs
+of smaller ones), and of the joint fits the one with the fewest parameters among those
+close to the best gain is taken, refitted jointly on the training rows to convergence. A
+candidate that gains but is refused (a value at a bound, implausible, not converged, not
+identified -- alone or jointly) is reported and passed over, never the end of the ladder.
+Rounds go on while the held-out score is above the sensor-noise floor and something is
+acceptable. Then every added effect but the last is checked to be still needed: one the
+later ones made redundant (a stand-in picked before the effect it stood for) is taken out.
 
 When the final model still misses the data by more than FOUND_SCORE times the sensor
 noise, what was added explains the error only in part (an effect the library lacks may
@@ -44,7 +45,7 @@ from ..model.plant import Plant, load_plant
 from ..progress import Progress
 from .bagfields import BagFields, read_fields
 from .budget import Budget
-from .candidates import Candidate, Round, finalists, screen, settle
+from .candidates import PARSIMONY, SETTLE_SHARE, Candidate, Round, finalists, preferred, rivals, screen, settle
 from .conditioning import IllConditioned, ill_conditioned
 from .data import Dataset, read_bag, require_measurements
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, split, thin
@@ -63,10 +64,16 @@ MAX_STEPS = 6
 
 @dataclass
 class Step:
+    """A rung of the ladder: the effect added (None: the given model) or, `removed`, taken out again."""
+
     added: str | None
     score_train: float
     score_heldout: float
     bic: float
+    removed: bool = False
+
+    def label(self) -> str:
+        return "model" if self.added is None else f"without {self.added}" if self.removed else self.added
 
 
 @dataclass
@@ -101,7 +108,8 @@ class Diagnosis:
 
     @property
     def selected(self) -> list[str]:
-        return [step.added for step in self.ladder if step.added]
+        removed = {step.added for step in self.ladder if step.removed}
+        return [step.added for step in self.ladder if step.added and not step.removed and step.added not in removed]
 
     @property
     def partial(self) -> bool:
@@ -119,44 +127,101 @@ def _cost(name: str) -> int:
     return {"measurement": 0, "rope_law": 1, "load": 1}.get(cls.acts, 2) + refines(cls)
 
 
-def _refit(base: PlantModel, added: list[Effect], chosen: Candidate, train: Evaluator, noise: np.ndarray,
-           chi2: float, clock: Budget) -> FitResult | list[str] | None:
-    """The joint fit of the added effects and the chosen one from the last optimum; why it cannot be taken
-    where it is refused or does not lower the training error; None where the budget stopped it (listed)."""
-    joint = fit_effects(base, [*added, chosen.fit.model.get(chosen.name)], train, noise, clock.part(1.0))
+def _joint(base: PlantModel, effects: list[Effect], rows: Evaluator, noise: np.ndarray, deadline: float | None,
+           clock: Budget, what: str) -> FitResult | list[str] | None:
+    """The joint fit of `effects` on `rows` from their values; why it cannot be taken where an effect is
+    refused; None where the budget stopped it (listed as `what`)."""
+    joint = fit_effects(base, effects, rows, noise, deadline)
     if joint.truncated:
-        names = ", ".join(e.name for e in added)
-        clock.unfinished.append(f"candidate {chosen.name} (its joint fit{' with ' + names if names else ''} stopped "
-                                "at the budget)")
+        clock.unfinished.append(what)
         return None
-    reasons = [r for e in [*added, chosen.fit.model.get(chosen.name)] for r in joint.refusals(e.name)]
-    if joint.chi2 > chi2:
-        reasons.append("the joint fit does not lower the training error")
+    reasons = [r for e in effects for r in joint.refusals(e.name)]
     return [f"fitted jointly with the others: {r}" for r in reasons] if reasons else joint
 
 
-def _choose(base: PlantModel, added: list[Effect], trials: list[Candidate], train: Evaluator, held: Evaluator,
-            noise: np.ndarray, chi2: float, clock: Budget, bar: Progress, refused: list[Refusal],
-            number: int) -> tuple[Candidate | None, FitResult | None]:
-    """The candidate to add and its joint fit with the effects added before: of the finalists
-    (analysis.candidates), the one whose joint fit scores best on the held-out rows; a finalist the joint
-    fit refuses is passed over (and listed in `refused`), the next ones tried. (None, None): nothing."""
-    while picked := finalists(trials):
-        fitted = []
-        for chosen in picked:
-            bar.update(bar.done, f"refitting {', '.join([e.name for e in added] + [chosen.name])}")
-            joint = _refit(base, added, chosen, train, noise, chi2, clock)
-            if joint is None:
-                return None, None  # the budget is spent
-            if isinstance(joint, list):
-                chosen.refused = joint
-                refused.append(Refusal(number, chosen.name, joint))
-            else:
-                fitted.append((held.score(joint.model, noise), chosen, joint))
-        if fitted:
-            _, chosen, joint = min(fitted, key=lambda f: f[0])
-            return chosen, joint
+def _choose(base: PlantModel, added: list[Effect], round_: Round, trials: list[Candidate], train: Evaluator,
+            chi2: float, clock: Budget, bar: Progress, refused: list[Refusal]) -> tuple[Candidate | None,
+                                                                                          FitResult | None]:
+    """The candidate to add and its joint fit with the effects added before on the training rows: each
+    finalist (analysis.candidates) is refitted jointly on the fit rows, a lead with many parameters tried
+    against pairs of smaller ones, the preferred joint fit refitted on the training rows; a finalist whose
+    joint fit is refused, or does not lower the training error, is passed over (listed in `refused`).
+    (None, None): nothing, or the budget stopped it."""
+    fits, held = round_.rows[1]
+    noise, names, score = round_.noise, [e.name for e in added], round_.scores[1]
+
+    def jointly(group: list[Candidate]) -> tuple[FitResult, float] | None:
+        """The joint fit of the added effects and `group` on the fit rows, and its held-out score; None where
+        it cannot be taken (a refused one is listed)."""
+        label = " and ".join(c.name for c in group)
+        bar.update(bar.done, f"refitting {', '.join(names)} with {label}" if names else f"refitting {label}")
+        joint = _joint(base, [*added, *(c.fit.model.get(c.name) for c in group)], fits, noise,
+                       clock.part(SETTLE_SHARE), clock, f"candidate {label} (round {round_.number}: its joint fit "
+                       "stopped at the budget)")
+        if isinstance(joint, list) and len(group) == 1:
+            group[0].refused = joint
+            refused.append(Refusal(round_.number, group[0].name, joint))
+        return (joint, held.score(joint.model, noise)) if isinstance(joint, FitResult) else None
+
+    order = preferred([(c, *fit) for c in finalists(trials) if (fit := jointly([c])) is not None], score)
+    for a, b in rivals(order[0][0], trials) if order else ():
+        pair = jointly([a, b])
+        if pair is not None and score ** 2 - pair[1] ** 2 >= PARSIMONY * (score ** 2 - order[0][2] ** 2):
+            first = next((j for j in order if j[0] is a), None) or ((a, *fit) if (fit := jointly([a])) else None)
+            order = ([first] if first else []) + [j for j in order if j[0] is not a]
+            break
+    for chosen, joint, _ in order:
+        bar.update(bar.done, f"refitting {', '.join(names + [chosen.name])} on the training rows")
+        final = _joint(base, [joint.model.get(n) for n in names + [chosen.name]], train, noise, clock.part(1.0),
+                       clock, f"candidate {chosen.name} (its joint fit with {', '.join(names) or 'nothing'} on the "
+                       "training rows stopped at the budget)")
+        if final is None:
+            return None, None
+        reasons = final if isinstance(final, list) else \
+            ["the joint fit does not lower the training error"] if final.chi2 > chi2 else []
+        if not reasons:
+            return chosen, final
+        chosen.refused = reasons
+        refused.append(Refusal(round_.number, chosen.name, reasons))
     return None, None
+
+
+def _prune(base: PlantModel, final: FitResult, rows: tuple[Evaluator, Evaluator], train: Evaluator,
+           noise: np.ndarray, clock: Budget, bar: Progress, ladder: list[Step]) -> FitResult | None:
+    """Take out every added effect that no longer gains once the later ones are in (a stand-in picked before
+    the effect it stood for): refitted jointly without it on the fit `rows`, the others explain as much
+    -- it would not be added again (analysis.candidates: Delta BIC and held-out score). The joint fit of
+    those left on the training rows, the removals appended to the `ladder`; None where nothing was taken
+    out or the budget did not allow it (listed)."""
+    fits, held = rows
+    model = final.model
+    kept, removed = [e for e in model.effects if base.get(e.name) is None], []
+    for name in [e.name for e in kept][:-1]:  # the last one added was just shown to gain with the others
+        if clock.spent():
+            clock.unfinished.append(f"the check that {name} is still needed")
+            continue
+        bar.update(bar.done, f"checking that {name} is still needed")
+        without = fit_effects(base, [e for e in kept if e.name != name], fits, noise, clock.part(SETTLE_SHARE))
+        if without.truncated:
+            clock.unfinished.append(f"the check that {name} is still needed")
+            continue
+        (chi2, _), (held_chi2, count) = chi_square(model, fits, noise), chi_square(model, held, noise)
+        penalty = len(model.get(name).fitted()) * np.log(max(count, 1))
+        needed = Candidate(name, final, held.score(without.model, noise), held.score(model, noise),
+                           chi2 + penalty - without.chi2, held_chi2 + penalty - chi_square(without.model, held, noise)[0],
+                           screened=False)
+        if not needed.gains:
+            model, removed = without.model, removed + [name]
+            kept = [e for e in model.effects if base.get(e.name) is None]
+    if not removed:
+        return None
+    joint = fit_effects(base, kept, train, noise, clock.part(1.0))
+    if not joint.converged:
+        clock.unfinished.append(f"the joint fit without {', '.join(removed)}")
+        return None
+    ladder += [Step(name, float(np.sqrt(joint.chi2 / max(joint.count, 1))), held.score(joint.model, noise), joint.bic,
+                    removed=True) for name in removed]
+    return joint
 
 
 def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: list[str] | None = None,
@@ -166,13 +231,13 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     `budget` seconds (None: no limit; what did not fit in it is listed in `unfinished`), with a progress
     line on a terminal if `progress`."""
     clock = Budget(budget)
-    train_rows, held_rows = split(data)
+    train_rows, held_out = split(data)
+    held_rows = thin(held_out, data.kinds, PER_KIND_SCORE)
     train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)), base)
-    held = Evaluator(data.subset(thin(held_rows, data.kinds, PER_KIND_SCORE)), base)
+    held = Evaluator(data.subset(held_rows), base)
     rows = ((Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_QUICK)), base),
-             Evaluator(data.subset(thin(held_rows, data.kinds, PER_KIND_QUICK_SCORE)), base)),
+             Evaluator(data.subset(thin(held_out, data.kinds, PER_KIND_QUICK_SCORE)), base)),
             (Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)), base), held))
-    held_rows = thin(held_rows, data.kinds, PER_KIND_SCORE)
     pool = sorted((n for n in (candidates or available()) if base.get(n) is None and available()[n].fittable()),
                   key=_cost)
     untried = {n: "the bag lacks " + ", ".join(i.key for i in available()[n].inputs if i.key not in data.inputs)
@@ -195,7 +260,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
         trials = settle(round_, screen(round_, pool, trials, clock, bar), clock, bar)
         ranking = ranking or trials
         refused += [Refusal(number, c.name, c.refused) for c in trials if not c.screened and c.gains and c.refused]
-        chosen, joint = _choose(base, added, trials, train, held, noise, chi2, clock, bar, refused, number)
+        chosen, joint = _choose(base, added, round_, trials, train, chi2, clock, bar, refused)
         if joint is None:
             break
         final, chi2 = joint, joint.chi2
@@ -205,8 +270,11 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
         bar.total += len(pool)
         ladder.append(Step(chosen.name, float(np.sqrt(final.chi2 / max(final.count, 1))), held.score(current, noise),
                            final.bic))
+    if len(added) > 1:
+        final = _prune(base, final, rows[1], train, noise, clock, bar, ladder) or final
+        current = final.model
     for candidate in ranking:
-        candidate.selected = candidate.name in [step.added for step in ladder]
+        candidate.selected = candidate.name in {e.name for e in current.effects} - {e.name for e in base.effects}
     channels = channel_stats(held.residuals(base), held.data.measured, noise, held.data.channels)
     conditioning: list[IllConditioned] = []
     if clock.spent():

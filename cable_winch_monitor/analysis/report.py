@@ -73,8 +73,8 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
             "found": [name for name in d.selected if d.found(name)], "partial": d.partial,
             "split": {"method": "interleaved blocks in time (30 % held out)", "training_rows": d.train_rows,
                       "held_out_rows": d.heldout_rows},
-            "ladder": [{"added": s.added, "score_train": s.score_train, "score_heldout": s.score_heldout,
-                        "bic": s.bic} for s in d.ladder],
+            "ladder": [{"added": None if s.removed else s.added, "removed": s.added if s.removed else None,
+                        "score_train": s.score_train, "score_heldout": s.score_heldout, "bic": s.bic} for s in d.ladder],
             "refused": [r.to_dict() for r in d.refused],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
             "ill_conditioned": [s.to_dict() for s in d.ill_conditioned], "budget": d.budget,
@@ -100,7 +100,7 @@ def diagnose_text(d: Diagnosis) -> str:
     lines += [f"{name:<24}not tried: {reason}" for name, reason in d.untried.items()]
     lines += [f"refused in round {r.round}: {r.name} ({'; '.join(r.reasons)}): passed over, the ladder went on"
               for r in d.refused]
-    lines.append("ladder: " + " -> ".join(f"{s.added or 'model'} ({s.score_heldout:.3f})" for s in d.ladder))
+    lines.append("ladder: " + " -> ".join(f"{s.label()} ({s.score_heldout:.3f})" for s in d.ladder))
     if d.final is not None:
         for name in d.selected:
             effect = d.final.model.get(name)
