@@ -25,7 +25,8 @@ from .evaluate import thin
 
 LENGTH_STEP = 1.0e-3                         # [m] one millimetre of encoder error
 INTERNAL_MODE = np.array([-1.0, 1.0, -1.0, 1.0])
-ROWS = 120                                    # winch rows examined (the cost is 4 solves each)
+ROWS = 120                                    # winch rows examined (the cost is 6 solves each) ...
+ROWS_SOLVED_ONE_BY_ONE = 40                   # ... where the geometry depends on the pose (pulleys): no batches
 LIMIT = 3.0  # [sigma per mm] beyond this one millimetre of encoder error alone misses by compare's 3 sigma
 
 
@@ -77,7 +78,7 @@ def ill_conditioned(model: PlantModel, data: Dataset, noise: np.ndarray) -> list
     """Spans where a channel's prediction moves more than LIMIT noise levels per millimetre of length:
     along the internal mode (a step each way: a kink where the taut set changes counts), else along
     its worst mode (the gradient from a step on each cable)."""
-    winch = thin(np.flatnonzero(data.kinds == 0), data.kinds, ROWS)
+    winch = thin(np.flatnonzero(data.kinds == 0), data.kinds, ROWS if model.batchable else ROWS_SOLVED_ONE_BY_ONE)
     if winch.size == 0:
         return []
     steps = LENGTH_STEP * np.vstack([INTERNAL_MODE, -INTERNAL_MODE, np.eye(4)])
