@@ -286,7 +286,8 @@ def _dataset(rng: np.random.Generator, sideways: bool = False) -> Dataset:
     speeds, accelerations = derivatives(t, lengths, np.full((ROWS, 4), np.nan))
     temperature = 26.0 + 8.0 * np.sin(2.0 * np.pi * t / 120.0)
     return Dataset("synthetic", t, np.zeros(ROWS, int), lengths, speeds, accelerations,
-                   np.full((ROWS, len(CHANNELS)), np.nan), inputs={"/shaft/temperature.temperature": temperature})
+                   np.full((ROWS, len(CHANNELS)), np.nan), tuple(CHANNELS),
+                   inputs={"/shaft/temperature.temperature": temperature})
 
 
 def test_depth_following_the_temperature_times_the_payout():
