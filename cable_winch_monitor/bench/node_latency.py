@@ -4,14 +4,19 @@ Starts the node in its own process (DDS on loopback, a domain of its own), publi
 platform being lowered at 50 Hz with small synchronisation errors between the winches,
 each message with the load pins' readings (the equilibrium's tensions of the true lengths
 plus 150 N of noise), so that a plant with `noise.length` fuses every sample, and prints
-the latency percentiles and the node process's CPU share. Not a test: run
+the latency percentiles and the node process's CPU share. With `--recording BAG` it plays a
+recording instead (`measure_recording`: every input topic at its log time, /clock beside, the
+node on `use_sim_time`), as a site's node receives its winches, inclinometer and depth gauge.
+Not a test: run
 
     .venv/bin/python -m cable_winch_monitor.bench.node_latency [--samples 2000] [--rate 50]
+    .venv/bin/python -m cable_winch_monitor.bench.node_latency --recording BAG --plant-file FILE
 """
 from __future__ import annotations
 
 import argparse
 import fcntl
+import math
 import os
 import signal
 import subprocess
@@ -22,22 +27,27 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Iterator
 
 import numpy as np
 import rclpy
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from cable_winch_monitor_msgs.msg import TensionDistribution
 
+from ..bagio.fields import JOINT_STATE, input_topics
+from ..bagio.reader import BagReader
 from ..channels import TENSION_CHANNELS
 from ..effects import PlantModel
 from ..model.conditions import ConditionsTracker
 from ..model.plant import CABLE_NAMES, load_plant
+from ..nodes.conversions import message_class
 
 LOWERING_SPEED = 0.2        # [m/s] payout speed of all four winches
 SYNC_AMPLITUDE = 2e-3       # [m] slow drift of each winch against the others
@@ -45,6 +55,7 @@ ENCODER_NOISE = 1e-3        # [m] 1-sigma jitter of each length reading (drum en
 PIN_NOISE = 150.0           # [N] 1-sigma noise of each load pin
 START_LENGTH = 20.0         # [m]
 CONNECT_TIMEOUT = 20.0      # [s]
+SETTLE = 2.0                # [s] of a recording played before the latencies count (the node's first samples)
 
 
 def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None,
@@ -86,12 +97,16 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def start_node(domain_id: int, solver: str, log: Path, plant_file: Path | None = None) -> subprocess.Popen:
-    """`winch_monitor` in its own process (on `plant_file`, else the bundled plant), output to `log`."""
+def start_node(domain_id: int, solver: str, log: Path, plant_file: Path | None = None,
+               sim_time: bool = False) -> subprocess.Popen:
+    """`winch_monitor` in its own process (on `plant_file`, else the bundled plant; on /clock where
+    `sim_time`), output to `log`."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     command = [str(Path(sys.executable).parent / "winch_monitor"), "--ros-args", "-p", f"solver:={solver}"]
     if plant_file is not None:
         command += ["-p", f"plant_file:={plant_file}"]
+    if sim_time:
+        command += ["-p", "use_sim_time:=true"]
     with log.open("w") as output:
         return subprocess.Popen(command, env=env, stdout=output, stderr=subprocess.STDOUT)
 
@@ -105,6 +120,8 @@ class Probe:
         self.node = rclpy.create_node("winch_monitor_latency_probe", context=self.context)
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.publisher = self.node.create_publisher(JointState, "/winch/joint_states", qos)
+        self.clock = self.node.create_publisher(Clock, "/clock", qos)
+        self.raw: dict[str, Any] = {"/winch/joint_states": self.publisher}
         self.received: dict[tuple[int, int], int] = {}
         self.taut: dict[tuple[int, int], tuple[bool, ...]] = {}
         self.subscriptions = [
@@ -124,6 +141,14 @@ class Probe:
     def connected(self) -> bool:
         return self.publisher.get_subscription_count() > 0 and all(
             s.get_publisher_count() > 0 for s in self.subscriptions)
+
+    def publish_raw(self, topic: str, msgtype: str, data: bytes) -> None:
+        """A recorded message's bytes on its topic (its publisher made at the first)."""
+        publisher = self.raw.get(topic)
+        if publisher is None:
+            qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+            publisher = self.raw[topic] = self.node.create_publisher(message_class(msgtype), topic, qos)
+        publisher.publish(data)
 
     def publish(self, readings: np.ndarray) -> tuple[tuple[int, int], int]:
         """One sample (lengths, then load pins) stamped now; its stamp key and the send time [ns, perf_counter]."""
@@ -149,7 +174,7 @@ def warm_up(plant_file: Path | None = None, samples: int = 100, rate: float = 50
 
 
 def connect(probe: Probe, node: subprocess.Popen, warming: np.ndarray) -> None:
-    """Wait for matching, then publish the `warming` readings (`warm_up`) at 50 Hz."""
+    """Wait for matching, then publish the `warming` readings (`warm_up`) at 50 Hz (none: no warm-up)."""
     deadline = time.monotonic() + CONNECT_TIMEOUT
     while not probe.connected():
         if node.poll() is not None or time.monotonic() > deadline:
@@ -159,7 +184,7 @@ def connect(probe: Probe, node: subprocess.Popen, warming: np.ndarray) -> None:
         probe.publish(readings)
         time.sleep(0.02)
     time.sleep(0.2)
-    if not probe.received:
+    if len(warming) and not probe.received:
         raise SystemExit("node_latency: no pose came back during the warm-up")
 
 
@@ -211,6 +236,52 @@ def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
             probe.close()
             node.send_signal(signal.SIGINT)
             node.wait(timeout=10)
+    return _latency(probe, sent, cpu, wall)
+
+
+def measure_recording(bag: Path, domain_id: int, plant_file: Path | None = None, seconds: float = math.inf,
+                      settle: float = SETTLE) -> Latency:
+    """Play the first `seconds` of a recording's inputs to the node (on /clock: its stamps stay the
+    recording's) at their log times, and time each winch message to its pose; the first `settle` seconds
+    (the node's start) are played but not counted."""
+    items = []
+    for item in BagReader(bag, input_topics()):
+        items.append(item)
+        if (item.log_time - items[0].log_time) * 1e-9 > seconds:
+            break
+    first = items[0].log_time
+    with tempfile.TemporaryDirectory() as scratch:
+        node = start_node(domain_id, "energy", Path(scratch) / "node.log", plant_file, sim_time=True)
+        probe = Probe(domain_id)
+        try:
+            for item in items[:1]:  # a publisher on each input topic before the wait for matching
+                probe.publish_raw(item.topic, item.msgtype, item.data)
+            connect(probe, node, np.empty((0, 8)))
+            sent: dict[tuple[int, int], int] = {}
+            started, counted = time.monotonic(), None
+            for item in items:
+                since = (item.log_time - first) * 1e-9
+                time.sleep(max(0.0, started + since - time.monotonic()))
+                if counted is None and since >= settle:
+                    counted, cpu0, wall0 = True, cpu_seconds(node.pid), time.monotonic()
+                sec, nanosec = divmod(item.log_time, 1_000_000_000)
+                probe.clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+                at = time.perf_counter_ns()
+                probe.publish_raw(item.topic, item.msgtype, item.data)
+                if counted and item.msgtype == JOINT_STATE:
+                    stamp = item.message.header.stamp
+                    sent[(stamp.sec, stamp.nanosec)] = at
+            time.sleep(0.5)
+            cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
+        finally:
+            probe.close()
+            node.send_signal(signal.SIGINT)
+            node.wait(timeout=10)
+    return _latency(probe, sent, cpu, wall)
+
+
+def _latency(probe: Probe, sent: dict[tuple[int, int], int], cpu: float, wall: float) -> Latency:
+    """Each sent sample's latency, those where the taut set held and where it changed."""
     latency = {key: (probe.received[key] - at) / 1e6 for key, at in sent.items() if key in probe.received}
     keys = list(sent)
     switched = {b for a, b in zip(keys, keys[1:]) if probe.taut.get(a, ()) != probe.taut.get(b, ())}
@@ -218,12 +289,19 @@ def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
                    np.array([v for k, v in latency.items() if k in switched]), cpu, wall)
 
 
-def run(samples: int, rate: float, domain_id: int, solver: str, plant_file: Path | None = None) -> int:
-    result = measure(samples, rate, domain_id, solver, plant_file)
-    print(f"winch_monitor end-to-end latency ({solver} solver, {plant_file or 'bundled plant'}), {samples} samples "
-          f"at {rate:g} Hz, lowering {LOWERING_SPEED} m/s, sync drift {SYNC_AMPLITUDE * 1e3:g} mm, "
-          f"jitter {ENCODER_NOISE * 1e3:g} mm, load pins {PIN_NOISE:g} N")
-    print(f"  poses received      {result.all.size} of {samples}")
+def run(samples: int, rate: float, domain_id: int, solver: str, plant_file: Path | None = None,
+        recording: Path | None = None) -> int:
+    if recording is not None:
+        result = measure_recording(recording, domain_id, plant_file, samples / rate + SETTLE)
+        print(f"winch_monitor end-to-end latency ({plant_file or 'bundled plant'}), {recording} played for "
+              f"{samples / rate + SETTLE:g} s, the first {SETTLE:g} s not counted")
+        print(f"  poses received      {result.all.size}")
+    else:
+        result = measure(samples, rate, domain_id, solver, plant_file)
+        print(f"winch_monitor end-to-end latency ({solver} solver, {plant_file or 'bundled plant'}), {samples} "
+              f"samples at {rate:g} Hz, lowering {LOWERING_SPEED} m/s, sync drift {SYNC_AMPLITUDE * 1e3:g} mm, "
+              f"jitter {ENCODER_NOISE * 1e3:g} mm, load pins {PIN_NOISE:g} N")
+        print(f"  poses received      {result.all.size} of {samples}")
     print(f"  all samples         {percentiles(result.all)}")
     print(f"  taut set unchanged  {percentiles(result.steady)}")
     print(f"  taut set changed    {percentiles(result.changed)}")
@@ -239,12 +317,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--domain-id", type=int, help="ROS domain (default: one no test run holds)")
     parser.add_argument("--solver", default="energy", choices=("energy", "traversal"))
     parser.add_argument("--plant-file", type=Path, help="plant YAML for the node (default: the bundled plant)")
+    parser.add_argument("--recording", type=Path, help="play this bag's inputs instead of a lowering "
+                        "(--samples / --rate seconds of it, after the node's start)")
     args = parser.parse_args(argv)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     if args.domain_id is not None:
-        return run(args.samples, args.rate, args.domain_id, args.solver, args.plant_file)
+        return run(args.samples, args.rate, args.domain_id, args.solver, args.plant_file, args.recording)
     with leased_domain() as domain:
-        return run(args.samples, args.rate, domain, args.solver, args.plant_file)
+        return run(args.samples, args.rate, domain, args.solver, args.plant_file, args.recording)
 
 
 if __name__ == "__main__":

@@ -6,10 +6,13 @@ baseline of every ratio is seed 002's traversal, one solve per sample, timed in 
 run on the same lowering samples. Figures: the per-sample solve warm-started along the
 lowering (the node's), the batched solver (replay's and the analysis'), replay of a
 10,000-sample bag end to end (each plant replays a recording of its own physics, with
-the sensors at site noise: the fused estimate is what replay publishes), peak memory replaying a large bag (copies of the
+the sensors at site noise: the fused estimate is what replay publishes) and, beside them, site
+recording (a), whose sensors contradict its plant file (elastic ropes replayed with the bundled
+rigid plant), with its safety outputs judged against the simulator's truth, peak memory replaying a large bag (copies of the
 10,000-sample stream with shifted stamps; 1 GiB is the acceptance run, smaller by
 default), fleet replay on 1 and 2 workers, diagnose of a 20-minute bag when a diagnose
-job is given, and the live node's latency at 50 Hz when ROS 2 is available.
+job is given, and the live node's latency at 50 Hz when ROS 2 is available (on each plant's
+lowering, and on recording (a) at 50 Hz with every sensor).
 """
 from __future__ import annotations
 
@@ -32,8 +35,9 @@ from ..model.solve import solve
 from ..bagio.fields import input_topics
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
-from .plants import REALISTIC_EFFECTS, realistic, realistic_plant_file
+from .plants import REALISTIC_EFFECTS, SITE_CASES, plant_file, realistic, realistic_plant_file
 from .replay_throughput import byte_compile_package, replay_child
+from .safety import score
 from .solvers import lowering_samples, timed
 
 Diagnose = Callable[[Path, Plant], Any]  # a 20-minute bag and the plant -> anything; timed
@@ -41,6 +45,7 @@ Row = tuple[str, str, str, str]          # figure, value, detail, ratio to the b
 REPLAY_RUNS = 3
 NODE_SAMPLES = 1500                      # 30 s at 50 Hz per plant
 NODE_RATE = 50.0
+NODE_SECONDS = 30.0                      # [s] of the site recording whose latencies count (after the node's start)
 
 
 def write_copies(source: Path, out: Path, megabytes: float) -> int:
@@ -113,18 +118,25 @@ def model_rows(plant: Plant, label: str, count: int, traversal_ms: float) -> lis
     ]
 
 
-def replay_rows(bag: Path, directory: Path, label: str, plant_file: Path | None, large_mb: float,
-                traversal_ms: float) -> list[Row]:
-    """Replay of `bag` end to end (best of three, the median beside it; the time with the process's
-    start-up as the target counts it) and peak memory on a large bag, on one plant."""
+def replay_speed(bag: Path, directory: Path, label: str, plant_file: Path | None, traversal_ms: float,
+                 name: str) -> tuple[Row, list[tuple[int, float, float, float, float]]]:
+    """Replay of `bag` end to end, REPLAY_RUNS times into directory/<label>_out<k>: its row (the best, the
+    median beside it; the time with the process's start-up as the target counts it) and the runs."""
     runs = sorted((replay_child(bag, directory / f"{label}_out{k}", plant_file) for k in range(REPLAY_RUNS)),
                   key=lambda run: run[1])  # by the wall time with start-up
-    samples, process_wall, rss, replay_wall, cpu = runs[0]
+    samples, process_wall, _, replay_wall, cpu = runs[0]
     median = runs[len(runs) // 2][1]
-    rows = [(f"replay 10,000-sample bag [{label}]", f"{samples / process_wall:,.0f} samples/s",
-             f"best of {REPLAY_RUNS}: {process_wall:.2f} s with start-up ({replay_wall:.2f} s replaying, {cpu:.2f} s "
-             f"CPU in two processes); median {samples / median:,.0f}/s",
-             f"{traversal_ms * samples / process_wall / 1e3:.0f}x  (>= 5,000/s)")]
+    return (f"{name} [{label}]", f"{samples / process_wall:,.0f} samples/s",
+            f"best of {REPLAY_RUNS}: {process_wall:.2f} s with start-up ({replay_wall:.2f} s replaying, {cpu:.2f} s "
+            f"CPU in two processes); median {samples / median:,.0f}/s",
+            f"{traversal_ms * samples / process_wall / 1e3:.0f}x  (>= 5,000/s)"), runs
+
+
+def replay_rows(bag: Path, directory: Path, label: str, plant_file: Path | None, large_mb: float,
+                traversal_ms: float) -> list[Row]:
+    """Replay of `bag` end to end and peak memory on a large bag, on one plant."""
+    row, runs = replay_speed(bag, directory, label, plant_file, traversal_ms, "replay 10,000-sample bag")
+    rows = [row]
     large = directory / "large"
     started = time.perf_counter()
     copies = write_copies(bag, large, large_mb)
@@ -138,6 +150,30 @@ def replay_rows(bag: Path, directory: Path, label: str, plant_file: Path | None,
     shutil.rmtree(large)
     shutil.rmtree(directory / f"{label}_large_out")
     return rows
+
+
+def site_recordings(directory: Path) -> tuple[Path, Path, Path]:
+    """Site recording (a) -- elastic ropes (EA 6.8e7 N, 58 N/m) at site noise, lag events that take a deck
+    within the CRITICAL margin -- its plant file (the bundled rigid one: its model contradicts the sensors),
+    and its first NODE_SECONDS with the winches at NODE_RATE, for the node."""
+    case = SITE_CASES[0]
+    bag, fast = directory / "site_a", directory / "site_a_fast"
+    simulate(load_scenario(scenario_path(case.scenario)), bag)
+    simulate(load_scenario(scenario_path(case.scenario), [f"duration={NODE_SECONDS + 5.0}",
+                                                          f"sensors.joint_states.rate={NODE_RATE}"]), fast)
+    return bag, fast, plant_file(directory / "site_a.yaml", case.effects)
+
+
+def site_rows(bag: Path, plant: Path, directory: Path, traversal_ms: float) -> list[Row]:
+    """Recording (a) replayed end to end as the agreeing ones are, and its safety outputs against the
+    simulator's truth (not the model's own answer)."""
+    row, runs = replay_speed(bag, directory, "site (a)", plant, traversal_ms, "replay site recording, rigid plant file")
+    result = score(directory / "site (a)_out0", bag)
+    return [row, ("  safety outputs against the truth [site (a)]",
+                  f"clearance p99 {1e3 * result.clearance_p99:.1f} mm",
+                  f"CRITICAL raised on {100 * result.recall:.1f} % of {result.critical} samples within the margin, "
+                  f"{100 * result.false_share:.2f} % false; slack flags right {100 * result.slack_right:.2f} %",
+                  "(<= 10 mm, >= 99 %, <= 1 %, >= 99 %)")]
 
 
 def diagnose_rows(bag: Path, diagnose: Diagnose | None, plants: dict[str, Plant], traversal_ms: float) -> list[Row]:
@@ -154,23 +190,31 @@ def diagnose_rows(bag: Path, diagnose: Diagnose | None, plants: dict[str, Plant]
     return rows
 
 
-def node_rows(files: dict[str, Path | None], traversal_ms: float) -> list[Row]:
-    """The live node's publish-to-pose latency at 50 Hz on each plant (needs ROS 2: rclpy)."""
+def node_rows(files: dict[str, Path | None], traversal_ms: float,
+              recording: tuple[Path, Path] | None = None) -> list[Row]:
+    """The live node's publish-to-pose latency at 50 Hz on each plant, and on the site `recording` (its bag
+    and plant file) played with every sensor (needs ROS 2: rclpy)."""
     try:
-        from .node_latency import leased_domain, measure
+        from .node_latency import SETTLE, leased_domain, measure, measure_recording
     except ImportError as error:
         return [("node latency at 50 Hz", "not available", f"ROS 2 not importable: {error}", "")]
+    jobs = [(label, lambda domain, plant_file=plant_file: measure(NODE_SAMPLES, NODE_RATE, domain,
+                                                                  plant_file=plant_file))
+            for label, plant_file in files.items()]
+    if recording is not None:
+        jobs.append(("site (a), every sensor", lambda domain: measure_recording(recording[0], domain, recording[1],
+                                                                                NODE_SECONDS + SETTLE)))
     rows = []
-    for label, plant_file in files.items():
+    for label, job in jobs:
         try:
             with leased_domain() as domain:
-                latency = measure(NODE_SAMPLES, NODE_RATE, domain, plant_file=plant_file)
+                latency = job(domain)
         except SystemExit as error:  # the node did not come up: the other figures still count
             rows.append((f"node latency at {NODE_RATE:g} Hz [{label}]", "not measured", str(error), ""))
             continue
         p50, p99 = np.percentile(latency.all, [50, 99])
         rows.append((f"node latency at {NODE_RATE:g} Hz [{label}]", f"p99 {p99:.2f} ms",
-                     f"p50 {p50:.2f} ms, {latency.all.size} of {NODE_SAMPLES} poses, node CPU "
+                     f"p50 {p50:.2f} ms, {latency.all.size} poses, node CPU "
                      f"{100.0 * latency.cpu / latency.wall:.0f} % of a core", f"{p99 / traversal_ms:.2f}x a traversal "
                      "solve  (p99 < 10 ms)"))
     return rows
@@ -219,8 +263,10 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
         byte_compile_package()
         for label, plant in plants.items():
             rows += _progress(replay_rows(bags[label], directory, label, files[label], large_mb, traversal_ms))
+        site, site_fast, site_plant = site_recordings(directory)
+        rows += _progress(site_rows(site, site_plant, directory, traversal_ms))
         if node:
-            rows += _progress(node_rows(files, traversal_ms))
+            rows += _progress(node_rows(files, traversal_ms, (site_fast, site_plant)))
         twenty = directory / "twenty_minutes"
         simulate(load_scenario(scenario_path("benchmark"), ["duration=1200.0"]), twenty)
         rows += _progress(diagnose_rows(twenty, diagnose, plants, traversal_ms))
