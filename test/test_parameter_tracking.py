@@ -45,10 +45,12 @@ NODE_SETTLE = 40.0  # [s] of stamps (four update windows) from which the node tr
 
 
 def slip(length: str) -> str:
+    """The scenario override that makes winch 1's encoder slip SLIP on its drum at SLIP_AT."""
     return f"sensors.faults=[{{sensor: encoder_cable_1, kind: offset, value: {SLIP}, start: {SLIP_AT[length]}}}]"
 
 
 def stuck(length: str) -> str:
+    """The scenario override that sticks load pin 2 at its reading from STUCK_AT on."""
     return f"sensors.faults=[{{sensor: tension_cable_2, kind: stuck, start: {STUCK_AT[length]}}}]"
 
 
@@ -61,6 +63,7 @@ class Case(NamedTuple):
 
 
 def recordings(directory: Path, length: str) -> dict[str, Path]:
+    """The simulator's site_tracking recordings, eight minutes or the hour: correct, slipping, stuck."""
     duration = [] if length == "hour" else [f"duration={SHORT}"]
     return {"elastic": simulated(directory / "elastic", "site_tracking", *duration),
             "slip": simulated(directory / "slip", "site_tracking", *duration, slip(length)),
