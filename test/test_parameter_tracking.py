@@ -184,10 +184,11 @@ def check_correct_file_kept(case: Case) -> None:
     not excite is held, and /diagnostics says so."""
     result = case.result
     z = (result.values - TRUTH) / result.sigmas
+    largest, within = np.abs(z).max(axis=0), (np.abs(z) <= 2.0).mean(axis=0)
     print(f"(d) last: {parameter_lines(result, -1)}; largest |value - file| / sigma over the run: "
-          + ", ".join(f"{name} {value:.1f}" for name, value in zip(NAMES, np.abs(z).max(axis=0)))
+          + ", ".join(f"{name} {value:.1f}" for name, value in zip(NAMES, largest, strict=True))
           + "; share of messages within 2 sigma: "
-          + ", ".join(f"{name} {share:.3f}" for name, share in zip(NAMES, (np.abs(z) <= 2.0).mean(axis=0))))
+          + ", ".join(f"{name} {share:.3f}" for name, share in zip(NAMES, within, strict=True)))
     assert not result.drifting.any()
     statuses = tracking_statuses(case.out)
     assert all(level == 0 for _, level, _, _ in statuses)
