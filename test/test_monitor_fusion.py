@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.special import chdtri
 
-from cable_winch_monitor import ahead, channels
+from cable_winch_monitor import ahead, channels, forked
 from cable_winch_monitor.ahead import Published
 from cable_winch_monitor.bagio import fields
 from cable_winch_monitor.lookahead import LookaheadPipeline
@@ -114,7 +114,7 @@ def test_a_second_process_publishing_ahead_gives_the_same_outputs(plant, lowerin
     """Replay's second process estimates, judges and encodes each window while the next ones are merged:
     every record is the one-process replay's, to the bit, and the files it handed its results over in
     are gone when it stops."""
-    monkeypatch.setattr(ahead, "SPOOL", str(tmp_path))
+    monkeypatch.setattr(forked, "SPOOL", str(tmp_path))
     truths, _ = lowering
     items = sensed(truths[:160], seed=7, pin_fault=(1, 50, 5e3))
     one = [r for _, r in LookaheadPipeline(noisy(plant), window=64).run(items)]
@@ -133,7 +133,7 @@ def test_a_second_process_that_is_lost_leaves_the_rest_to_the_replay(plant, lowe
     the same records."""
     items = sensed(lowering[0][:200], seed=11)
     one = [r for _, r in LookaheadPipeline(noisy(plant), window=64).run(items)]
-    spooled = ahead.AheadPublisher.__init__
+    spooled = forked.ForkedWorker.__init__
 
     def unwritable(self, *args):
         spooled(self, *args)
@@ -142,16 +142,15 @@ def test_a_second_process_that_is_lost_leaves_the_rest_to_the_replay(plant, lowe
         open(self.spool, "w").close()
 
     with monkeypatch.context() as patch:
-        patch.setattr(ahead.AheadPublisher, "__init__", unwritable)
+        patch.setattr(forked.ForkedWorker, "__init__", unwritable)
         two = [r for _, r in LookaheadPipeline(noisy(plant), window=64, second_process=True).run(items)]
     taken = ahead.AheadPublisher.take
     killed = []
 
     def kill_after_two(self):
-        if len(killed) == 2 and self.pool is not None:
-            for process in self.pool._processes.values():
-                process.kill()
-            process.join()
+        if len(killed) == 2 and self.worker is not None:
+            self.worker.process.kill()
+            self.worker.process.join()
         killed.append(True)
         return taken(self)
 
