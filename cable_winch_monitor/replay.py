@@ -14,7 +14,7 @@ from __future__ import annotations
 import gc
 import time
 from collections import Counter
-from contextlib import contextmanager
+from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
@@ -24,7 +24,7 @@ from .bagio.clock import clock_offset
 from .bagio.reader import BagMessage, BagReader, ReadReport
 from .bagio.scene import REPLAY_RATE
 from .bagio.topics import require_inputs
-from .bagio.writer import BagWriter
+from .bagio.writer import new_bag
 from .ahead import Published
 from .effects import PlantModel
 from .lookahead import LookaheadPipeline
@@ -35,7 +35,7 @@ from .monitor.inputs import StampWindow
 from .monitor.pipeline import MonitorStats
 from .monitor.residuals import Residuals
 from .progress import Progress
-
+from .stopping import Stopped, stop_signals
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,7 @@ class ReplaySummary:
     written: Counter[str] = field(default_factory=Counter)
     errors: Counter[str] = field(default_factory=Counter)  # pipeline exceptions (as the node's callback errors)
     wall: float = 0.0
-    interrupted: bool = False  # stopped by Ctrl-C: the output bag holds what was replayed until then
+    stopped: str = ""  # the signal that stopped it (SIGINT: Ctrl-C): the output bag holds what was replayed until then
     unsolved: dict[str, str] = field(default_factory=dict)  # tension state without a pose -> why, its first sample
 
     @property
@@ -72,7 +72,7 @@ class ReplaySummary:
 
     @property
     def complete(self) -> bool:
-        return self.report.complete and not self.interrupted
+        return self.report.complete and not self.stopped
 
     def topics(self) -> list[TopicCount]:
         rejected: Counter[str] = Counter()
@@ -112,8 +112,8 @@ class ReplaySummary:
         if not report.complete:
             lines.append("PARTIAL REPLAY: parts of the bag could not be read and were skipped:")
             lines += [f"  {damage}" for damage in report.damage]
-        if self.interrupted:
-            lines.append(f"INTERRUPTED: replay stopped after {sum(report.read.values())} messages; "
+        if self.stopped:
+            lines.append(f"INTERRUPTED by {self.stopped}: replay stopped after {sum(report.read.values())} messages; "
                          f"{self.out} holds what was replayed until then")
         return "\n".join(lines)
 
@@ -157,7 +157,9 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     two cores (a fleet of bags keeps each replay to one).
 
     Raises BagError (nothing written) when `bag` holds no bag, lacks a topic the plant's effects read, or
-    `out` exists; damage met while reading is in the summary (`complete` False), never raised.
+    `out` exists; damage met while reading is in the summary (`complete` False), never raised. An error
+    during the replay leaves no output bag. SIGINT, SIGTERM or SIGHUP stop it (stopping.py): the output
+    bag is closed with what was replayed until then, which the summary counts (`stopped`).
     """
     started = time.perf_counter()
     plant = plant or load_plant()
@@ -170,9 +172,10 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     reader.report.notes += [clock_note] if clock_note else []
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
-    with BagWriter(out) as writer, _fewer_collections():
+    with stop_signals(), new_bag(out) as writer, _fewer_collections(), \
+            closing(pipeline.run_diagnosed(reader)) as taken:
         try:
-            for count, (item, result, diagnostics) in enumerate(pipeline.run_diagnosed(reader), 1):
+            for count, (item, result, diagnostics) in enumerate(taken, 1):
                 if count == 1:
                     first = divmod(item.log_time, 1_000_000_000)
                     for topic, msgtype, data in records.static_records(first, pipeline.publisher.builder):
@@ -194,8 +197,9 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 for topic, msgtype, data in diagnostics:
                     writer.write_raw(topic, msgtype, item.log_time, data)
                 bar.update(count)
-        except KeyboardInterrupt:
-            summary.interrupted = True
+        except KeyboardInterrupt as stop:
+            summary.stopped = stop.signal if isinstance(stop, Stopped) else "SIGINT"
+            reader.report.read -= pipeline.not_taken
         finally:
             bar.finish()
             summary.written = Counter({t: n for t, n in writer.counts.items() if t not in inputs})
