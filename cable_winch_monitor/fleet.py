@@ -52,7 +52,8 @@ def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, stalenes
     stats = summary.stats
     return {"bag": bag.name, "samples": summary.samples, "solved": stats.solved, "failures": stats.failures,
             **{level.name: stats.levels[level.name] for level in AlarmLevel},
-            "written": sum(summary.written.values()), "complete": summary.complete, "wall [s]": summary.wall}
+            "written": sum(summary.written.values()), "complete": summary.complete, "wall [s]": summary.wall,
+            **({"error": summary.refused} if summary.refused else {})}
 
 
 def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: float = 0.5,

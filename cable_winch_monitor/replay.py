@@ -37,6 +37,8 @@ from .monitor.residuals import Residuals
 from .progress import Progress
 from .stopping import Stopped, stop_signals
 
+INVALID = "invalid input"  # the tension state of a sample whose input could not be used
+
 
 @dataclass(frozen=True)
 class TopicCount:
@@ -73,6 +75,15 @@ class ReplaySummary:
     @property
     def complete(self) -> bool:
         return self.report.complete and not self.stopped
+
+    @property
+    def refused(self) -> str:
+        """Where every sample was invalid input (the job could not be done), why, in one line; else ''."""
+        invalid = self.stats.states[INVALID]
+        if not invalid or invalid < self.samples:
+            return ""
+        why = " ".join(self.unsolved.get(INVALID, INVALID).split())
+        return f"no sample of {self.bag} could be solved: all {invalid} are {why}"
 
     def topics(self) -> list[TopicCount]:
         rejected: Counter[str] = Counter()

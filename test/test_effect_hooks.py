@@ -1,8 +1,10 @@
 """A user's effect whose hook raises, or gives a wrench or a prediction that is not finite: the sample is
 refused with its reason (solve, replay: the first reason in the summary; compare: the rows not solved), or
-the command stops with one line naming the effect and the hook; never a traceback."""
+the command stops with one line naming the effect and the hook; never a traceback. Where every sample is
+refused, replay and compare fail with that reason in one line."""
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -81,9 +83,11 @@ def test_a_failing_hook_refuses_each_sample_with_its_reason(plants, tmp_path, ef
     assert_clean(solved, 1)
     assert "invalid input" in solved.stdout and REASONS[effect] in solved.stdout
     replayed = run_cli("replay", demo_bag(), "--out", tmp_path / "out", "--config", plants[effect], "--quiet")
-    assert_clean(replayed, 0)
+    assert_clean(replayed, 2)  # the job could not be done: every sample refused
     assert "tension states: invalid input 2049" in replayed.stdout
     assert f"  invalid input: {REASONS[effect]}" in replayed.stdout and "(first of 2049 samples)" in replayed.stdout
+    assert replayed.stderr.count("\n") == 1 and replayed.stderr.startswith(
+        f"error: no sample of {demo_bag()} could be solved: all 2049 are invalid input: {REASONS[effect]}")
     compared = run_cli("compare", demo_bag(), "--config", plants[effect])
     assert_clean(compared, 2)
     assert "the model could not solve any row (2663 of 2663 rows: invalid input: " + REASONS[effect] in compared.stderr
@@ -104,3 +108,13 @@ def test_a_prediction_that_is_not_a_number_stops_the_command_with_one_line(plant
         result = run_cli(*args, "--config", plants["nan_measure"])
         assert_clean(result, 2)
         assert result.stderr.count("\n") == 1 and PREDICTION in result.stderr, result.stderr
+    assert not (tmp_path / "out").exists(), "a replay stopped by an error leaves no bag"
+
+
+def test_a_fleet_replay_names_a_bag_whose_every_sample_is_refused(plants, tmp_path):
+    bags = tmp_path / "bags"
+    shutil.copytree(demo_bag(), bags / "shaft_a")
+    result = run_cli("replay", bags, "--out", tmp_path / "out", "--config", plants["raising_load"])
+    assert_clean(result, 1)
+    assert f"  error shaft_a: no sample of {bags / 'shaft_a'} could be solved: all 2049 are invalid input: " \
+        f"{REASONS['raising_load']}" in result.stdout
