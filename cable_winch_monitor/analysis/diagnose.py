@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import Effect, PlantModel, available
+from ..effects import PlantModel, available
 from ..effects.model import refines
 from ..model.plant import Plant, load_plant
 from ..progress import Progress
