@@ -161,10 +161,11 @@ class DiagnosticsReporter:
                 stale.append(f"{name} ({age:.3f} s old)")
             elif age < -ahead:
                 early.append(f"{name} ({-age:.3f} s after the clock)")
-        messages = {**{t: n for t, n in stats.messages.items() if t not in winch.messages}, **winch.messages}
-        used = {**{t: n for t, n in stats.used.items() if t not in winch.messages}, **winch.used}
-        rejected = {**{key: n for key, n in stats.rejected.items() if key.split(": ", 1)[0] not in winch.messages},
-                    **winch.rejected}
+        # the winch topics only as `winch` saw them: one replay merges later is not counted yet
+        messages = {**{t: n for t, n in stats.messages.items() if t not in stats.winch_topics}, **winch.messages}
+        used = {**{t: n for t, n in stats.used.items() if t not in stats.winch_topics}, **winch.used}
+        rejected = {**{key: n for key, n in stats.rejected.items()
+                       if key.split(": ", 1)[0] not in stats.winch_topics}, **winch.rejected}
         for topic, count in sorted(messages.items()):
             values[f"{topic} messages"] = count
             values[f"{topic} used"] = used.get(topic, 0)
