@@ -107,6 +107,7 @@ class AheadPublisher:
             self.worker = None  # no spool folder or no process to be had: published here
         self.pending: list[tuple[bool, tuple[Any, ...]]] = []  # (handed to the worker, job) in order
         self.state: bytes | None = None  # the worker's state after the last window taken from it
+        self.lost = ""  # why the worker was given up, where it was
 
     @staticmethod
     def available() -> bool:
@@ -119,8 +120,8 @@ class AheadPublisher:
         if self.worker is not None:
             try:
                 self.worker.submit(job)
-            except WorkerLost:
-                self._lost()
+            except WorkerLost as lost:
+                self._lost(str(lost))
         self.pending.append((self.worker is not None, job))
 
     def take(self) -> list[Published]:
@@ -131,19 +132,21 @@ class AheadPublisher:
             try:
                 result, self.state = self.worker.result()
                 return result
-            except WorkerLost:
-                self._lost()
+            except WorkerLost as lost:
+                self._lost(str(lost))
         if self.state is not None:
             self.local.restore(self.state)
             self.state = None
         return self.local.publish(*job)
 
-    def _lost(self) -> None:
+    def _lost(self, why: str) -> None:
         """The worker is gone (or could not hand a window over): it is ended, the rest published here."""
+        self.lost = why
         self.close()
         self.pending = [(False, job) for _, job in self.pending]
 
     def close(self) -> None:
+        """End the worker, if there is one (killed where it still has work)."""
         if self.worker is not None:
             self.worker.close()
             self.worker = None

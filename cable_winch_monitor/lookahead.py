@@ -98,6 +98,7 @@ class LookaheadPipeline(MonitorPipeline):
         self.diagnostics_due = -math.inf  # [s] of log time: the next /diagnostics
         self._merging: list[Counter[str]] | None = None  # the stats COUNTED before the window being merged
         self.not_taken: Counter[str] = Counter()  # after a stop: messages read but not taken, by topic
+        self.worker_lost = ""  # why the second process was given up (the rest published here), where it was
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
         """Every item in order, with what became of it: a winch message that made a complete sample with its
@@ -137,6 +138,7 @@ class LookaheadPipeline(MonitorPipeline):
         finally:
             if ahead is not None:
                 ahead.close()
+                self.worker_lost = ahead.lost
 
     def _take_back(self, prepared: Iterable[Prepared], unmerged: list[Any]) -> None:
         """After a stop: what merging counted of the messages not taken (never written) taken back from the

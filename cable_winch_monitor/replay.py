@@ -213,6 +213,9 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
             reader.report.read -= pipeline.not_taken
         finally:
             bar.finish()
+            if pipeline.worker_lost:
+                reader.report.notes.append(f"second process given up ({pipeline.worker_lost}): the rest was "
+                                           "replayed in this process")
             summary.written = Counter({t: n for t, n in writer.counts.items() if t not in inputs})
     summary.wall = time.perf_counter() - started
     return summary
