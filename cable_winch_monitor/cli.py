@@ -305,7 +305,7 @@ def _add_analysis(sub: argparse._SubParsersAction) -> None:
             p.add_argument("--candidates", help="comma-separated effects to consider (default: every known one)")
             p.add_argument("--budget", type=_budget, default=DIAGNOSE_BUDGET, metavar="SECONDS",
                            help=f"wall time to spend (default {DIAGNOSE_BUDGET:g} s; 0: no limit), per bag in a fleet; "
-                           "what did not fit in it is reported as skipped")
+                           "what did not fit in it is listed as unfinished")
             p.add_argument("--out", metavar="FOLDER", help="fleet diagnose (bag is a folder of bags): a new folder "
                            "for one JSON result per bag; --json then writes the summary table")
             _add_fleet_options(p, "diagnose")

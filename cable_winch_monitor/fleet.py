@@ -78,7 +78,9 @@ def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[st
     report = out.with_name(out.name + ".json")
     report.write_text(json.dumps(diagnose_json(result, str(bag), len(data)), indent=2, default=float))
     return {"bag": bag.name, "rows": len(data), "score": result.ladder[0].score_heldout,
-            "score after": result.ladder[-1].score_heldout, "found": ", ".join(result.selected) or "-",
+            "score after": result.ladder[-1].score_heldout,
+            "found": ", ".join(n for n in result.selected if result.found(n)) or "-",
+            "partly explain": ", ".join(result.selected) if result.partial else "-",
             "report": report.name, "wall [s]": time.perf_counter() - started}
 
 

@@ -28,7 +28,7 @@ from .bagio.writer import new_bag
 from .ahead import Published
 from .effects import PlantModel
 from .lookahead import LookaheadPipeline
-from .model.plant import Plant, load_plant
+from .model.plant import CABLE_NAMES, Plant, load_plant
 from .model.result import SolveStatus
 from .monitor.alarm import AlarmLevel
 from .monitor.inputs import StampWindow
@@ -116,6 +116,12 @@ class ReplaySummary:
         lines += [f"  {why} (first of {stats.states[state]} samples)" for state, why in self.unsolved.items()
                   if why != state]
         lines.append("alarm levels: " + ", ".join(f"{level.name} {stats.levels[level.name]}" for level in AlarmLevel))
+        lines += [f"  based on: {basis}: {n}" for basis, n in stats.bases.most_common()]
+        if stats.last_error is not None:
+            lengths, pins = stats.last_error
+            lines.append("model error at the last sample (model minus reported length; load pin minus model): "
+                         + ", ".join(f"{name} {length:+.3f} m, {pin:+.0f} N"
+                                     for name, length, pin in zip(CABLE_NAMES, lengths, pins)))
         lines.append(f"written: {sum(self.written.values())} messages to {self.out} ("
                      + ", ".join(f"{t} {n}" for t, n in sorted(self.written.items())) + ")")
         rate = self.samples / self.wall if self.wall > 0 else float("nan")

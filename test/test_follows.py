@@ -14,13 +14,14 @@ from simbags import assert_clean, run_cli
 from cable_winch_monitor.analysis.bagfields import read_fields
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
-from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows
+from cable_winch_monitor.analysis.data import Dataset
+from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows, what_follows
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.channels import TENSION_CHANNELS, names
 from cable_winch_monitor.effects import PlantModel
-from cable_winch_monitor.model.conditions import directions, motion_direction
+from cable_winch_monitor.model.conditions import derivatives, directions, motion_direction
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.profile import Profile
 
@@ -270,3 +271,58 @@ def test_compare_names_a_field_of_a_topic_the_package_does_not_read(tmp_path):
     found = {f.target: f for f in result.follows}
     assert found["depth"].regressor == "/shaft/temperature.temperature" and found["depth"].r < -0.8
     assert found["depth"].sentence.startswith("depth residual follows /shaft/temperature.temperature, r = -0.")
+
+
+def _dataset(rng: np.random.Generator, sideways: bool = False) -> Dataset:
+    """Winch rows at 10 Hz of a platform lowered to 600 m and hoisted (or, `sideways`, of a robot whose winches 1
+    and 4 pay out while 2 and 3 haul in, and back), with a shaft temperature cycling 18-34 degC."""
+    t = np.arange(ROWS) / RATE
+    payout = 100.0 + 250.0 * (1.0 - np.cos(2.0 * np.pi * t / 150.0))
+    if sideways:
+        swing = 0.3 * np.sin(2.0 * np.pi * t / 40.0)
+        lengths = np.column_stack([1.5 + swing, 1.5 - swing, 1.5 - swing, 1.5 + swing])
+    else:
+        lengths = np.column_stack([payout] * 4) + 0.01 * rng.normal(size=(ROWS, 4)).cumsum(axis=0) / 30.0
+    speeds, accelerations = derivatives(t, lengths, np.full((ROWS, 4), np.nan))
+    temperature = 26.0 + 8.0 * np.sin(2.0 * np.pi * t / 120.0)
+    return Dataset("synthetic", t, np.zeros(ROWS, int), lengths, speeds, accelerations,
+                   np.full((ROWS, len(CHANNELS)), np.nan), tuple(CHANNELS),
+                   inputs={"/shaft/temperature.temperature": temperature})
+
+
+def test_depth_following_the_temperature_times_the_payout():
+    """Ropes lengthening by alpha (T - T_ref) l: neither the temperature nor the payout alone, their product
+    (with its offset T_ref unknown to the ranking) is what the depth error follows, its slope alpha."""
+    rng = np.random.default_rng(11)
+    data = _dataset(rng)
+    temperature, payout = data.inputs["/shaft/temperature.temperature"], data.lengths.mean(axis=1)
+    depth = data.channels.index("depth")
+    data.measured[:, depth] = -10.0
+    residuals = np.full_like(data.measured, np.nan)
+    residuals[:, depth] = -1.2e-5 * (temperature - 20.0) * payout + rng.normal(0.0, 0.005, ROWS)
+    noise = np.ones(len(CHANNELS))
+    noise[depth] = 0.005
+    found = what_follows(data, residuals, noise)
+    assert found and found[0].target == "depth", [f.sentence for f in found]
+    assert found[0].regressor == "/shaft/temperature.temperature x payout" and found[0].measure == "R"
+    assert found[0].r < -0.8 and found[0].slope * 0.005 == pytest.approx(-1.2e-5, rel=0.05)  # alpha, in m per K m
+    assert "times the payout, R = " in found[0].sentence
+
+
+def test_each_load_pin_follows_its_own_winch_direction_times_its_tension():
+    """Pulley friction on a robot moving sideways: each load cell reads mu T less paying out, more hauling in;
+    the mean direction of the four winches is nil throughout."""
+    rng = np.random.default_rng(12)
+    data = _dataset(rng, sideways=True)
+    assert np.all(np.abs(np.sign(data.directions.sum(axis=1))) < 1)  # two winches each way: no common direction
+    tensions = 30.0 + 5.0 * np.sin(np.arange(ROWS)[:, None] / 50.0 + np.arange(4))
+    pins = [data.channels.index(name) for name in TENSION_CHANNELS]
+    data.measured[:, pins] = tensions
+    residuals = np.full_like(data.measured, np.nan)
+    residuals[:, pins] = -0.08 * data.directions * tensions + rng.normal(0.0, 0.3, (ROWS, 4))
+    data.measured[:, pins] += residuals[:, pins]  # measured = the model's tension + residual
+    noise = np.full(len(CHANNELS), 0.3)
+    found = what_follows(data, residuals, noise)
+    assert [(f.target, f.regressor) for f in found] == [(LOAD_PINS, "direction x tension")], \
+        [f.sentence for f in found]
+    assert found[0].slope * 0.3 == pytest.approx(-0.08, rel=0.1)  # mu wrap: N per N of tension paying out

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import yaml
 from effectbags import ELASTIC, SEED002, plant_file, simulate_bag
 
 from cable_winch_monitor.analysis import report
@@ -58,3 +59,29 @@ def test_implausible_mass_is_flagged_and_not_found(heavy):
     entry = next(e for e in report.diagnose_json(result, "heavy", len(data))["effects"] if e["name"] == "payload_mass")
     assert entry["found"] is False and entry["honest"] is False and entry["implausible"]
     assert np.isfinite(entry["params"]["dm"])
+
+
+def test_a_refused_candidate_is_passed_over_and_the_ladder_goes_on(tmp_path):
+    """The platform carries 800 kg more than its file says and winch 1's zero is 1 cm off; the plant file allows
+    the mass only +-100 kg. payload_mass gains most but ends at its bound: it is refused, reported, and the
+    ladder goes on to the winch's zero (which the ladder used to give up on: nothing found)."""
+    plant = plant_file(tmp_path, "elastic", SEED002, ELASTIC)
+    config = yaml.safe_load(plant.read_text())
+    config["plant"]["effect_bounds"] = {"payload_mass": {"dm": [-100.0, 100.0]}}
+    plant.write_text(yaml.safe_dump(config))
+    bag = simulate_bag(tmp_path, "heavy", plant, {"payload_mass": {"dm": 800.0}, "encoder_offset": {"d_1": 0.01}},
+                       duration=60.0)
+    base = PlantModel.from_plant(load_plant(plant))
+    data = read_bag(bag)
+    result = diagnose(base, data, noise(base.plant, data)[0], ["payload_mass", "encoder_offset"])
+    mass = next(c for c in result.ranking if c.name == "payload_mass")
+    offset = next(c for c in result.ranking if c.name == "encoder_offset")
+    assert mass.score_after < offset.score_after and mass.gains  # the best gain in the first round ...
+    assert mass.refused == ["payload_mass.dm at its bound"]      # ... stopped by its bound
+    assert [(r.round, r.name) for r in result.refused][:1] == [(1, "payload_mass")]
+    assert result.selected == ["encoder_offset"]
+    assert 0.005 < result.final.params("encoder_offset")["d_1"]["value"] < 0.02  # biased: the mass is missing ...
+    assert result.partial and not result.found("encoder_offset")  # ... so the offset is a partial explanation
+    text = report.diagnose_text(result)
+    assert "refused in round 1: payload_mass (payload_mass.dm at its bound): passed over, the ladder went on" in text
+    assert report.diagnose_json(result, "heavy", len(data))["refused"][0]["name"] == "payload_mass"

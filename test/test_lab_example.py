@@ -50,7 +50,7 @@ def test_diagnose_recovers_the_hidden_radius_mounting_and_gain(diagnosis):
     hidden = _hidden()
     assert set(hidden) == {"pulley_geometry", "inclinometer_offset", "load_pin_calibration"}
     assert set(result.selected) == set(hidden), [(c.name, c.score_after) for c in result.ranking]
-    assert not result.skipped
+    assert not result.unfinished
     for name, params in hidden.items():
         fitted = result.final.params(name)
         for key, true in params.items():

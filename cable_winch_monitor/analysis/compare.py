@@ -1,10 +1,12 @@
 """`compare`: the model against every measurement at its own stamp; per-channel errors and failure regions.
 
-A failure region is a stretch of time where some channel's error exceeds 3 sigma in most
-samples (isolated 3-sigma samples are noise: 0.3 % of them exceed it by chance),
-described by what the plant was doing: payout, the share of lowering, hoisting and
-standing within it (a region may span many moves), tension state, and which channels and
-cables miss in which direction. Where a channel's prediction is ill-conditioned on the
+A failure region is a stretch of time where some channel's error exceeds 3 sigma in a good
+share of that channel's own samples (isolated 3-sigma samples are noise: 0.3 % of them
+exceed it by chance), whatever the other channels do -- a depth gauge at 2 Hz off by
+6 sigma among load pins at 10 Hz that agree is a failure -- described by what the plant
+was doing: payout, the share of lowering, hoisting, shifting and standing within it (a
+region may span many moves), tension state, and which channels and cables miss in which
+direction. Times are seconds from the start of the recording. Where a channel's prediction is ill-conditioned on the
 lengths (analysis.conditioning), that is said too: an error there blames the encoders'
 millimetres as much as the model.
 """
@@ -27,9 +29,9 @@ from .motion import describe, motions, shares
 from .unsolved import require_solved
 
 THRESHOLD = 3.0    # [sigma]
-MERGE_GAP = 1.0    # [s] exceedances closer than this belong to one region
-MIN_SAMPLES = 3    # a region has at least this many exceeding values ...
-MIN_DENSITY = 0.3  # ... and this share of its rows exceeding somewhere
+MERGE_GAP = 1.0    # [s] exceedances closer than this (or than 3 of the channel's sample intervals) join
+MIN_SAMPLES = 3    # a channel's stretch has at least this many exceeding values ...
+MIN_DENSITY = 0.3  # ... and this share of the channel's own samples in it exceeding
 MAX_REGIONS = 20
 
 
@@ -92,23 +94,49 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
             f"{describe(motion)} (mean {speed:+.2f} m/s), {states.most_common(1)[0][0]}; "
             + ", ".join([f"{m['channel']} {m['measured']} by {abs(m['mean_sigma']):.1f} sigma" for m in misses]
                         + ([f"{unsolved} rows not solved"] if unsolved else [])))
-    return {"start": float(data.times[rows[0]]), "end": float(data.times[rows[-1]]),
+    return {"start": float(start), "end": float(end),
             "payout": [float(payout.min()), float(payout.max())], "speed": speed, "motion": motion,
             "tension_state": states.most_common(1)[0][0], "channels": misses, "unsolved_rows": unsolved,
             "severity": float(np.nansum(np.abs(z[exceed]))), "description": text}
 
 
+def _channel_spans(times: np.ndarray, seen: np.ndarray, exceed: np.ndarray) -> list[tuple[float, float]]:
+    """(start, end) times of one channel's stretches where its error exceeds the threshold: exceeding
+    samples closer than its merge gap joined, kept with MIN_SAMPLES of them and MIN_DENSITY of the
+    channel's own samples in the stretch."""
+    mine = times[seen]
+    hits = np.flatnonzero(exceed[seen])
+    if hits.size < MIN_SAMPLES:
+        return []
+    gap = max(MERGE_GAP, 3.0 * float(np.median(np.diff(mine)))) if mine.size > 1 else MERGE_GAP
+    breaks = np.flatnonzero(np.diff(mine[hits]) > gap)
+    spans = []
+    for first, last in zip(np.r_[0, breaks + 1], np.r_[breaks, hits.size - 1]):
+        count, samples = last - first + 1, hits[last] - hits[first] + 1
+        if count >= MIN_SAMPLES and count / samples >= MIN_DENSITY:
+            spans.append((float(mine[hits[first]]), float(mine[hits[last]])))
+    return spans
+
+
 def failure_regions(c: Comparison) -> list[dict[str, Any]]:
-    """Time intervals where the error exceeds THRESHOLD sigma, most severe first."""
+    """Time intervals where some channel's error exceeds THRESHOLD sigma over a stretch (each channel judged
+    on its own samples; overlapping stretches of several channels are one region), most severe first."""
     z = np.abs(c.residuals) / c.noise
     measured = np.isfinite(c.data.measured)
     exceed = measured & ~(z <= THRESHOLD)  # unsolvable rows exceed too
-    hit_rows = np.flatnonzero(exceed.any(axis=1))
-    regions, start = [], 0
-    for k in range(1, len(hit_rows) + 1):
-        if k == len(hit_rows) or c.data.times[hit_rows[k]] - c.data.times[hit_rows[k - 1]] > MERGE_GAP:
-            rows = np.arange(hit_rows[start], hit_rows[k - 1] + 1)
-            if exceed[rows].sum() >= MIN_SAMPLES and exceed[rows].any(axis=1).mean() >= MIN_DENSITY:
-                regions.append(_describe(c, rows, exceed[rows]))
-            start = k
+    times = c.data.times
+    spans = sorted((*span, ch) for ch in range(measured.shape[1]) for span in
+                   _channel_spans(times, measured[:, ch], exceed[:, ch]))
+    joined: list[tuple[float, float, set[int]]] = []
+    for start, end, ch in spans:
+        if joined and start <= joined[-1][1] + MERGE_GAP:
+            joined[-1] = (joined[-1][0], max(joined[-1][1], end), joined[-1][2] | {ch})
+        else:
+            joined.append((start, end, {ch}))
+    regions = []
+    for start, end, failing in joined:  # a channel's isolated exceedances in another's region are noise
+        rows = np.flatnonzero((times >= start) & (times <= end))
+        mask = np.zeros(measured.shape[1], bool)
+        mask[list(failing)] = True
+        regions.append(_describe(c, rows, exceed[rows] & mask))
     return sorted(regions, key=lambda r: -r["severity"])[:MAX_REGIONS]

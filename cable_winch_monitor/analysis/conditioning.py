@@ -25,7 +25,8 @@ from .evaluate import thin
 
 LENGTH_STEP = 1.0e-3                         # [m] one millimetre of encoder error
 INTERNAL_MODE = np.array([-1.0, 1.0, -1.0, 1.0])
-ROWS = 120                                    # winch rows examined (the cost is 4 solves each)
+ROWS = 120                                    # winch rows examined (the cost is 6 solves each) ...
+ROWS_SOLVED_ONE_BY_ONE = 40                   # ... where the geometry depends on the pose (pulleys): no batches
 LIMIT = 3.0  # [sigma per mm] beyond this one millimetre of encoder error alone misses by compare's 3 sigma
 
 
@@ -34,7 +35,8 @@ MAX_SPANS = 8                                 # spans listed per channel
 
 @dataclass(frozen=True)
 class IllConditioned:
-    """`channel` moves by up to `sigma_per_mm` noise levels per mm along `mode` in the time `spans` [s]."""
+    """`channel` moves by up to `sigma_per_mm` noise levels per mm along `mode` in the time `spans` [s from the
+    start of the recording]."""
 
     channel: str
     mode: str
@@ -76,14 +78,14 @@ def ill_conditioned(model: PlantModel, data: Dataset, noise: np.ndarray) -> list
     """Spans where a channel's prediction moves more than LIMIT noise levels per millimetre of length:
     along the internal mode (a step each way: a kink where the taut set changes counts), else along
     its worst mode (the gradient from a step on each cable)."""
-    winch = thin(np.flatnonzero(data.kinds == 0), data.kinds, ROWS)
+    winch = thin(np.flatnonzero(data.kinds == 0), data.kinds, ROWS if model.batchable else ROWS_SOLVED_ONE_BY_ONE)
     if winch.size == 0:
         return []
     steps = LENGTH_STEP * np.vstack([INTERNAL_MODE, -INTERNAL_MODE, np.eye(4)])
     change = _changes(model, data, winch, steps) / noise  # sigma per mm
     internal = np.fmax(np.abs(change[:, 0]), np.abs(change[:, 1]))
     worst = np.linalg.norm(change[:, 2:], axis=1) * 2.0  # the worst mode of 1 mm per cable has norm 2 mm
-    times = data.times[winch]
+    times = data.times[winch] - data.times[0]  # from the start of the recording, as every report says
     gap = 3.0 * float(np.median(np.diff(times))) if times.size > 1 else 1.0
     out = []
     for c, name in enumerate(data.channels):

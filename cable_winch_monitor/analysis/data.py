@@ -1,10 +1,11 @@
 """A bag's measurements as rows aligned with the model inputs at each measurement's own stamp.
 
-Every measurement message is one row: a winch message (load-pin tensions) at its stamp
+Every measurement stamp is one row: a winch message (load-pin tensions) at its stamp
 with the four lengths merged as the monitor merges them (carried to the stamp with the
 payout speed), any other channel's message (inclinometer, depth gauge, a declared sensor)
 at its stamp with the lengths, speeds and accelerations interpolated between the
-neighbouring winch samples. Each row also carries its conditions (channels and effects
+neighbouring winch samples. Measurements stamped together (within TOGETHER: a laboratory
+logger stamps its load cells and AHRS at once) are one row, estimated as one state. Each row also carries its conditions (channels and effects
 see the same ones live): speeds and accelerations differentiated over a centred window
 (model.conditions), the direction of motion, and the extra inputs the plant's effects
 declare, interpolated to the row's stamp. Rows are in time order, so solves can be
@@ -27,6 +28,7 @@ from ..monitor.inputs import CableLengthMerger
 
 WINCH = "winches"  # the source of the winch rows (any joint-state topic)
 MAX_GAP = 0.5  # [s] a sensor sample further than this from a winch sample has no lengths
+TOGETHER = 1e-6  # [s] measurements whose stamps differ by less were taken together: one row
 
 
 @dataclass
@@ -45,14 +47,17 @@ class Dataset:
     channels: tuple[str, ...] = field(default_factory=channels.names)
     sources: tuple[str, ...] = (WINCH,)
     inputs: dict[str, np.ndarray] = field(default_factory=dict)
+    held: np.ndarray | None = None  # (n, 4) directions of motion found over the whole recording (subsets)
 
     def __len__(self) -> int:
         return len(self.times)
 
     @property
     def directions(self) -> np.ndarray:
-        """Direction of motion of each winch at each row, held through stops (model.conditions)."""
-        return directions(self.speeds)
+        """Direction of motion of each winch at each row, held through stops (model.conditions): found over
+        the whole recording, so that a subset's rows keep the direction their winch last moved in (a
+        thinned subset may have no row of a short move)."""
+        return self.held if self.held is not None else directions(self.speeds)
 
     def conditions(self) -> list[Conditions]:
         keys = list(self.inputs)
@@ -63,7 +68,7 @@ class Dataset:
     def subset(self, rows: np.ndarray) -> "Dataset":
         return Dataset(self.bag, self.times[rows], self.kinds[rows], self.lengths[rows], self.speeds[rows],
                        self.accelerations[rows], self.measured[rows], self.channels, self.sources,
-                       {k: v[rows] for k, v in self.inputs.items()})
+                       {k: v[rows] for k, v in self.inputs.items()}, self.directions[rows])
 
 
 def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[Input, ...] = ()) -> Dataset:
@@ -121,8 +126,34 @@ def require_measurements(data: Dataset) -> None:
                        "depth gauge readings with the four cable lengths): nothing to compare")
 
 
+def _together(joints: list, others: list) -> list:
+    """Sensor rows stamped together with a winch row merged into it, and with each other into one row
+    (the first topic's); the rows left, in time order. Where two messages measure the same channel at
+    one stamp, the first read is kept."""
+    others = sorted(others, key=lambda o: o[0])
+    merged: list = []
+    for stamp, kind, row in others:
+        if merged and stamp - merged[-1][0] <= TOGETHER:
+            merged[-1] = (merged[-1][0], merged[-1][1], np.where(np.isnan(merged[-1][2]), row, merged[-1][2]))
+        else:
+            merged.append((stamp, kind, row))
+    if not joints or not merged:
+        return merged
+    times = np.array([j[0] for j in joints])
+    left = []
+    for stamp, kind, row in merged:
+        k = int(np.clip(np.searchsorted(times, stamp), 0, len(times) - 1))
+        k = min((k, max(k - 1, 0)), key=lambda i: abs(times[i] - stamp))
+        if abs(times[k] - stamp) <= TOGETHER:
+            joints[k][3][:] = np.where(np.isnan(joints[k][3]), row, joints[k][3])
+        else:
+            left.append((stamp, kind, row))
+    return left
+
+
 def _dataset(bag: str, joints: list, others: list, names: tuple[str, ...], sources: tuple[str, ...]) -> Dataset:
     joints.sort(key=lambda j: j[0])
+    others = _together(joints, others)
     times = np.array([j[0] for j in joints])
     lengths = np.array([j[1] for j in joints]).reshape(-1, 4)
     speeds, accelerations = derivatives(times, lengths, np.array([j[2] for j in joints]).reshape(-1, 4))

@@ -1,4 +1,4 @@
-"""Which physical effect does the model lack? Fit each candidate on training data, score it on held-out data.
+"""Which physical effects does the model lack? Screen every candidate, fit the promising ones, add the best.
 
 Split: interleaved blocks in time (evaluate.split), not the first 70 %: every operating
 condition of the bag -- lowering, stops, hoisting, the whole payout range -- then lies
@@ -6,25 +6,30 @@ in both parts, so a candidate is judged where it was fitted and not by extrapola
 (a bag that hoists only at its end would otherwise never train sheave friction), while
 blocks of at least 10 s keep held-out samples from being near-copies of training ones.
 Training rows are thinned to an even spread per sensor (quasi-static data at 10 Hz is
-highly redundant): candidates are screened on a small spread, the chosen ones refitted
-on a larger one. With per-row warm starts and reused solutions for measurement effects
-this keeps a 20-minute bag within minutes.
+highly redundant): candidates are screened and fitted on a small spread, the chosen ones
+refitted jointly on a larger one.
 
-Forward stepwise: screen every candidate not in the model (others held at their
-values), rank by held-out score and Delta BIC, add the best while its held-out score falls and its Delta BIC is below
-MAX_DELTA_BIC both on the training rows and on the held-out rows (chi-square change plus
-k ln n there: the error must fall on data the fit never saw, by more than chance), its held-out
-score falls by at least MIN_GAIN and its fit is honest (no parameter stopped by a bound, no
-physically implausible value: analysis.fit), then refit the added effects jointly from the
-previous step's optimum (the effect is not added if the refit ends with a higher training error
-than the step before). Every candidate is screened at least once (the ranking is the report);
-further rounds only while the held-out score is above the sensor-noise floor.
+Forward stepwise, a round per effect added (analysis.candidates): every candidate not in
+the model is screened cheaply, the promising ones are fitted to convergence, the best few
+refitted jointly with the effects added before (a lead with many parameters against pairs
+of smaller ones), and of the joint fits the one with the fewest parameters among those
+close to the best gain is taken, refitted jointly on the training rows to convergence. A
+candidate that gains but is refused (a value at a bound, implausible, not converged, not
+identified -- alone or jointly) is reported and passed over, never the end of the ladder.
+Rounds go on while the held-out score is above the sensor-noise floor and something is
+acceptable. Then every added effect but the last is checked to be still needed: one the
+later ones made redundant (a stand-in picked before the effect it stood for) is taken out.
 
-Time budget: candidates are screened cheapest first (measurement effects reuse the
-solutions; geometry that refines the pose costs most), each with an equal share of the
-time left for the round, a fit stopping at its share with the best values met (never
-"found": analysis.fit); once the budget is spent the remaining candidates and checks are
-skipped and listed. A progress line shows on a terminal.
+When the final model still misses the data by more than FOUND_SCORE times the sensor
+noise, what was added explains the error only in part (an effect the library lacks may
+stand behind it): the report says so, and says what the remaining error follows, instead
+of calling anything found.
+
+Time budget (analysis.budget): screening takes an equal share of the time left per
+candidate, cheapest first (measurement effects reuse the solutions; geometry that refines
+the pose costs most); full and joint fits have their shares too. A fit the budget stops
+is never added, and every candidate not screened, not fitted fully or not refitted is
+listed as unfinished. A progress line shows on a terminal.
 """
 from __future__ import annotations
 
@@ -32,7 +37,6 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -40,56 +44,50 @@ from ..effects import PlantModel, available
 from ..effects.model import refines
 from ..model.plant import Plant, load_plant
 from ..progress import Progress
-from .conditioning import IllConditioned, ill_conditioned
 from .bagfields import BagFields, read_fields
+from .budget import Budget
+from .candidates import PARSIMONY, SETTLE_SHARE, Candidate, Round, finalists, preferred, rivals, screen, settle
+from .conditioning import IllConditioned, ill_conditioned
 from .data import Dataset, read_bag, require_measurements
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, split, thin
 from .fit import FitResult, chi_square, fit_effects
 from .follows import Finding, what_follows
 from .unsolved import require_solved, unsolved
 
-PER_KIND_SCREEN = 50   # training rows per sensor kind to screen candidates on
+PER_KIND_QUICK = 25    # training rows per sensor kind to screen candidates on ...
+PER_KIND_QUICK_SCORE = 50  # ... and held-out rows to rank them by
+PER_KIND_SCREEN = 50   # training rows per sensor kind to fit the promising candidates on
 PER_KIND_FIT = 150     # training rows per sensor kind to fit the selected effects on
-PER_KIND_SCORE = 150   # held-out rows per sensor kind
-MAX_DELTA_BIC = -10.0  # "very strong" evidence (Kass and Raftery)
-MIN_GAIN = 0.02        # relative fall of the held-out score an effect must bring to be selected
-SCREEN_SHARE = 0.6     # share of the time left a screening round may take (split among its candidates)
-REFIT_SHARE = 0.5      # share of the time left the joint refit of the selected effects may take
-RESERVE = 0.2          # share of the budget kept for scoring the last fits on the held-out rows and the report
-
+PER_KIND_SCORE = 150   # held-out rows per sensor kind to judge fits on
 NOISE_FLOOR = 1.1      # held-out score at which nothing is left to explain
-MAX_STEPS = 4
-
-
-@dataclass
-class Candidate:
-    """One screened effect: its fit on the training rows and its held-out score."""
-
-    name: str
-    fit: FitResult
-    score_before: float
-    score_after: float
-    delta_bic: float
-    heldout_delta_bic: float = 0.0
-    selected: bool = False
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "title": type(self.fit.model.get(self.name)).title,
-                "params": {k: v["value"] for k, v in self.fit.params(self.name).items()},
-                "uncertainties": {k: v["sigma"] for k, v in self.fit.params(self.name).items()},
-                "units": {k: v["unit"] for k, v in self.fit.params(self.name).items()},
-                "score_before": self.score_before, "score_after": self.score_after, "delta_bic": self.delta_bic, "heldout_delta_bic": self.heldout_delta_bic,
-                "selected": self.selected, "honest": self.fit.honest(self.name), "at_bound": self.fit.at_bound,
-                "implausible": self.fit.implausible, "correlations": self.fit.correlations(),
-                "warnings": self.fit.warnings}
+FOUND_SCORE = 1.3      # a final held-out score above this: the added effects explain the error only in part
+MAX_STEPS = 6
 
 
 @dataclass
 class Step:
+    """A rung of the ladder: the effect added (None: the given model) or, `removed`, taken out again."""
+
     added: str | None
     score_train: float
     score_heldout: float
     bic: float
+    removed: bool = False
+
+    def label(self) -> str:
+        return "model" if self.added is None else f"without {self.added}" if self.removed else self.added
+
+
+@dataclass
+class Refusal:
+    """A candidate that gained but was passed over in a round, and why."""
+
+    round: int
+    name: str
+    reasons: list[str]
+
+    def to_dict(self) -> dict[str, object]:
+        return {"round": self.round, "name": self.name, "reasons": self.reasons}
 
 
 @dataclass
@@ -105,36 +103,25 @@ class Diagnosis:
     follows: list[Finding] = field(default_factory=list)  # what the final model's held-out error follows
     follows_notes: list[str] = field(default_factory=list)
     ill_conditioned: list[IllConditioned] = field(default_factory=list)  # where the lengths do not determine a channel
-    skipped: list[str] = field(default_factory=list)  # what the time budget left out
+    unfinished: list[str] = field(default_factory=list)  # what the time budget did not allow
     budget: float | None = None  # [s]
     untried: dict[str, str] = field(default_factory=dict)  # candidate -> why it could not be tried
     unsolved: Counter[str] = field(default_factory=Counter)  # training and held-out rows the model gives no pose
+    refused: list[Refusal] = field(default_factory=list)
 
     @property
     def selected(self) -> list[str]:
-        return [step.added for step in self.ladder if step.added]
+        removed = {step.added for step in self.ladder if step.removed}
+        return [step.added for step in self.ladder if step.added and not step.removed and step.added not in removed]
 
+    @property
+    def partial(self) -> bool:
+        """Effects were added, yet the final model misses the held-out data by more than FOUND_SCORE."""
+        return bool(self.selected) and self.ladder[-1].score_heldout > FOUND_SCORE
 
-class Budget:
-    """Wall time a diagnosis may take (None: unbounded): deadlines for its parts, what was skipped."""
-
-    def __init__(self, seconds: float | None):
-        self.seconds = seconds
-        self.deadline = None if seconds is None else time.monotonic() + seconds
-        self.skipped: list[str] = []
-
-    def left(self) -> float:
-        return np.inf if self.deadline is None else self.deadline - time.monotonic()
-
-    def spent(self) -> bool:
-        """Nothing new starts now: what is left is the reserve for the held-out scores and the report."""
-        return self.left() <= RESERVE * (self.seconds or 0.0)
-
-    def part(self, share: float) -> float | None:
-        """A deadline for a part that may take `share` of the time left before the reserve."""
-        if self.deadline is None:
-            return None
-        return time.monotonic() + share * max(self.left() - RESERVE * self.seconds, 0.0)
+    def found(self, name: str) -> bool:
+        """`name` was added, its final values are estimates, and the final model explains the data."""
+        return self.final is not None and name in self.selected and self.final.honest(name) and not self.partial
 
 
 def _cost(name: str) -> int:
@@ -143,47 +130,117 @@ def _cost(name: str) -> int:
     return {"measurement": 0, "rope_law": 1, "load": 1}.get(cls.acts, 2) + refines(cls)
 
 
-def _screen(current: PlantModel, names: list[str], train: Evaluator, held: Evaluator, noise: np.ndarray,
-            score_now: float, bic_now: float, budget: Budget, bar: Progress) -> list[Candidate]:
-    """Fit each candidate on the training rows, score it on the held-out rows; each gets an equal share
-    of SCREEN_SHARE of the time left, those met after the budget is spent are skipped."""
-    known = available()
-    chi2_before, count = chi_square(current, held, noise)
-    trials = []
-    for k, name in enumerate(names):
-        bar.update(bar.done, f"screening {name}")
-        if budget.spent():
-            budget.skipped.append(f"candidate {name}")
+def _joint(base: PlantModel, effects: list[Effect], rows: Evaluator, noise: np.ndarray, deadline: float | None,
+           clock: Budget, what: str) -> FitResult | list[str] | None:
+    """The joint fit of `effects` on `rows` from their values; why it cannot be taken where an effect is
+    refused; None where the budget stopped it (listed as `what`)."""
+    joint = fit_effects(base, effects, rows, noise, deadline)
+    if joint.truncated:
+        clock.unfinished.append(what)
+        return None
+    reasons = [r for e in effects for r in joint.refusals(e.name)]
+    return [f"fitted jointly with the others: {r}" for r in reasons] if reasons else joint
+
+
+def _choose(base: PlantModel, added: list[Effect], round_: Round, trials: list[Candidate], train: Evaluator,
+            chi2: float, clock: Budget, bar: Progress, refused: list[Refusal]) -> tuple[Candidate | None,
+                                                                                          FitResult | None]:
+    """The candidate to add and its joint fit with the effects added before on the training rows: each
+    finalist (analysis.candidates) is refitted jointly on the fit rows, a lead with many parameters tried
+    against pairs of smaller ones, the preferred joint fit refitted on the training rows; a finalist whose
+    joint fit is refused, or does not lower the training error, is passed over (listed in `refused`).
+    (None, None): nothing, or the budget stopped it."""
+    fits, held = round_.rows[1]
+    noise, names, score = round_.noise, [e.name for e in added], round_.scores[1]
+
+    def jointly(group: list[Candidate]) -> tuple[FitResult, float] | None:
+        """The joint fit of the added effects and `group` on the fit rows, and its held-out score; None where
+        it cannot be taken (a refused one is listed)."""
+        label = " and ".join(c.name for c in group)
+        bar.update(bar.done, f"refitting {', '.join(names)} with {label}" if names else f"refitting {label}")
+        joint = _joint(base, [*added, *(c.fit.model.get(c.name) for c in group)], fits, noise,
+                       clock.part(SETTLE_SHARE), clock, f"candidate {label} (round {round_.number}: its joint fit "
+                       "stopped at the budget)")
+        if isinstance(joint, list) and len(group) == 1:
+            group[0].refused = joint
+            refused.append(Refusal(round_.number, group[0].name, joint))
+        return (joint, held.score(joint.model, noise)) if isinstance(joint, FitResult) else None
+
+    order = preferred([(c, *fit) for c in finalists(trials) if (fit := jointly([c])) is not None], score)
+    for a, b in rivals(order[0][0], trials) if order else ():
+        pair = jointly([a, b])
+        if pair is not None and score ** 2 - pair[1] ** 2 >= PARSIMONY * (score ** 2 - order[0][2] ** 2):
+            first = next((j for j in order if j[0] is a), None) or ((a, *fit) if (fit := jointly([a])) else None)
+            order = ([first] if first else []) + [j for j in order if j[0] is not a]
+            break
+    for chosen, joint, _ in order:
+        bar.update(bar.done, f"refitting {', '.join(names + [chosen.name])} on the training rows")
+        final = _joint(base, [joint.model.get(n) for n in names + [chosen.name]], train, noise, clock.part(1.0),
+                       clock, f"candidate {chosen.name} (its joint fit with {', '.join(names) or 'nothing'} on the "
+                       "training rows stopped at the budget)")
+        if final is None:
+            return None, None
+        reasons = final if isinstance(final, list) else \
+            ["the joint fit does not lower the training error"] if final.chi2 > chi2 else []
+        if not reasons:
+            return chosen, final
+        chosen.refused = reasons
+        refused.append(Refusal(round_.number, chosen.name, reasons))
+    return None, None
+
+
+def _prune(base: PlantModel, final: FitResult, rows: tuple[Evaluator, Evaluator], train: Evaluator,
+           noise: np.ndarray, clock: Budget, bar: Progress, ladder: list[Step]) -> FitResult | None:
+    """Take out every added effect that no longer gains once the later ones are in (a stand-in picked before
+    the effect it stood for): refitted jointly without it on the fit `rows`, the others explain as much
+    -- it would not be added again (analysis.candidates: Delta BIC and held-out score). The joint fit of
+    those left on the training rows, the removals appended to the `ladder`; None where nothing was taken
+    out or the budget did not allow it (listed)."""
+    fits, held = rows
+    model = final.model
+    kept, removed = [e for e in model.effects if base.get(e.name) is None], []
+    for name in [e.name for e in kept][:-1]:  # the last one added was just shown to gain with the others
+        if clock.spent():
+            clock.unfinished.append(f"the check that {name} is still needed")
             continue
-        deadline = budget.part(SCREEN_SHARE / (len(names) - k))
-        fit = fit_effects(current, [known[name](plant=current.plant)], train, noise, deadline)
-        after = held.score(fit.model, noise)
-        held_bic = chi_square(fit.model, held, noise)[0] - chi2_before + len(fit.free) * np.log(max(count, 1))
-        trials.append(Candidate(name, fit, score_now, after, fit.bic - bic_now, float(held_bic)))
-        bar.update(bar.done + 1)
-    return sorted(trials, key=lambda c: (c.score_after, c.delta_bic))
-
-
-def _significant(candidate: Candidate) -> bool:
-    """A real, honest gain: strong BIC evidence on both parts, a held-out score falling by MIN_GAIN, values
-    that are estimates (not stopped by a bound, physically plausible)."""
-    return (candidate.delta_bic < MAX_DELTA_BIC and candidate.heldout_delta_bic < MAX_DELTA_BIC
-            and candidate.score_after <= (1.0 - MIN_GAIN) * candidate.score_before
-            and candidate.fit.honest(candidate.name))
+        bar.update(bar.done, f"checking that {name} is still needed")
+        without = fit_effects(base, [e for e in kept if e.name != name], fits, noise, clock.part(SETTLE_SHARE))
+        if without.truncated:
+            clock.unfinished.append(f"the check that {name} is still needed")
+            continue
+        (chi2, _), (held_chi2, count) = chi_square(model, fits, noise), chi_square(model, held, noise)
+        penalty = len(model.get(name).fitted()) * np.log(max(count, 1))
+        needed = Candidate(name, final, held.score(without.model, noise), held.score(model, noise),
+                           chi2 + penalty - without.chi2, held_chi2 + penalty - chi_square(without.model, held, noise)[0],
+                           screened=False)
+        if not needed.gains:
+            model, removed = without.model, removed + [name]
+            kept = [e for e in model.effects if base.get(e.name) is None]
+    if not removed:
+        return None
+    joint = fit_effects(base, kept, train, noise, clock.part(1.0))
+    if not joint.converged:
+        clock.unfinished.append(f"the joint fit without {', '.join(removed)}")
+        return None
+    ladder += [Step(name, float(np.sqrt(joint.chi2 / max(joint.count, 1))), held.score(joint.model, noise), joint.bic,
+                    removed=True) for name in removed]
+    return joint
 
 
 def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: list[str] | None = None,
              fields: BagFields | None = None, budget: float | None = None, progress: bool = False) -> Diagnosis:
     """Rank the candidate effects (default: every known effect not in `base`) and select forward-stepwise;
     then rank what the final model's held-out error follows (among the bag's other `fields` too). Within
-    `budget` seconds (None: no limit; what did not fit in it is listed in `skipped`), with a progress
+    `budget` seconds (None: no limit; what did not fit in it is listed in `unfinished`), with a progress
     line on a terminal if `progress`."""
     clock = Budget(budget)
-    train_rows, held_rows = split(data)
-    screen = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)))
-    train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)))
-    held_rows = thin(held_rows, data.kinds, PER_KIND_SCORE)
-    held = Evaluator(data.subset(held_rows))
+    train_rows, held_out = split(data)
+    held_rows = thin(held_out, data.kinds, PER_KIND_SCORE)
+    train = Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_FIT)), base)
+    held = Evaluator(data.subset(held_rows), base)
+    rows = ((Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_QUICK)), base),
+             Evaluator(data.subset(thin(held_out, data.kinds, PER_KIND_QUICK_SCORE)), base)),
+            (Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)), base), held))
     pool = sorted((n for n in (candidates or available()) if base.get(n) is None and available()[n].fittable()),
                   key=_cost)
     untried = {n: "the bag lacks " + ", ".join(i.key for i in available()[n].inputs if i.key not in data.inputs)
@@ -194,49 +251,47 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     require_solved(data.bag, held.solutions(base), "score a candidate on", "held-out row")
     not_solved = unsolved(train.solutions(base) + held.solutions(base))
     chi2, count = chi_square(current, train, noise)
-    score_now = held.score(current, noise)
-    ladder = [Step(None, float(np.sqrt(chi2 / max(count, 1))), score_now, chi2)]
-    bic_screen = chi_square(current, screen, noise)[0]
+    ladder = [Step(None, float(np.sqrt(chi2 / max(count, 1))), held.score(current, noise), chi2)]
     ranking: list[Candidate] = []
-    for _ in range(MAX_STEPS):
-        if (added and score_now <= NOISE_FLOOR) or not pool:
+    trials: list[Candidate] = []
+    refused: list[Refusal] = []
+    for number in range(1, MAX_STEPS + 1):
+        if (added and ladder[-1].score_heldout <= NOISE_FLOOR) or not pool:
             break
         if clock.spent():
-            clock.skipped += [f"candidate {n}" for n in pool] if not ranking else ["a further selection round"]
+            clock.unfinished += [f"candidate {n} (round {number}: not screened)" for n in pool]
             break
-        trials = _screen(current, pool, screen, held, noise, score_now, bic_screen, clock, bar)
+        round_ = Round(current, rows, noise, number)
+        trials = settle(round_, screen(round_, pool, trials, clock, bar), clock, bar)
         ranking = ranking or trials
-        if not trials or not _significant(trials[0]) or trials[0].score_after >= score_now:
-            break
-        best = trials[0]
-        bar.update(bar.done, f"refitting {', '.join([e.name for e in added] + [best.name])}")
-        joint = fit_effects(base, [*added, best.fit.model.get(best.name)], train, noise,  # from the last optimum
-                            clock.part(REFIT_SHARE))
-        if joint.chi2 > chi2:  # the refit could not keep the training error: the effect does not help
+        refused += [Refusal(number, c.name, c.refused) for c in trials if not c.screened and c.gains and c.refused]
+        chosen, joint = _choose(base, added, round_, trials, train, chi2, clock, bar, refused)
+        if joint is None:
             break
         final, chi2 = joint, joint.chi2
-        added.append(best.fit.model.get(best.name))
         current = final.model
-        bic_screen = chi_square(current, screen, noise)[0] + final.bic - final.chi2
-        added = [current.get(e.name) for e in added]
-        pool.remove(best.name)
+        added = [current.get(e.name) for e in [*added, chosen.fit.model.get(chosen.name)]]
+        pool.remove(chosen.name)
         bar.total += len(pool)
-        score_now = held.score(current, noise)
-        ladder.append(Step(best.name, float(np.sqrt(final.chi2 / max(final.count, 1))), score_now, final.bic))
+        ladder.append(Step(chosen.name, float(np.sqrt(final.chi2 / max(final.count, 1))), held.score(current, noise),
+                           final.bic))
+    if len(added) > 1:
+        final = _prune(base, final, rows[1], train, noise, clock, bar, ladder) or final
+        current = final.model
     for candidate in ranking:
-        candidate.selected = candidate.name in [step.added for step in ladder]
+        candidate.selected = candidate.name in {e.name for e in current.effects} - {e.name for e in base.effects}
     channels = channel_stats(held.residuals(base), held.data.measured, noise, held.data.channels)
     conditioning: list[IllConditioned] = []
     if clock.spent():
-        clock.skipped.append("the identifiability check (ill-conditioned channels)")
+        clock.unfinished.append("the identifiability check (ill-conditioned channels)")
     else:
         bar.update(bar.done, "checking identifiability")
         conditioning = ill_conditioned(current, data, noise)
     bar.finish()
     follows = what_follows(data, held.residuals(current), noise, held_rows, fields)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
-                     screen.solves + train.solves + held.solves, channels, follows,
-                     fields.remarks() if fields else [], conditioning, clock.skipped, budget, untried, not_solved)
+                     sum(e.solves for part in rows for e in part) + train.solves, channels, follows,
+                     fields.remarks() if fields else [], conditioning, clock.unfinished, budget, untried, not_solved, refused)
 
 
 def diagnose_bag(bag: str | Path, plant: Plant | None = None, candidates: list[str] | None = None,

@@ -2,10 +2,15 @@
 
 Solving is the cost of the whole loop. Where the model solves in batches (rope law, load
 and geometry before the solve), an `Evaluator` solves all rows at once along the bag;
-otherwise it keeps each row's last solution as the warm start of its next solve (a fit
-changes parameters a little between calls: one or two Newton steps per row). It reuses
-the solutions outright when only measurement effects changed (`solutions` is keyed on
-everything that affects a solve).
+otherwise row by row, each from the row before. It reuses the solutions outright when
+only measurement effects changed (`solutions` is keyed on everything that affects a solve).
+
+An evaluation is a function of the model and the rows alone, never of what was evaluated
+before: a rigid rope's taut set, or the pulleys' fixed point, is a local optimum, so a
+start carried over from another model would keep that model's choice. Every estimate
+starts from one fixed place: the cold estimate of the evaluator's `reference` model (a
+fit's base: its parameters stay close, so a few Newton steps reach the optimum), or, without
+a reference, the model's own cold estimate.
 
 Where the plant file gives the encoders a noise (`noise.length`), the lengths are
 measurements too (errors in variables): each row is the fused estimate of its lengths
@@ -36,29 +41,36 @@ MIN_BLOCK = 10.0       # [s] shortest block: longer than the winch drift's corre
 
 
 class Evaluator:
-    """Solutions and predictions for the rows of a dataset, warm-started per row."""
+    """Solutions and predictions for the rows of a dataset under any model, each a function of the model
+    alone (see the module): estimates start from the `reference` model's cold estimate, or cold."""
 
-    def __init__(self, data: Dataset):
+    def __init__(self, data: Dataset, reference: PlantModel | None = None):
         self.data = data
         self.conditions = data.conditions()
-        self._warm: list[Solution | None] = [None] * len(data)
+        self.reference = reference
+        self._starts: list[Estimate] | None = None
         self._cached: tuple[tuple, list[Solution]] | None = None
         self._estimated: tuple[tuple, list[Estimate]] | None = None
         self.solves = 0
 
+    def _estimate(self, model: PlantModel, starts: list[Estimate] | None) -> list[Estimate]:
+        measured = {name: self.data.measured[:, c] for c, name in enumerate(self.data.channels)}
+        out = estimate_recording(model, self.data.lengths, measured, self.conditions, starts) if len(self.data) else []
+        self.solves += len(out)
+        return out
+
     def estimates(self, model: PlantModel) -> list[Estimate] | None:
         """The fused estimate of every row from its lengths and measured channels (None: the model takes
-        the lengths as exact), each started from the row's last estimate (a fit moves its parameters a
-        little between calls). Measurement effects change an estimate too: keyed on every effect."""
+        the lengths as exact), started from the reference's cold estimate. Measurement effects change an
+        estimate too: keyed on every effect."""
         if not fuses(model):
             return None
         key = (model.solve_key(), tuple((e.name, tuple(e.values.items())) for e in model.effects))
         if self._estimated is not None and self._estimated[0] == key:
             return self._estimated[1]
-        measured = {name: self.data.measured[:, c] for c, name in enumerate(self.data.channels)}
-        warm = self._estimated[1] if self._estimated is not None else None
-        out = estimate_recording(model, self.data.lengths, measured, self.conditions, warm) if len(self.data) else []
-        self.solves += len(out)
+        if self._starts is None and self.reference is not None and fuses(self.reference):
+            self._starts = self._estimate(self.reference, None)
+        out = self._estimate(model, self._starts)
         self._estimated = (key, out)
         return out
 
@@ -88,7 +100,6 @@ class Evaluator:
         for k in range(len(out) - 2, -1, -1):  # a failed cold start may succeed from the next row's solution
             if not out[k].ok and out[k + 1].ok:
                 out[k] = model.solve(self.data.lengths[k], out[k + 1], self.conditions[k])
-                self._warm[k] = out[k] if out[k].ok else None
         self._cached = (key, out)
         return out
 
@@ -99,21 +110,18 @@ class Evaluator:
         for k in [k for k, solution in enumerate(out) if not solution.ok]:
             out[k] = model.solve(self.data.lengths[k], None, self.conditions[k])
             self.solves += 1
-        self._warm = [solution if solution.ok else None for solution in out]
         return out
 
     def _row_by_row(self, model: PlantModel) -> list[Solution]:
-        """Each row from its own last solution (or the row before): pose-dependent geometry."""
+        """Each row from the row before's solution: pose-dependent geometry."""
         out: list[Solution] = []
         previous: Solution | None = None
         for k, lengths in enumerate(self.data.lengths):
-            warm = self._warm[k] if self._warm[k] is not None else previous
-            solution = model.solve(lengths, warm, self.conditions[k])
-            if not solution.ok and warm is not None:  # a warm start across a kink can fail: retry cold
+            solution = model.solve(lengths, previous, self.conditions[k])
+            if not solution.ok and previous is not None:  # a warm start across a kink can fail: retry cold
                 solution = model.solve(lengths, None, self.conditions[k])
             self.solves += 1
-            if solution.ok:
-                self._warm[k] = previous = solution
+            previous = solution if solution.ok else previous
             out.append(solution)
         return out
 

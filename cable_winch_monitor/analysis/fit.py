@@ -13,6 +13,12 @@ stopped by the bound, not by the data: its value is not an estimate and its Jaco
 uncertainty means nothing, so it is listed in `at_bound` and warned about, and the
 effect is never reported as found. Values outside an effect's physical plausibility
 (`Effect.implausible`, e.g. a mass change beyond 30 %) are listed and warned about too.
+
+A fit may be capped (`max_evaluations`: a screening fit takes a few Gauss-Newton steps) or
+stopped at a deadline: it then holds the best values met, not converged estimates.
+`FitResult.refusals` says why an effect's fit cannot be taken as a finding: a value at a
+bound, implausible, not converged, or not identified (none of its parameters is, or the
+effect's own reason: sheave friction without motion both ways).
 """
 from __future__ import annotations
 
@@ -27,6 +33,9 @@ from ..effects import Effect, Parameter, PlantModel
 from .evaluate import Evaluator
 
 MAX_EVALUATIONS = 60
+# converged when a step lowers the chi-square by less than this share: at a good fit, hundredths of a sigma^2,
+# what the estimates' own tolerance moves it by (smaller falls are its noise: steps kept being tried on them)
+FTOL = 1e-5
 UNIDENTIFIED_SPREAD = 0.1  # 1-sigma uncertainty / width of the bounds (a load cell on a slack cable: 0.12)
 UNIDENTIFIED_CORRELATION = 0.98
 AT_BOUND = 0.01     # a value within 1 % of a bound ended on it (bounds span decades: relative to the bound) ...
@@ -49,11 +58,21 @@ class FitResult:
     at_bound: list[str] = field(default_factory=list)      # "effect.parameter" stopped by a bound
     implausible: list[str] = field(default_factory=list)   # why a fitted value is physically implausible
     truncated: bool = False  # stopped at its deadline: the best values met so far, not converged
+    converged: bool = True   # False: stopped by its deadline or its cap of evaluations
+    unidentified: list[str] = field(default_factory=list)  # why an effect's parameters are not determined
 
     def honest(self, effect: str) -> bool:
         """The fitted values of `effect` are estimates: none ended on a bound, none is implausible."""
-        return not self.truncated and not any(label.split(".")[0] == effect for label in self.at_bound) and \
+        return self.converged and not any(label.split(".")[0] == effect for label in self.at_bound) and \
             not any(reason.startswith(f"{effect}.") for reason in self.implausible)
+
+    def refusals(self, effect: str) -> list[str]:
+        """Why the fit of `effect` is no finding (empty: it is one): at a bound, implausible, not converged,
+        not identified."""
+        out = [f"{label} at its bound" for label in self.at_bound if label.split(".")[0] == effect]
+        out += [reason for reason in self.implausible if reason.startswith(f"{effect}.")]
+        out += [reason for reason in self.unidentified if reason.startswith(f"{effect}")]
+        return out + ([] if self.converged else ["the fit did not converge"])
 
     @property
     def bic(self) -> float:
@@ -88,9 +107,10 @@ class _OutOfTime(Exception):
 
 
 def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluator, noise: np.ndarray,
-                deadline: float | None = None) -> FitResult:
+                deadline: float | None = None, max_evaluations: int = MAX_EVALUATIONS) -> FitResult:
     """Fit the fittable parameters of `effects` (added to `base`, others held) from their current values;
-    at `deadline` (time.monotonic) the fit stops with the best values met so far (`truncated`)."""
+    at `deadline` (time.monotonic) the fit stops with the best values met so far (`truncated`), after
+    `max_evaluations` steps (least_squares' max_nfev) it stops unconverged."""
     effects = [e if e.for_plant is not None else type(e)(e.values, base.plant) for e in effects]  # bounds of this plant
     free = [(e.name, p) for e in effects for p in e.fitted()]
     start = np.array([next(e for e in effects if e.name == name)[p.name] for name, p in free])
@@ -121,8 +141,8 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
         return FitResult(base.with_effects(effects), [], np.zeros(0), np.zeros(0), np.zeros((0, 0)), chi2, count, 1)
     try:
         result = least_squares(residual, np.zeros(len(free)), bounds=((lower - start) / scale, (upper - start) / scale),
-                               method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=1e-8,
-                               max_nfev=MAX_EVALUATIONS)
+                               method="trf", x_scale=1.0, diff_step=1e-4, xtol=1e-6, ftol=FTOL,
+                               max_nfev=max_evaluations)
     except _OutOfTime:
         return _truncated(model_at(best[0][1]), free, start + best[0][1] * scale, best[0][0], best[0][2].size,
                           calls[0])
@@ -134,12 +154,13 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = np.nan_to_num(covariance / np.outer(sigmas_z, sigmas_z))
     fit = FitResult(model_at(result.x), free, start + result.x * scale, sigmas_z * scale, correlation, chi2, count,
-                    int(result.nfev))
+                    int(result.nfev), converged=result.status > 0)
     fit.at_bound = _at_bound(fit)
     fit.implausible = [reason for e in fit.model.effects if e.name in {name for name, _ in free}
                        for reason in e.implausible(base.plant)]
-    fit.warnings = _bound_warnings(fit) + [f"implausible: {reason}" for reason in fit.implausible] \
-        + _identifiability(fit, effects, evaluator)
+    identifiability = _identifiability(fit, effects, evaluator)
+    fit.warnings = _bound_warnings(fit) + [f"implausible: {reason}" for reason in fit.implausible] + identifiability
+    fit.unidentified = _unidentified(fit, effects, evaluator, identifiability)
     return fit
 
 
@@ -147,7 +168,7 @@ def _truncated(model: PlantModel, free: list[tuple[str, Parameter]], values: np.
                count: int, evaluations: int) -> FitResult:
     """A fit stopped at its deadline: the best values met, no uncertainties."""
     fit = FitResult(model, free, values, np.full(len(free), np.nan), np.zeros((len(free), len(free))), chi2, count,
-                    evaluations, truncated=True)
+                    evaluations, truncated=True, converged=False)
     fit.warnings = [f"{', '.join(sorted({name for name, _ in free}))}: the fit stopped at the time budget after "
                     f"{evaluations} evaluations, before it converged; its values are the best met, not estimates"]
     return fit
@@ -172,6 +193,23 @@ def _bound_warnings(fit: FitResult) -> list[str]:
                             f"[{p.bounds[0]:.4g}, {p.bounds[1]:.4g}]: the bound, not the data, set it "
                             f"(not an estimate; widen plant.effect_bounds.{name}.{p.name} if the plant needs it)")
     return warnings
+
+
+def _unidentified(fit: FitResult, effects: Sequence[Effect], evaluator: Evaluator, warnings: list[str]) -> list[str]:
+    """Effects the bag does not determine: for the effect's own reason, or none of its free parameters
+    identified (each with an uncertainty beyond UNIDENTIFIED_SPREAD of its range, or at a bound; parameters
+    correlated with each other are still determined together)."""
+    out = []
+    for effect in effects:
+        own = effect.warnings(evaluator.conditions)
+        labels = [f"{name}.{p.name}" for name, p in fit.free if name == effect.name]
+        undetermined = [label for label in labels if label in fit.at_bound
+                        or any(w.startswith(f"{label}: not identified") for w in warnings)]
+        if own:
+            out.append(f"{effect.name}: not identified ({own[0].split(': ', 1)[-1]})")
+        elif labels and len(undetermined) == len(labels) and not set(labels) <= set(fit.at_bound):
+            out.append(f"{effect.name}: not identified (none of its parameters is determined by this bag)")
+    return out
 
 
 def _identifiability(fit: FitResult, effects: Sequence[Effect], evaluator: Evaluator) -> list[str]:

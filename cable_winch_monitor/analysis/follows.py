@@ -9,7 +9,23 @@ together as their mean) is correlated with each of these regressors at the rows:
   of the regressor: "+59 N per m" of payout is a rope weighing 59 N/m);
 * for a discrete one (at most MAX_LEVELS integer values: the direction of motion, a flag,
   a mode) the correlation ratio eta, the share of the residual's spread explained by the
-  level means (for two levels eta = |r|, and the sign of r is kept).
+  level means (for two levels eta = |r|, and the sign of r is kept);
+* for a product of a condition with the payout or with the rope's tension (`x payout`,
+  `x tension`), the multiple correlation R of the residual with the product and the factor
+  (an effect proportional to the rope's length -- thermal expansion, creep, elastic
+  stretch -- leaves alpha (x - x0) l, with an offset x0 no one knows: temperature x payout
+  fits it, temperature alone or the payout alone do not), signed by the product's coefficient,
+  its slope in sigma per unit of the product.
+
+A load pin's residual is tested against its own cable's payout, speed, direction and
+tension where a condition is per cable (a robot moving sideways pays out on two winches
+while hauling in on the others: the mean says it stands), other channels against the
+means. The tension is the model's (measured minus residual): the measured one carries
+the pin's own noise into the residual.
+
+Regressors are ranked by their adjusted R^2 over the effective number of pairs: a product
+spends one parameter more than its condition or its factor alone, and is no finding where
+it does not explain more than either.
 
 Residuals and regressors of a recording are smooth in time, so neighbouring rows are not
 independent and a naive p-value would call nearly anything significant. The effective
@@ -52,17 +68,40 @@ NOTHING = f"nothing: no residual follows any condition with |r| >= {MIN_R:g} at 
 
 @dataclass(frozen=True)
 class Regressor:
-    """A condition at every row: name (JSON key), words for sentences, unit, values (NaN: unknown), and
-    words for the levels of a discrete one."""
+    """A condition at every row: name (JSON key), words for sentences, unit, values (NaN: unknown), words
+    for the levels of a discrete one, each cable's own values (rows, 4) where it is per cable, and for a
+    product the condition and the factor it multiplies (tested beside it)."""
 
     name: str
     label: str
     unit: str
     values: np.ndarray
     levels: Mapping[float, str] | None = None
+    cables: np.ndarray | None = None
+    factors: "tuple[Regressor, Regressor] | None" = None
 
     def take(self, rows: np.ndarray) -> "Regressor":
-        return Regressor(self.name, self.label, self.unit, self.values[rows], self.levels)
+        return Regressor(self.name, self.label, self.unit, self.values[rows], self.levels,
+                         None if self.cables is None else self.cables[rows],
+                         None if self.factors is None else (self.factors[0].take(rows), self.factors[1].take(rows)))
+
+    def at(self, channels: Sequence[str]) -> np.ndarray:
+        """The values for a residual of these channels: a load pin's own cable's, the mean over the cables
+        of several pins, else the common values."""
+        cables = [TENSION_CHANNELS.index(c) for c in channels if c in TENSION_CHANNELS]
+        if self.cables is None or len(cables) != len(channels):
+            return self.values
+        return self.cables[:, cables[0]] if len(cables) == 1 else _nanmean(self.cables[:, cables])
+
+    def times(self, factor: "Regressor") -> "Regressor":
+        """This condition times `factor` (the payout, the tension), per cable where either is."""
+        cables = None
+        if factor.cables is not None or self.cables is not None:
+            mine = self.cables if self.cables is not None else self.values[:, None]
+            cables = mine * (factor.cables if factor.cables is not None else factor.values[:, None])
+        unit = f"{self.unit or 'unit'}*{factor.unit}"
+        return Regressor(f"{self.name} x {factor.name}", f"{self.label} times {factor.label}", unit,
+                         self.values * factor.values, None, cables, (self, factor))
 
 
 @dataclass(frozen=True)
@@ -96,7 +135,8 @@ class Finding:
 
 
 def _direction(data: Dataset) -> np.ndarray:
-    """+1 lowering, -1 hoisting, 0 not yet moved: the winches' common direction of motion."""
+    """+1 lowering, -1 hoisting, 0 not yet moved (or as many winches each way): the winches' common
+    direction of motion."""
     return np.sign(data.directions.sum(axis=1))
 
 
@@ -121,15 +161,22 @@ def _is_discrete(values: np.ndarray) -> bool:
     return finite.size > 0 and np.all(finite == np.round(finite)) and np.unique(finite).size <= MAX_LEVELS
 
 
-def regressors(data: Dataset, fields: BagFields | None = None) -> list[Regressor]:
+def regressors(data: Dataset, fields: BagFields | None = None, tensions: np.ndarray | None = None) -> list[Regressor]:
     """Every condition of a recording at the dataset's rows: time from the start, payout, speed and
-    acceleration (means over the winches), direction of motion, each extra input the plant's effects
-    declare (data.inputs) and each numeric field of the bag's other topics."""
-    out = [Regressor("time", "time", "s", data.times - (data.times[0] if len(data) else 0.0)),
-           Regressor("payout", "the payout", "m", data.lengths.mean(axis=1)),
-           Regressor("speed", "the payout speed", "m/s", _nanmean(data.speeds)),
-           Regressor("acceleration", "the payout acceleration", "m/s^2", _nanmean(data.accelerations)),
-           Regressor("direction", "the direction of motion", "", _direction(data), DIRECTION_WORDS)]
+    acceleration (means over the winches, and each winch's), direction of motion, the model's rope
+    tensions (rows, 4) where given, each extra input the plant's effects declare (data.inputs) and each
+    numeric field of the bag's other topics; then each of these times the payout and times the tension."""
+    payout = Regressor("payout", "the payout", "m", data.lengths.mean(axis=1), cables=data.lengths)
+    out = [Regressor("time", "time", "s", data.times - (data.times[0] if len(data) else 0.0)), payout,
+           Regressor("speed", "the payout speed", "m/s", _nanmean(data.speeds), cables=data.speeds),
+           Regressor("acceleration", "the payout acceleration", "m/s^2", _nanmean(data.accelerations),
+                     cables=data.accelerations),
+           Regressor("direction", "the direction of motion", "", _direction(data), DIRECTION_WORDS,
+                     data.directions)]
+    tension = None
+    if tensions is not None and np.isfinite(tensions).any():
+        tension = Regressor("tension", "the rope's tension", "N", _nanmean(tensions), cables=tensions)
+        out.append(tension)
     for name, values in data.inputs.items():
         values = np.asarray(values, dtype=float)
         out.append(Regressor(name, name, "", values, {} if _is_discrete(values) else None))
@@ -138,7 +185,8 @@ def regressors(data: Dataset, fields: BagFields | None = None) -> list[Regressor
         if name not in taken:
             discrete = _is_discrete(v)
             out.append(Regressor(name, name, "", _on_rows(data.times, t, v, discrete), {} if discrete else None))
-    return out
+    factors = [payout] + ([tension] if tension is not None else [])
+    return out + [r.times(f) for f in factors for r in out if r is not tension or f is not payout]
 
 
 def _nanmean(values: np.ndarray) -> np.ndarray:
@@ -175,29 +223,38 @@ class _Test:
     p: float
     slope: float | None = None
     level_means: dict[str, float] = field(default_factory=dict)
+    rank: float = 0.0  # adjusted R^2: the ranking key
 
 
-def _test(y: np.ndarray, regressor: Regressor, rho_y: dict[bytes, np.ndarray]) -> _Test | None:
-    """r or eta of a residual y with a regressor over the rows where both are known, and its p-value
-    (`rho_y`: the residual's autocorrelation per set of rows, filled as needed)."""
-    x = regressor.values
-    both = np.isfinite(x) & np.isfinite(y)
-    x, y = x[both], y[both]
+def _adjusted(r2: float, n_eff: float, parameters: int) -> float:
+    """R^2 adjusted for the parameters spent, over the effective number of pairs (the ranking key)."""
+    return 1.0 - (1.0 - r2) * max(n_eff - 1.0, 1.0) / max(n_eff - parameters - 1.0, 1.0)
+
+
+def _test(y: np.ndarray, regressor: Regressor, channels: Sequence[str], rho_y: dict[bytes, np.ndarray]) -> _Test | None:
+    """r, eta or R of a residual y of `channels` with a regressor over the rows where both are known, and
+    its p-value (`rho_y`: the residual's autocorrelation per set of rows, filled as needed)."""
+    x = regressor.at(channels)
+    main = np.column_stack([r.at(channels) for r in regressor.factors]) if regressor.factors else np.zeros((x.size, 0))
+    both = np.isfinite(x) & np.isfinite(y) & np.isfinite(main).all(axis=1)
+    x, y, main = x[both], y[both], main[both]
     if x.size < MIN_ROWS or np.ptp(x) == 0.0 or np.ptp(y) == 0.0:
         return None
     if x.size > MAX_ROWS:
         keep = np.linspace(0, x.size - 1, MAX_ROWS).round().astype(int)
-        x, y = x[keep], y[keep]
+        x, y, main = x[keep], y[keep], main[keep]
     key = both.tobytes()
     if key not in rho_y:
         rho_y[key] = autocorrelation(y)
     n_eff = effective_pairs(autocorrelation(x), rho_y[key], x.size)
+    if regressor.factors is not None:
+        return _product_test(x, y, main, regressor, n_eff)
     if regressor.levels is None or np.unique(x).size == 2:
         r = float(np.corrcoef(x, y)[0, 1])
         t = abs(r) * np.sqrt(max(n_eff - 2.0, 1.0) / max(1.0 - r * r, 1e-12))
         p = float(2.0 * stats.t.sf(t, max(n_eff - 2.0, 1.0)))
         test = _Test(regressor, "r", r, x.size, n_eff, p, None if regressor.levels is not None else
-                     r * float(np.std(y) / np.std(x)))
+                     r * float(np.std(y) / np.std(x)), rank=_adjusted(r * r, n_eff, 1))
     else:
         levels = np.unique(x)
         means = np.array([y[x == level].mean() for level in levels])
@@ -205,11 +262,33 @@ def _test(y: np.ndarray, regressor: Regressor, rho_y: dict[bytes, np.ndarray]) -
         eta2 = float(np.sum(counts * (means - y.mean()) ** 2) / np.sum((y - y.mean()) ** 2))
         k = levels.size
         dof = max(n_eff - k, 1.0)
-        f = (eta2 / (k - 1)) / max((1.0 - eta2) / dof, 1e-12)
-        test = _Test(regressor, "eta", float(np.sqrt(eta2)), x.size, n_eff, float(stats.f.sf(f, k - 1, dof)))
+        f_ratio = (eta2 / (k - 1)) / max((1.0 - eta2) / dof, 1e-12)
+        test = _Test(regressor, "eta", float(np.sqrt(eta2)), x.size, n_eff, float(stats.f.sf(f_ratio, k - 1, dof)),
+                     rank=_adjusted(eta2, n_eff, k - 1))
     if regressor.levels is not None:
         test.level_means = {_level_word(regressor, level): float(y[x == level].mean()) for level in np.unique(x)}
     return test
+
+
+def _product_test(x: np.ndarray, y: np.ndarray, main: np.ndarray, regressor: Regressor,
+                  n_eff: float) -> _Test | None:
+    """The residual y against a product x = c f and its factor f (`main`: c and f): least squares y ~ a x + b f + d,
+    i.e. a (c - c0) f with the offset c0 = -b / a free; R signed by a, the F-test of both over n_eff pairs,
+    the slope a [sigma per unit of the product]. None where the product does not add to its parts: its
+    adjusted R^2 must exceed that of c or f alone (a residual following the payout follows no product)."""
+    factor = main[:, 1]
+    design = np.column_stack([x, factor, np.ones_like(x)])
+    coefficients, *_ = np.linalg.lstsq(design, y, rcond=None)
+    spread = np.sum((y - y.mean()) ** 2)
+    r2 = float(np.clip(1.0 - np.sum((y - design @ coefficients) ** 2) / spread, 0.0, 1.0))
+    alone = max((float(np.corrcoef(part, y)[0, 1] ** 2) for part in main.T if np.ptp(part) > 0.0), default=0.0)
+    rank = _adjusted(r2, n_eff, 2)
+    if rank <= _adjusted(alone, n_eff, 1):
+        return None
+    dof = max(n_eff - 3.0, 1.0)
+    f_ratio = (r2 / 2.0) / max((1.0 - r2) / dof, 1e-12)
+    return _Test(regressor, "R", float(np.copysign(np.sqrt(r2), coefficients[0])), x.size, n_eff,
+                 float(stats.f.sf(f_ratio, 2.0, dof)), float(coefficients[0]), rank=rank)
 
 
 def _level_word(regressor: Regressor, level: float) -> str:
@@ -267,8 +346,8 @@ def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regress
     for target, members in targets:
         y = _nanmean(z[:, [channels.index(c) for c in members]])
         rho_y: dict[bytes, np.ndarray] = {}
-        tests = sorted((t for t in (_test(y, r, rho_y) for r in candidates) if _significant(t)),
-                       key=lambda t: -abs(t.r))
+        tests = sorted((t for t in (_test(y, r, members, rho_y) for r in candidates) if _significant(t)),
+                       key=lambda t: -t.rank)
         if not tests:
             continue
         best = tests[0]
@@ -276,7 +355,7 @@ def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regress
             continue
         for member in members if len(members) > 1 else ():
             group_regressor.setdefault(member, set()).add(best.regressor.name)
-        also = [t for t in tests[1:3] if abs(t.r) >= abs(best.r) - ALSO_WITHIN]
+        also = [t for t in tests[1:3] if t.rank >= best.rank - 2.0 * ALSO_WITHIN * np.sqrt(max(best.rank, 0.0))]
         shared = {(scales or {}).get(c, (np.nan, "")) for c in members}
         scale = shared.pop() if len(shared) == 1 else (np.nan, "")
         findings.append(Finding(target, members, best.regressor.name, best.measure, best.r, best.n, best.n_eff,
@@ -290,8 +369,11 @@ def what_follows(data: Dataset, residuals: np.ndarray, noise: np.ndarray, rows: 
                  fields: BagFields | None = None) -> list[Finding]:
     """`follows` for residuals (rows, data.channels) with their channels' 1-sigma noise, at `rows` of a
     dataset (all rows if None), against every regressor of the dataset and the bag's other topics."""
-    candidates = regressors(data, fields)
-    if rows is not None:
-        candidates = [r.take(rows) for r in candidates]
+    rows = np.arange(len(data)) if rows is None else rows
+    tensions = np.full((len(data), 4), np.nan)
+    if all(name in data.channels for name in TENSION_CHANNELS):  # the model's: measured minus residual
+        pins = [data.channels.index(name) for name in TENSION_CHANNELS]
+        tensions[rows] = data.measured[rows][:, pins] - residuals[:, pins]
+    candidates = [r.take(rows) for r in regressors(data, fields, tensions)]
     scales = {name: (float(sigma), declared.get(name).unit) for name, sigma in zip(data.channels, noise)}
     return follows(residuals / noise, list(data.channels), candidates, scales=scales)

@@ -2,8 +2,8 @@
 
 plotly.js is embedded once in the file, so the report opens offline (a mine site has no
 internet) in any browser, with zoom, pan and hover. Time is in seconds from the start of
-the recording; every residual is coloured by what the plant was doing (lowering,
-hoisting, standing); failure regions are shaded on the time axes and listed with the
+the recording; every residual is coloured by what the winches were doing (lowering,
+hoisting, shifting, standing: analysis.motion); failure regions are shaded on the time axes and listed with the
 share of each motion they span. Every point is drawn: nothing is thinned.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from .motion import MOTIONS, motions
 STYLE = ("body{font-family:sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse;margin:.5em 0}"
          "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#eee}"
          ".region{background:#fde2e2}")
-MOTION_COLOURS = {"lowering": "#1f77b4", "hoisting": "#ff7f0e", "standing": "#7f7f7f"}
+MOTION_COLOURS = {"lowering": "#1f77b4", "hoisting": "#ff7f0e", "shifting": "#2ca02c", "standing": "#7f7f7f"}
 REGION_COLOUR = "#d62728"
 EPOCH_AFTER = 1e8  # [s] stamps beyond this are clock time (a real recording), not simulation time from 0
 
@@ -37,9 +37,9 @@ def time_axis_title(start: float) -> str:
     return "time from the start of the recording [s]"
 
 
-def _shade_regions(fig: go.Figure, c: Comparison, start: float, **where: int) -> None:
+def _shade_regions(fig: go.Figure, c: Comparison, **where: int) -> None:
     for number, region in enumerate(c.regions, 1):
-        fig.add_vrect(x0=region["start"] - start, x1=region["end"] - start, fillcolor=REGION_COLOUR, opacity=0.12,
+        fig.add_vrect(x0=region["start"], x1=region["end"], fillcolor=REGION_COLOUR, opacity=0.12,
                       line_width=0, annotation_text=f"R{number}", annotation_position="top left",
                       annotation_font_size=10, **where)
 
@@ -75,7 +75,7 @@ def _channel_figure(c: Comparison, index: int, name: str, kinds: np.ndarray, sta
             fig.add_hline(y=level, line_dash="dash", line_color=REGION_COLOUR, line_width=1, row=1, col=col)
         fig.update_xaxes(title_text=title, row=1, col=col)
         fig.update_yaxes(title_text=f"residual [{unit}]", row=1, col=col)
-    _shade_regions(fig, c, start, row=1, col=1)
+    _shade_regions(fig, c, row=1, col=1)
     predicted = c.predicted[seen, index]
     if predicted.size and np.isfinite(predicted).any():
         low, high = float(np.nanmin(predicted)), float(np.nanmax(predicted))
@@ -104,20 +104,20 @@ def _overview(c: Comparison, kinds: np.ndarray, start: float) -> go.Figure:
                                  f"<extra>{escape(name)}</extra>"))
     for level in (THRESHOLD, -THRESHOLD):
         fig.add_hline(y=level, line_dash="dash", line_color=REGION_COLOUR, line_width=1)
-    _shade_regions(fig, c, start)
+    _shade_regions(fig, c)
     fig.update_layout(title_text="error of every channel in units of its noise", height=380,
                       xaxis_title=time_axis_title(start), yaxis_title="residual / noise [sigma]",
                       margin={"l": 60, "r": 20, "t": 50, "b": 50}, legend={"itemsizing": "constant"})
     return fig
 
 
-def _region_rows(c: Comparison, start: float) -> str:
+def _region_rows(c: Comparison) -> str:
     rows = []
     for number, r in enumerate(c.regions, 1):
         share = " / ".join(f"{100.0 * r['motion'][m]:.0f} %" for m in MOTIONS)
-        rows.append(f"<tr class='region'><th>R{number}</th><td>{r['start'] - start:.1f}-{r['end'] - start:.1f}</td>"
+        rows.append(f"<tr class='region'><th>R{number}</th><td>{r['start']:.1f}-{r['end']:.1f}</td>"
                     f"<td>{share}</td><td style='text-align:left'>{escape(r['description'])}</td></tr>")
-    header = ("<tr><th>region</th><th>time [s]</th><th>lowering / hoisting / standing</th>"
+    header = (f"<tr><th>region</th><th>time [s]</th><th>{' / '.join(MOTIONS)}</th>"
               "<th>what the plant was doing, which channels miss</th></tr>")
     return f"<table>{header}{''.join(rows)}</table>" if rows else "<p>none</p>"
 
@@ -152,7 +152,7 @@ def render(c: Comparison) -> str:
             f"<p><b>score {c.score:.3f}</b> (noise-normalised RMS error; 1.0 = down to the sensor noise)</p>"
             "<table><tr><th>channel</th><th>samples</th><th>RMS</th><th>max |error|</th>"
             f"<th>noise (source)</th><th>score</th></tr>{rows}</table>"
-            f"<h2>Failure regions (|error| &gt; {THRESHOLD:g} sigma)</h2>{_region_rows(c, start)}{_follows(c)}"
+            f"<h2>Failure regions (|error| &gt; {THRESHOLD:g} sigma)</h2>{_region_rows(c)}{_follows(c)}"
             "<h2>Plots</h2><p>Drag to zoom, double-click to reset, hover for values; click a motion in a legend to "
             f"hide it.</p>{plots}</body></html>")
 

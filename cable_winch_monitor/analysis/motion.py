@@ -1,27 +1,27 @@
-"""What the plant was doing at each measurement: lowering, hoisting or standing, from the winches' payout speeds.
+"""What the plant was doing at each measurement, winch by winch: lowering, hoisting, shifting or standing.
 
-A row is lowering when the mean payout speed of the four winches is at least STOPPED
-(ropes paid out), hoisting when it is at most -STOPPED, standing otherwise (or when no
-winch reports a speed). A stretch of time is described by the share of each.
+Each winch is paying out when its payout speed is at least STOPPED, hauling in when it
+is at most -STOPPED, still otherwise (or when it reports no speed). A row is lowering
+when some winches pay out and none hauls in, hoisting when some haul in and none pays
+out, shifting when some pay out while others haul in (the platform moves sideways or
+tilts: its mean payout may stand still), standing when no winch moves. A stretch of time
+is described by the share of each.
 """
 from __future__ import annotations
 
 import numpy as np
 
-MOTIONS = ("lowering", "hoisting", "standing")
-LOWERING, HOISTING, STANDING = range(3)
-STOPPED = 0.02  # [m/s] mean payout speed below which the plant is standing
+MOTIONS = ("lowering", "hoisting", "shifting", "standing")
+LOWERING, HOISTING, SHIFTING, STANDING = range(4)
+STOPPED = 0.02  # [m/s] a winch slower than this stands
 
 
 def motions(speeds: np.ndarray) -> np.ndarray:
     """Index into MOTIONS of each row of payout speeds (n, 4) [m/s]."""
-    speeds = np.asarray(speeds, dtype=float).reshape(-1, 4)
-    reported = np.isfinite(speeds).any(axis=1)
-    mean = np.nansum(speeds, axis=1) / np.maximum(np.isfinite(speeds).sum(axis=1), 1)
-    out = np.full(len(speeds), STANDING)
-    out[reported & (mean >= STOPPED)] = LOWERING
-    out[reported & (mean <= -STOPPED)] = HOISTING
-    return out
+    speeds = np.nan_to_num(np.asarray(speeds, dtype=float).reshape(-1, 4))
+    out_ = (speeds >= STOPPED).any(axis=1)
+    in_ = (speeds <= -STOPPED).any(axis=1)
+    return np.select([out_ & in_, out_, in_], [SHIFTING, LOWERING, HOISTING], STANDING)
 
 
 def shares(kinds: np.ndarray) -> dict[str, float]:

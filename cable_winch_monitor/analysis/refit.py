@@ -46,8 +46,8 @@ def fit_command(base: PlantModel, data: Dataset, names: Sequence[str]) -> FitRep
     sigma, source = noise(base.plant, data)
     train_rows, held_rows = split(data)
     effects = [base.get(n) or effect_class(n)(plant=base.plant) for n in names]
-    fit = fit_effects(base, effects, Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND))), sigma)
-    parts = {"training": Evaluator(data.subset(train_rows)), "held_out": Evaluator(data.subset(held_rows))}
+    fit = fit_effects(base, effects, Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND)), base), sigma)
+    parts = {"training": Evaluator(data.subset(train_rows), base), "held_out": Evaluator(data.subset(held_rows), base)}
     before = {k: _scores(base, e, sigma) for k, e in parts.items()}
     after = {k: _scores(fit.model, e, sigma) for k, e in parts.items()}
     return FitReport(fit, list(names), before, after, source)

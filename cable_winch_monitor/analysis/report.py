@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from .compare import Comparison
-from .diagnose import Diagnosis
+from .diagnose import FOUND_SCORE, Diagnosis
 from .evaluate import FAILED_PENALTY, ChannelStats
 from .follows import NOTHING, Finding
 from .refit import FitReport
@@ -75,17 +75,20 @@ def diagnose_json(d: Diagnosis, bag: str, samples: int) -> dict[str, Any]:
             entry["params"] = {k: v["value"] for k, v in params.items()}
             entry["uncertainties"] = {k: None if v["at_bound"] else v["sigma"] for k, v in params.items()}
             entry["honest"] = final.honest(entry["name"])
-        entry["found"] = entry["selected"] and entry["honest"]
+        entry["found"] = d.found(entry["name"])
+        entry["partial"] = entry["selected"] and d.partial
     return {"bag": bag, "samples": samples, "channels": _channels(d.channels), "score": d.ladder[0].score_heldout,
             "score_after": d.ladder[-1].score_heldout, "selected": d.selected,
+            "found": [name for name in d.selected if d.found(name)], "partial": d.partial,
             "split": {"method": "interleaved blocks in time (30 % held out)", "training_rows": d.train_rows,
                       "held_out_rows": d.heldout_rows},
-            "ladder": [{"added": s.added, "score_train": s.score_train, "score_heldout": s.score_heldout,
-                        "bic": s.bic} for s in d.ladder],
+            "ladder": [{"added": None if s.removed else s.added, "removed": s.added if s.removed else None,
+                        "score_train": s.score_train, "score_heldout": s.score_heldout, "bic": s.bic} for s in d.ladder],
+            "refused": [r.to_dict() for r in d.refused],
             "correlations": final.correlations() if final else {}, "warnings": final.warnings if final else [],
-            "ill_conditioned": [s.to_dict() for s in d.ill_conditioned], "budget": d.budget, "skipped": d.skipped, "untried": d.untried,
+            "ill_conditioned": [s.to_dict() for s in d.ill_conditioned], "budget": d.budget,
             "unsolved": {"rows": sum(d.unsolved.values()), "reasons": dict(d.unsolved)},
-            "effects": ranked, **_follows_json(d.follows, d.follows_notes)}
+            "unfinished": d.unfinished, "untried": d.untried, "effects": ranked, **_follows_json(d.follows, d.follows_notes)}
 
 
 def _value(name: str, v: dict[str, Any], short: bool = False) -> str:
@@ -99,26 +102,33 @@ def _value(name: str, v: dict[str, Any], short: bool = False) -> str:
 def diagnose_text(d: Diagnosis) -> str:
     lines = [*_unsolved(d.unsolved, d.train_rows + d.heldout_rows),
              f"candidates, best first (fitted on {d.train_rows} training rows, scored on {d.heldout_rows} "
-             "held-out rows from interleaved blocks):",
+             "held-out rows from interleaved blocks; 'screened': a few steps on fewer rows, not fitted fully):",
              f"{'effect':<24}{'held-out score':>15}{'delta BIC':>12}  fitted"]
     for c in d.ranking:
         values = ", ".join(_value(k, v, short=True) for k, v in c.fit.params(c.name).items() if v["sigma"] is not None)
-        lines.append(f"{c.name:<24}{c.score_before:>7.3f}->{c.score_after:<7.3f}{c.delta_bic:>12.1f}  {values}"
-                     + ("  <- selected" if c.selected else ""))
+        mark = "  <- selected" if c.selected else "  (screened)" if c.screened else ""
+        lines.append(f"{c.name:<24}{c.score_before:>7.3f}->{c.score_after:<7.3f}{c.delta_bic:>12.1f}  {values}{mark}")
     lines += [f"{name:<24}not tried: {reason}" for name, reason in d.untried.items()]
-    lines.append("ladder: " + " -> ".join(f"{s.added or 'model'} ({s.score_heldout:.3f})" for s in d.ladder))
+    lines += [f"refused in round {r.round}: {r.name} ({'; '.join(r.reasons)}): passed over, the ladder went on"
+              for r in d.refused]
+    lines.append("ladder: " + " -> ".join(f"{s.label()} ({s.score_heldout:.3f})" for s in d.ladder))
     if d.final is not None:
         for name in d.selected:
             effect = d.final.model.get(name)
             values = ", ".join(_value(k, v) for k, v in d.final.params(name).items() if v["sigma"] is not None)
-            verdict = "found" if d.final.honest(name) else "not determined (see warnings)"
+            verdict = "found" if d.found(name) else "partial explanation" if d.partial else \
+                "not determined (see warnings)"
             lines.append(f"{verdict}: {type(effect).title} [{name}: {values}]")
+        if d.partial:
+            lines.append(f"partial: the final model still misses the held-out data ({d.ladder[-1].score_heldout:.3f} "
+                         f"against {FOUND_SCORE:g} times the noise at most): what was added may stand in for an "
+                         "effect the library lacks; see what the remaining error follows")
         lines += [f"correlation {k}: {v:+.3f}" for k, v in d.final.correlations().items()]
         lines += [f"warning: {w}" for w in d.final.warnings]
     else:
         lines.append(_nothing_found(d))
-    if d.skipped:
-        lines.append(f"skipped (the time budget of {d.budget:g} s was spent): {'; '.join(d.skipped)}")
+    if d.unfinished:
+        lines.append(f"unfinished (the time budget of {d.budget:g} s was spent): {'; '.join(d.unfinished)}")
     return "\n".join(lines + _ill_conditioned(d.ill_conditioned) + _follows_lines(d.follows, d.follows_notes))
 
 
@@ -126,12 +136,12 @@ def _nothing_found(d: Diagnosis) -> str:
     """What is true when nothing was selected: no candidate helps, or the time budget stopped the ones that
     lowered the held-out error before their fits converged (never judged), or left candidates untried."""
     stopped = [c for c in d.ranking if c.fit.truncated and c.score_after < c.score_before]
-    untried = sum(item.startswith("candidate ") for item in d.skipped)
+    untried = sum(item.startswith("candidate ") for item in d.unfinished)
     if not stopped and not untried:
         return "found: nothing -- no candidate effect explains the data significantly better (held-out error and BIC)"
     why = [f"{', '.join(f'{c.name} ({c.score_before:.3f}->{c.score_after:.3f})' for c in stopped)} lowered the "
            "held-out error but stopped at the time budget before converging"] if stopped else []
-    why += [f"{untried} candidate(s) were not tried"] if untried else []
+    why += [f"{untried} candidate(s) were not tried or not fitted fully"] if untried else []
     return f"found: nothing within the time budget -- {'; '.join(why)}: give diagnose a larger --budget"
 
 

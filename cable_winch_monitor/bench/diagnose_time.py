@@ -61,7 +61,7 @@ def main() -> int:
         wall = time.perf_counter() - started
     print(f"diagnose: {result.train_rows} training and {result.heldout_rows} held-out rows, {result.solves} equilibrium solves, selected {result.selected}, "
           f"held-out score {result.ladder[0].score_heldout:.3f} -> {result.ladder[-1].score_heldout:.3f}")
-    print(f"skipped at the {TARGET:.0f} s budget: {'; '.join(result.skipped) or 'nothing'}")
+    print(f"unfinished at the {TARGET:.0f} s budget: {'; '.join(result.unfinished) or 'nothing'}")
     print(f"wall time {wall:.1f} s (target {TARGET:.0f} s): {'OK' if wall <= TARGET else 'TOO SLOW'}")
     return 0 if wall <= TARGET else 1
 

@@ -80,7 +80,7 @@ def _stamp(message: object) -> int:
 
 def basis_of(reason: str) -> str:
     """What an alarm's reason says its clearance is based on, without its numbers."""
-    found = re.search(r"\((tilt measured[^;)]*|model only[^)]*|the model's)", reason)
+    found = re.search(r"\((tilt measured[^;)]*|model only(?: \(no tilt measured\))?|the model's)", reason)
     return found.group(1) if found else "none given"
 
 

@@ -187,10 +187,11 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
                       live: bool = False) -> list[Estimate]:
     """Estimates where the geometry depends on the pose: each round estimates every sample with the
     anchors and free lengths of its last estimate's pose, warm-started there, until no attachment
-    point moves more than REFINE_TOL (at most REFINE_STEPS rounds); the first round with the plant's
-    anchors, or live with the previous sample's tangent points (a fit's warm starts may come from a
-    model without these pulleys, metres of wrapped rope away). A sample the estimator leaves gets
-    the model's forward kinematics, which refines its own geometry."""
+    point moves more than REFINE_TOL (at most REFINE_STEPS rounds); the first round with the tangent
+    points of the warm starts' poses (live: the previous sample's; a fit: the reference model's estimate
+    of the same sample, whose pose is close: a round fewer than from the plant's anchors), else with
+    the plant's anchors. A sample the estimator leaves gets the model's forward kinematics, which
+    refines its own geometry."""
     nominal = np.broadcast_to(model.physical.anchors, (len(lengths), 4, 3))
 
     def geometry(states: States) -> tuple[np.ndarray, np.ndarray]:
@@ -202,7 +203,7 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
         return States(model.physical, batch.rotation, batch.position, batch.tensions)
 
     anchors, free = None, lengths
-    if live and warm_starts is not None and any(w is not None and w.ok for w in warm_starts):
+    if warm_starts is not None and any(w is not None and w.ok for w in warm_starts):
         warm = [w.solution if w is not None and w.ok else None for w in warm_starts]
         anchors, free = geometry(States(model.physical,
                                         np.array([np.eye(3) if s is None else s.rotation for s in warm]),

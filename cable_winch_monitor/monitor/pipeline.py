@@ -81,9 +81,12 @@ class MonitorOutput:
         return () if self.model is None else tuple(sorted(set(self.model.rejected) | set(self.model.left_out)))
 
     def outcome(self, predicted: dict[str, float] | None) -> "Outcome":
+        view = self.model
         return Outcome(self.stamp, self.solution.status, self.solution.tension_state, self.alarm.level.name,
-                       dict(self.model.faults) if self.model is not None else {}, predicted, self.residuals,
-                       "" if self.solution.ok else self.solution.failure)
+                       dict(view.faults) if view is not None else {}, predicted, self.residuals,
+                       "" if self.solution.ok else self.solution.failure,
+                       self.basis.kind if self.basis is not None else "",
+                       None if view is None else (tuple(map(float, view.length_error)), tuple(map(float, view.pin_error))))
 
 
 class Outcome(NamedTuple):
@@ -98,6 +101,8 @@ class Outcome(NamedTuple):
     predicted: dict[str, float] | None    # what every channel reads of its state (None: not solved)
     residuals: Residuals | None
     failure: str = ""                     # why it was not solved
+    basis: str = ""                       # what the alarm is based on, without numbers ("": the lengths taken as exact)
+    error: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # the model's length [m] and load-pin [N] error per rope
 
 
 class Solved(NamedTuple):
@@ -147,6 +152,8 @@ class MonitorStats:
     winch_topics: set[str] = field(default_factory=set)  # the topics they came on
     last_winch_rejection: str = ""
     faults: dict[str, list] = field(default_factory=dict)  # sensor -> [samples left out, first, last stamp, why]
+    bases: Counter[str] = field(default_factory=Counter)  # what the alarms were based on
+    last_error: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # the model's error at the last estimated sample
 
     def note(self, outcome: Outcome) -> None:
         """A solved sample's counts."""
@@ -154,6 +161,10 @@ class MonitorStats:
         self.failures += int(outcome.status in (SolveStatus.SOLVER_FAILED, SolveStatus.NO_EQUILIBRIUM))
         self.states[outcome.tension_state] += 1
         self.levels[outcome.level] += 1
+        if outcome.basis:
+            self.bases[outcome.basis] += 1
+        if outcome.error is not None:
+            self.last_error = outcome.error
         self.note_faults(outcome.stamp, outcome.faults)
 
     def note_faults(self, stamp: float, faults: Mapping[str, str]) -> None:

@@ -4,8 +4,9 @@ For sites without rosbag2 (PyPI's ROS 2 has none) and for tests that feed the li
 recording over DDS: every message goes out as the CDR bytes stored in the bag, `rate` times
 as fast as it was recorded, and /clock (rosgraph_msgs/Clock) carries each message's log
 time just before it, so that a node with `use_sim_time` lives in the recording's time. The
-player waits (up to `wait`) until something subscribes to the winches' topics before it
-starts; Ctrl-C stops it.
+player waits (up to `wait`) until something subscribes to the winches' topics, then until
+the other topics are matched too (or no match comes for a second), before it starts; Ctrl-C
+stops it.
 """
 from __future__ import annotations
 
@@ -29,6 +30,8 @@ from .conversions import message_class
 NODE_NAME = "cable_winch_monitor_player"
 QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
 WINCHES = ("/winch/joint_states", *(f"/winch_{i}/joint_states" for i in range(1, 5)))
+SETTLE = 5.0  # [s] longest wait for the other topics' subscribers once the winches' are there
+QUIET = 1.0  # [s] without a new match: the topics left have no subscriber
 
 
 class Player(Node):
@@ -50,6 +53,10 @@ class Player(Node):
     def listened(self) -> bool:
         """Something subscribes to one of the winches' topics."""
         return any(self.publishers_[t].get_subscription_count() > 0 for t in WINCHES if t in self.publishers_)
+
+    def matched(self) -> tuple[int, ...]:
+        """How many subscribers each topic has (discovery matches the topics one by one)."""
+        return tuple(publisher.get_subscription_count() for publisher in self.publishers_.values())
 
 
 def play(bag: str | Path, rate: float = 1.0, clock: bool = True, wait: float = 30.0,
@@ -73,6 +80,7 @@ def play(bag: str | Path, rate: float = 1.0, clock: bool = True, wait: float = 3
         deadline = time.monotonic() + wait
         while not node.listened() and time.monotonic() < deadline:
             rclpy.spin_once(node, timeout_sec=0.05)
+        _settle(node, min(deadline, time.monotonic() + SETTLE))
         published = _publish(node, reader, rate, clock, until, topics)
         print(f"played {published} messages of {bag}")
         return 0
@@ -82,6 +90,18 @@ def play(bag: str | Path, rate: float = 1.0, clock: bool = True, wait: float = 3
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _settle(node: Player, deadline: float) -> None:
+    """Wait until every topic has a subscriber, or until no new match has come for QUIET seconds (a topic
+    nothing subscribes to), or `deadline`: a subscriber matched to the winches' topics may not be matched
+    to the inclinometer's yet, and a reliable publisher's first messages go nowhere before the match."""
+    counts, since = node.matched(), time.monotonic()
+    while time.monotonic() < deadline and not all(counts) and time.monotonic() - since < QUIET:
+        rclpy.spin_once(node, timeout_sec=0.05)
+        now = node.matched()
+        if now != counts:
+            counts, since = now, time.monotonic()
 
 
 def _publish(node: Player, reader: BagReader, rate: float, clock: bool, until: float,

@@ -4,7 +4,9 @@ rclpy's executor hands over one message per wake-up, at a cost of a few hundred
 microseconds; at 1 kHz on a shared core it fell behind and the queue held a second of
 stale samples. A callback here takes every message waiting in the subscription's queue
 at once. The queue is short (KEEP_LAST), so that it can never hold stale work; what it
-overwrites shows as a gap in the publisher's sequence numbers and is counted.
+overwrites shows as a gap in the publisher's sequence numbers and is counted. The sensors'
+queues are emptied too before the winch messages are merged (`waiting`): a reading sent
+before a winch message must reach the sample first, as it does in a replay in log order.
 """
 from __future__ import annotations
 
@@ -27,13 +29,9 @@ class WinchInput:
         messages = [message]
         counted = self.subscription is not None and self.subscription.get_publisher_count() == 1
         self._note(info, counted)
-        while self.subscription is not None:
-            with self.subscription.handle:
-                taken = self.subscription.handle.take_message(self.subscription.msg_type, False)
-            if taken is None:
-                break
-            messages.append(taken[0])
-            self._note(taken[1], counted)
+        for taken, taken_info in waiting(self.subscription) if self.subscription is not None else ():
+            messages.append(taken)
+            self._note(taken_info, counted)
         return messages
 
     def _note(self, info: dict[str, Any], counted: bool) -> None:
@@ -43,3 +41,14 @@ class WinchInput:
         if counted and self._last_sequence and sequence > self._last_sequence + 1:
             self.unseen += sequence - self._last_sequence - 1
         self._last_sequence = sequence
+
+
+def waiting(subscription: Subscription) -> list[tuple[Any, dict[str, Any]]]:
+    """Every message waiting in `subscription`'s queue, with its info, in arrival order."""
+    out = []
+    while True:
+        with subscription.handle:
+            taken = subscription.handle.take_message(subscription.msg_type, False)
+        if taken is None:
+            return out
+        out.append(taken)

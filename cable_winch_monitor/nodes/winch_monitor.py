@@ -26,6 +26,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
@@ -46,7 +47,7 @@ from ..monitor.latest import BACKLOG, LatestSamplePipeline
 from ..monitor.pipeline import CompleteSample, MonitorOutput
 from ..monitor.residuals import Residuals
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
-from .winch_input import WinchInput
+from .winch_input import WinchInput, waiting
 
 NODE_NAME = "winch_monitor"
 MERGED_TOPIC = "/winch/joint_states"
@@ -150,14 +151,18 @@ class WinchMonitorNode(Node):
         self.outline_pub.publish(build(MarkerArray, self.scene.outline((now.sec, now.nanosec))))
 
         # The sensors' subscriptions come first: where a reading and a winch message wait together, the executor
-        # takes them in this order, so that a sample has the readings sent before it (as a replay in log order).
+        # takes them in this order, and a winch callback empties their queues before it merges (`_read_waiting`),
+        # so that a sample has the readings sent before it (as a replay in log order).
+        self._readers: list[tuple[Subscription, Callable[[Any], None]]] = []
         for topic, msgtype in channels.topic_types().items():  # inclinometer, depth gauge, declared sensors
             if topic not in WINCH_TOPICS:
-                self.create_subscription(message_class(msgtype), topic,
-                                         self._guarded(topic, self._on_measurement, topic), SENSOR_QOS)
+                handler = self._guarded(topic, self._on_measurement, topic)
+                self._readers.append((self.create_subscription(message_class(msgtype), topic, handler, SENSOR_QOS),
+                                      handler))
         for spec in self.pipeline.model.inputs:  # what the plant's effects read (a shaft temperature)
-            self.create_subscription(message_class(spec.msgtype), spec.topic,
-                                     self._guarded(spec.topic, self._on_input, spec), SENSOR_QOS)
+            handler = self._guarded(spec.topic, self._on_input, spec)
+            self._readers.append((self.create_subscription(message_class(spec.msgtype), spec.topic, handler,
+                                                           SENSOR_QOS), handler))
         self.winch_inputs = [WinchInput(topic) for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")])]
         for winch in self.winch_inputs:
             winch.subscription = self.create_subscription(JointState, winch.topic, self._winch_callback(winch),
@@ -237,6 +242,7 @@ class WinchMonitorNode(Node):
     def _on_joint_states(self, msg: JointState, info: dict, winch: WinchInput) -> None:
         """Merge this message and every one queued behind it; the worker solves the newest complete sample."""
         messages = winch.drain(msg, info)
+        self._read_waiting()
         now = self._now()
         with self.pipeline.lock:
             self.pipeline.unseen = sum(w.unseen for w in self.winch_inputs)
@@ -246,6 +252,13 @@ class WinchMonitorNode(Node):
                                     fields.stamp_of(message))
                 accepted = [i for i, reading in enumerate(self.pipeline.merger.readings) if reading is not before[i]]
                 self.reporter.note_readings(accepted, now)
+
+    def _read_waiting(self) -> None:
+        """The sensors' readings waiting in their queues, taken before the winch messages just drained are
+        merged: under load the executor hands a winch message over while a reading sent before it waits."""
+        for subscription, handler in self._readers:
+            for message, _ in waiting(subscription):
+                handler(message)
 
     def _publish(self, stamp: fields.Stamp, output: MonitorOutput) -> None:
         """The sample's outputs as replay records them (bagio.records: pose and /tf only if solved), sent as
