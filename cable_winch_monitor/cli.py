@@ -113,10 +113,13 @@ def _simulate(args: argparse.Namespace) -> int:
 
 def _replay_summary(bag: str, args: argparse.Namespace) -> int:
     from .replay import replay
+    from .stopping import ignore_stop_signals
 
     summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet,
                      scene_rate=args.scene_rate,
                      stamp_window=_stamp_window(args))
+    if summary.stopped:
+        ignore_stop_signals()  # stopping: the summary and the exit status are what is left to give
     print(summary.format())
     if summary.refused:
         print(f"error: {summary.refused}", file=sys.stderr)

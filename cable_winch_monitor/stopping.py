@@ -5,7 +5,8 @@ raises KeyboardInterrupt wherever the program is, in the middle of a record if i
 writing one. Inside `stop_signals()` each of them is taken as a request to stop: raised as
 `Stopped` at once where the job is in an `interruptible()` stretch (waiting, computing),
 else held until it enters the next one, so that what is written stays whole. Once a stop
-is under way, further signals are ignored: stopping is short and must not be broken off.
+is under way, further signals are ignored: stopping is short and must not be broken off;
+a program that only reports and exits after it ignores them too (`ignore_stop_signals`).
 """
 from __future__ import annotations
 
@@ -68,3 +69,11 @@ def interruptible() -> Iterator[None]:
         yield
     finally:
         _state.armed = armed
+
+
+def ignore_stop_signals() -> None:
+    """Further stop signals ignored, in a program that was stopped and only reports and exits: a second
+    Ctrl-C must break off neither (Python's exit would take it as the default's: killed, no status)."""
+    if threading.current_thread() is threading.main_thread():
+        for signum in SIGNALS:
+            signal.signal(signum, signal.SIG_IGN)
