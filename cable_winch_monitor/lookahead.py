@@ -69,10 +69,12 @@ class Prepared(NamedTuple):
 
 
 def _counters(stats: MonitorStats) -> list[Counter[str]]:
+    """A copy of the stats merging counts (COUNTED), to tell later what a window added."""
     return [getattr(stats, name).copy() for name in COUNTED]
 
 
 def _since(before: list[Counter[str]], stats: MonitorStats) -> list[Counter[str]]:
+    """What merging has counted since `before` (a `_counters` copy)."""
     return [getattr(stats, name) - counter for name, counter in zip(COUNTED, before)]
 
 
