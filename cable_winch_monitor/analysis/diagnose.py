@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..effects import PlantModel, available
+from ..effects import Effect, PlantModel, available
 from ..effects.model import refines
 from ..model.plant import Plant, load_plant
 from ..progress import Progress
