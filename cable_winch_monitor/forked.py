@@ -26,8 +26,9 @@ import signal
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from multiprocessing.connection import Connection
-from typing import Any, Callable, NoReturn
+from typing import Any, NoReturn
 
 SPOOL = "/dev/shm"  # where the files go, where it can be written
 STALL = 5.0         # [s] without CPU time used while a result is awaited: the worker is given up
@@ -117,7 +118,7 @@ def _serve(run: Callable[[Any], Any], spool: str, jobs: Connection, results: Con
             _leave(spool, parent)  # closed by the parent, or the parent is gone
         try:
             answer = _put(spool, run(_get(path)))
-        except Exception:  # noqa: BLE001 - the parent runs the job itself
+        except Exception:  # any failure: the parent runs the job itself, where an error is raised as itself
             answer = None
         try:
             results.send(answer)
@@ -162,6 +163,7 @@ class ForkedWorker:
         """The oldest job's result, waited for while the worker uses CPU time; WorkerLost where it died,
         failed on the job, or used none for STALL seconds."""
         pid = self.process.pid
+        assert pid is not None, "the worker is started with the ForkedWorker"
         used, since = cpu_time(pid), time.monotonic()
         while not self._results.poll(POLL):
             if not self.process.is_alive():

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
-from typing import Any, Iterable, Iterator, NamedTuple, Union
+from typing import Any, Generator, Iterable, Iterator, NamedTuple, Union
 
 from . import channels
 from .ahead import AheadPublisher, Published, SamplePublisher
@@ -109,7 +109,7 @@ class LookaheadPipeline(MonitorPipeline):
         for item, result, _ in self.run_diagnosed(items):
             yield item, result
 
-    def run_diagnosed(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, list[Record]]]:
+    def run_diagnosed(self, items: Iterable[Any]) -> Generator[tuple[Any, Result, list[Record]], None, None]:
         """`run`, with /diagnostics after the messages where DIAGNOSTICS_PERIOD of log time has passed, as
         the node publishes them at its clock (log time stands for it).
 

@@ -14,19 +14,19 @@ import signal
 import subprocess
 import time
 from collections import Counter
+from collections.abc import Callable, Iterator
 from contextlib import suppress
 from pathlib import Path
-from typing import Callable, Iterator
 
 import pytest
 import yaml
 from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
+from simbags import CLI, simulated
 
 from cable_winch_monitor import forked
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.replay import replay
-from simbags import CLI, simulated
 
 SPOOL_PREFIX = "cable-winch-monitor-"
 STOPPED_WITHIN = 5.0  # [s] from the signal to the replay's exit
