@@ -1,11 +1,10 @@
-"""Channels declared once, conditions every effect sees, loads effects act on, one solve path, layers.
+"""Channels declared once, conditions every effect sees, loads effects act on, one solve path.
 
 The bags here are written with the package's own writer from hand-made messages: these
 tests are about plumbing (which value reaches which effect or channel), not about fits.
 """
 from __future__ import annotations
 
-import ast
 import math
 import textwrap
 from pathlib import Path
@@ -203,40 +202,6 @@ def test_limits_use_the_plants_effects():
                                      groups)
     assert all(limit.taut_limit == pytest.approx(0.02, abs=1e-3) for limit in rigid)  # rigid: slack at once
     assert all(e.taut_limit > r.taut_limit + 0.01 for e, r in zip(elastic, rigid))  # stretched ropes stay taut
-
-
-ALLOWED = {  # what each layer may import from the package: imports point one way
-    "model": {"model", "paths"},
-    "channels": {"model", "channels"},
-    "effects": {"model", "channels", "effects"},
-    "monitor": {"model", "channels", "effects", "monitor"},
-    "bagio": {"model", "channels", "effects", "monitor", "bagio"},
-}
-
-
-def _imported_layers(path: Path) -> set[str]:
-    """The package's top-level modules or subpackages that `path` imports."""
-    inside = path.parent != PACKAGE
-    out = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.level > 0:
-            if inside and node.level == 1:
-                out.add(path.parent.name)
-            elif node.module:
-                out.add(node.module.split(".")[0])
-            else:
-                out.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("cable_winch_monitor."):
-            out.add(node.module.split(".")[1])
-    return out
-
-
-def test_imports_point_one_way():
-    for layer, allowed in ALLOWED.items():
-        files = [PACKAGE / f"{layer}.py"] if (PACKAGE / f"{layer}.py").exists() else (PACKAGE / layer).glob("*.py")
-        for path in files:
-            wrong = _imported_layers(path) - allowed
-            assert not wrong, f"{path.relative_to(PACKAGE)} imports {sorted(wrong)}"
 
 
 def test_channel_list_is_the_one_declaration():
