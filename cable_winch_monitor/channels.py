@@ -106,7 +106,10 @@ class Channel:
 
 
 def _tension(cable: int) -> Prediction:
-    return lambda solution, plant, conditions: float(solution.tensions[cable])
+    def predict(solution: Solution, plant: Plant, conditions: Conditions) -> float:
+        assert solution.tensions is not None  # predicted for a solved state
+        return float(solution.tensions[cable])
+    return predict
 
 
 def _roll_pitch(which: int) -> Callable[[Any], float]:
@@ -125,7 +128,18 @@ def _inclination(quaternion: tuple[float, float, float, float]) -> tuple[float, 
 
 
 def _position(axis: int) -> Prediction:
-    return lambda solution, plant, conditions: float(solution.position[axis])
+    def predict(solution: Solution, plant: Plant, conditions: Conditions) -> float:
+        assert solution.position is not None  # predicted for a solved state
+        return float(solution.position[axis])
+    return predict
+
+
+def _attitude(which: int) -> Prediction:
+    """Roll (0) or pitch (1) of a solved state [rad]."""
+    def predict(solution: Solution, plant: Plant, conditions: Conditions) -> float:
+        assert solution.rotation is not None  # predicted for a solved state
+        return roll_pitch_yaw(solution.rotation)[which]
+    return predict
 
 
 TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # the load pins, one per cable
@@ -134,9 +148,9 @@ BUILTIN = (
               predict_states=(lambda i: lambda states: states.tensions[:, i])(i))
       for i, (name, cable) in enumerate(zip(TENSION_CHANNELS, CABLE_NAMES))),
     Channel("roll", "rad", "roll", ("/platform/imu",), IMU, "orientation (roll)",
-            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[0], _roll_pitch(0), roll_of),
+            _attitude(0), _roll_pitch(0), roll_of),
     Channel("pitch", "rad", "pitch", ("/platform/imu",), IMU, "orientation (pitch)",
-            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[1], _roll_pitch(1), pitch_of),
+            _attitude(1), _roll_pitch(1), pitch_of),
     *(Channel(name, "m", name, ("/platform/position",), POINT, f"point.{axis}", _position(k),
               predict_states=(lambda k: lambda states: states.position[:, k])(k))
       for k, (name, axis) in enumerate(zip(("x", "y", "depth"), "xyz"))),

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from ..bagio.reader import BagError, BagReader
 from ..bagio.topics import missing_input, require_inputs
 from ..channels import JOINT_STATE, Input
 from ..model.conditions import Conditions, derivatives, directions
-from ..monitor.inputs import CableLengthMerger
+from ..monitor.inputs import CableLengthMerger, CableReading
 
 WINCH = "winches"  # the source of the winch rows (any joint-state topic)
 MAX_GAP = 0.5  # [s] a sensor sample further than this from a winch sample has no lengths
@@ -100,10 +101,12 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[In
             tensions = merger.measured_tensions()
             row = np.full(len(names), np.nan)
             row[[tension_columns[i] for i in merged.accepted]] = tensions[merged.accepted]
-            joints.append((stamp, lengths, np.array([r.velocity for r in merger.readings]), row))
+            readings = cast(list[CableReading], merger.readings)  # every cable read: the lengths are complete
+            joints.append((stamp, lengths, np.array([r.velocity for r in readings]), row))
         elif item.topic in sensor_topics:
             row = np.full(len(names), np.nan)
             for channel in channels.on_topic(item.topic):
+                assert channel.read is not None  # `on_topic` gives the channels with a reader
                 row[column[channel.name]] = channel.read(msg)
             if np.isfinite(row).any():
                 others.append((stamp, 1 + sensor_topics.index(item.topic), row))

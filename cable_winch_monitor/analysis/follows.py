@@ -43,7 +43,7 @@ acceleration are regressors of their own.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, Sequence, TypeGuard
 
 import numpy as np
 from scipy import stats
@@ -158,7 +158,7 @@ def _on_rows(times: np.ndarray, t: np.ndarray, v: np.ndarray, discrete: bool) ->
 
 def _is_discrete(values: np.ndarray) -> bool:
     finite = values[np.isfinite(values)]
-    return finite.size > 0 and np.all(finite == np.round(finite)) and np.unique(finite).size <= MAX_LEVELS
+    return finite.size > 0 and bool(np.all(finite == np.round(finite))) and np.unique(finite).size <= MAX_LEVELS
 
 
 def regressors(data: Dataset, fields: BagFields | None = None, tensions: np.ndarray | None = None) -> list[Regressor]:
@@ -325,7 +325,7 @@ def _sentence(target: str, channels: Sequence[str], best: _Test, also: list[_Tes
     return text
 
 
-def _significant(test: _Test | None) -> bool:
+def _significant(test: _Test | None) -> TypeGuard[_Test]:
     return test is not None and abs(test.r) >= MIN_R and test.p < ALPHA
 
 

@@ -44,7 +44,8 @@ class Layout:
         self.store = store
         self.lines: list[str] = []
         self.structs: dict[str, str] = {}  # struct format -> name in the generated code
-        self.fmt, self.pending = "", []
+        self.fmt = ""
+        self.pending: list[str] = []
         self.base, self.rem, self.indent, self.names = 8, 0, 1, 0
 
     def emit(self, line: str) -> None:
@@ -149,6 +150,7 @@ class _EncoderSource(Layout):
 
     def message(self, msgtype: str, expr: str, fixed: Mapping[str, Any] | None = None) -> None:
         fixed = self.fixed.get(msgtype, {}) if fixed is None else fixed
+        argument: Any  # as `node` says: a base type, a message type's name, or an array's (element, length)
         for name, (node, argument) in self.store.fielddefs[msgtype][1]:
             if name in fixed and node == Nodetype.NAME:
                 self.message(argument, f"{expr}[{name!r}]", fixed[name])

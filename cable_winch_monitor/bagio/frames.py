@@ -36,6 +36,7 @@ def platform_tf(stamp: Stamp, solution: Solution) -> Fields:
     """/tf for a solved pose: `shaft` -> `platform` (only for a solution with a pose)."""
     if not solution.ok:
         raise ValueError(f"no transform without a solved pose ({solution.tension_state})")
+    assert solution.position is not None and solution.quaternion is not None  # solved: a pose
     return {"transforms": [transform_stamped(stamp, PLATFORM_FRAME, solution.position.tolist(),
                                              solution.quaternion.tolist())]}
 

@@ -9,7 +9,7 @@ import struct
 import zlib
 from dataclasses import dataclass
 from io import BytesIO
-from typing import BinaryIO, Callable, Iterator
+from typing import BinaryIO, Callable, Iterator, TypeVar
 
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
@@ -18,6 +18,7 @@ from mcap.records import Channel, Chunk, ChunkIndex, Schema
 RECORD_HEADER = struct.Struct("<BQ")
 MESSAGE_HEADER = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 CHUNK_HEAD = struct.Struct("<QQQII")  # start time, end time, uncompressed size, CRC, compression name length
+R = TypeVar("R")  # the record type a reader parses
 
 
 class McapDamage(Exception):
@@ -52,7 +53,7 @@ def read_records(stream: BinaryIO, start: int, end: int) -> Iterator[tuple[int, 
         offset += RECORD_HEADER.size + length
 
 
-def parse_record(reader: Callable[[ReadDataStream], object], body: bytes, what: str, offset: int) -> object:
+def parse_record(reader: Callable[[ReadDataStream], R], body: bytes, what: str, offset: int) -> R:
     try:
         return reader(ReadDataStream(BytesIO(body)))
     except Exception as error:  # noqa: BLE001 - any parse failure is damage, with its cause

@@ -161,7 +161,9 @@ class McapFile:
     def _whole(self, chunk: Chunk, offset: int) -> list[RawMessage]:
         """The messages of a chunk that reads whole with a matching CRC; its definitions kept."""
         data = chunk_data(chunk, offset)
-        schemas, channels, messages = {}, {}, []
+        schemas: dict[int, Schema] = {}
+        channels: dict[int, Channel] = {}
+        messages: list[RawMessage] = []
         try:
             for inner, opcode, record in read_records(BytesIO(data), 0, len(data)):
                 if opcode == Opcode.MESSAGE:
@@ -233,6 +235,7 @@ class McapFile:
         return found
 
     def _indexed_chunks(self) -> Iterator[tuple[int, list[RawMessage]]]:
+        assert self._index is not None  # read only where the file has its summary's chunk index
         for index in self._index:
             offset = index.chunk_start_offset
 

@@ -109,7 +109,7 @@ def main() -> None:
     plant = load_plant()
     count = 2000
     lengths, readings = fused_samples(plant, count)
-    one = [[r.with_value(float(r.value[k])) for r in readings] for k in range(count)]
+    one = [[r.with_value(float(np.asarray(r.value)[k])) for r in readings] for k in range(count)]  # (count,) each
     few = 300
     rates = {
         "traversal (seed 002)": per_sample_rate(lambda k, _: solve(plant, lengths[k], "traversal"), few),

@@ -21,6 +21,7 @@ import shutil
 import struct
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable
 
@@ -68,7 +69,7 @@ def recordings(directory: Path) -> dict[str, Path]:
     """The 10,000-sample benchmark recording on each plant, its truth that plant's physics: rigid ropes
     for the rigid plant; elastic ropes with their weight and sheave friction for the realistic one (each
     plant replays what its model explains, as a fitted plant file does at site; sensors at site noise)."""
-    truths = {"rigid": {"ropes": {"model": "rigid"}, "effects": {}},
+    truths: dict[str, dict[str, Any]] = {"rigid": {"ropes": {"model": "rigid"}, "effects": {}},
               "realistic": {"ropes": {"model": "elastic", "EA": REALISTIC_EFFECTS["rope_elasticity"]["EA"]},
                             "effects": {name: values for name, values in REALISTIC_EFFECTS.items()
                                         if name != "rope_elasticity"}}}
@@ -198,9 +199,9 @@ def node_rows(files: dict[str, Path | None], traversal_ms: float,
         from .node_latency import SETTLE, leased_domain, measure, measure_recording
     except ImportError as error:
         return [("node latency at 50 Hz", "not available", f"ROS 2 not importable: {error}", "")]
-    jobs = [(label, lambda domain, plant_file=plant_file: measure(NODE_SAMPLES, NODE_RATE, domain,
-                                                                  plant_file=plant_file))
-            for label, plant_file in files.items()]
+    jobs: list[tuple[str, Callable[[int], Any]]] = [  # (label, domain -> Latency)
+        (label, partial(measure, NODE_SAMPLES, NODE_RATE, plant_file=plant_file))
+        for label, plant_file in files.items()]
     if recording is not None:
         jobs.append(("site (a), every sensor", lambda domain: measure_recording(recording[0], domain, recording[1],
                                                                                 NODE_SECONDS + SETTLE)))

@@ -32,7 +32,7 @@ motion, extra inputs): an effect that reads a topic declares it in `inputs`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Mapping, Union
+from typing import Any, Callable, ClassVar, Mapping, Protocol, Union, cast
 
 import numpy as np
 
@@ -80,14 +80,34 @@ class Parameter:
     doc: str = ""
     fit: bool = True
 
-    def resolved(self, plant: Plant | None, bounds: tuple[float, float] | None = None) -> "Parameter":
+    def resolved(self, plant: Plant | None, bounds: tuple[float, float] | None = None) -> "Resolved":
         """The numbers for this plant; `bounds` (the plant file's effect_bounds) replace the declared ones.
         Without a plant, plant-relative bounds are open and a plant-relative default unknown."""
         def number(spec: Any, unknown: Any) -> Any:
             return (unknown if plant is None else spec(plant)) if callable(spec) else spec
         low, high = bounds if bounds is not None else number(self.bounds, (-np.inf, np.inf))
-        return Parameter(self.name, self.unit, float(number(self.default, UNKNOWN)), (float(low), float(high)),
-                         float(number(self.scale, UNKNOWN)), self.doc, self.fit)
+        return cast(Resolved, Parameter(self.name, self.unit, float(number(self.default, UNKNOWN)),
+                                        (float(low), float(high)), float(number(self.scale, UNKNOWN)), self.doc,
+                                        self.fit))  # its default, bounds and scale are numbers now
+
+
+class Resolved(Protocol):
+    """A `Parameter` with the numbers for one plant (`Parameter.resolved`): what `Effect.specs` holds."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def unit(self) -> str: ...
+    @property
+    def default(self) -> float: ...
+    @property
+    def bounds(self) -> tuple[float, float]: ...
+    @property
+    def scale(self) -> float: ...
+    @property
+    def doc(self) -> str: ...
+    @property
+    def fit(self) -> bool: ...
 
 
 def relative(factor: float, size: Callable[[Plant], float]) -> Callable[[Plant], float]:
@@ -136,7 +156,7 @@ class Effect:
                               f"(known: {', '.join(sorted(known)) or 'none'})")
         self.for_plant = plant
         given_bounds = plant.effect_bounds.get(self.name, {}) if plant is not None else {}
-        self.specs: tuple[Parameter, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
+        self.specs: tuple[Resolved, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
         self.values: dict[str, float] = {}
         for p in self.specs:
             try:
@@ -163,7 +183,7 @@ class Effect:
         """The effect has parameters a fit adjusts."""
         return any(p.fit for p in cls.parameters)
 
-    def fitted(self) -> tuple[Parameter, ...]:
+    def fitted(self) -> tuple[Resolved, ...]:
         """The parameters a fit adjusts, resolved for the plant (bounds, step)."""
         return tuple(p for p in self.specs if p.fit)
 

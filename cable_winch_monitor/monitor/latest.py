@@ -30,7 +30,8 @@ class LatestSamplePipeline(MonitorPipeline):
     """
 
     def __init__(self, *args: Any, backlog: float = BACKLOG, **kwargs: Any):
-        super().__init__(*args, background=True, **kwargs)  # the model error's updates beside the samples
+        # the model error's updates beside the samples (`args` are the pipeline's first four, never `background`)
+        super().__init__(*args, background=True, **kwargs)  # type: ignore[misc]
         self.backlog = backlog
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)

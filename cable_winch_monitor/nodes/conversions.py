@@ -23,7 +23,8 @@ from ..monitor.alarm import Alarm
 def _message_fields(kind: type) -> dict[str, tuple[type, bool]]:
     """Fields of a message type that hold messages: name -> (message type, is a sequence)."""
     nested = {}
-    for name, slot in zip(kind.get_fields_and_field_types(), kind.SLOT_TYPES):
+    # a rosidl-generated message class: its field listing is made at build time, out of mypy's sight
+    for name, slot in zip(kind.get_fields_and_field_types(), kind.SLOT_TYPES):  # type: ignore[attr-defined]
         sequence = isinstance(slot, AbstractNestedType)
         base = slot.value_type if sequence else slot
         if isinstance(base, NamespacedType):

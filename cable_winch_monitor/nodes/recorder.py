@@ -63,7 +63,9 @@ class Recorder(Node):
         reliable = offered and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in offered)
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DEPTH,
                          reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT)
-        self.create_subscription(kind, topic, lambda data, t=topic, m=msgtype: self._write(t, m, data), qos, raw=True)
+        # raw=True: rclpy hands the callback the serialised bytes, where its types say a message
+        self.create_subscription(kind, topic, lambda data: self._write(topic, msgtype, data),  # type: ignore[arg-type]
+                                 qos, raw=True)
         self.subscribed[topic] = msgtype
 
     def _write(self, topic: str, msgtype: str, data: bytes) -> None:

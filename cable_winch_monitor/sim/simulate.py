@@ -69,8 +69,12 @@ def _events(streams: list[Stream]) -> Iterator[tuple[float, Stream]]:
 
 
 def _truth_row(t: float, stream: str, lengths: np.ndarray, truth: Solution, clearance: float) -> list[Any]:
-    pose = [*truth.position, *roll_pitch_yaw(truth.rotation)] if truth.ok else [np.nan] * 6
-    tensions = list(truth.tensions) if truth.ok else [np.nan] * 4
+    pose: list[Any] = [np.nan] * 6
+    tensions: list[Any] = [np.nan] * 4
+    if truth.ok:
+        assert truth.position is not None and truth.rotation is not None and truth.tensions is not None  # a pose
+        pose = [*truth.position, *roll_pitch_yaw(truth.rotation)]
+        tensions = list(truth.tensions)
     taut = " ".join(str(i) for i in truth.taut_set)
     number = "{:.9g}".format
     return [f"{t:.9f}", stream, *map(number, lengths), truth.status.value, taut,
