@@ -324,10 +324,10 @@ def check_physics_rows(plant: Plant, lengths: np.ndarray, points_b: np.ndarray, 
     )
 
 
-def passing_rows(check: PhysicsCheck, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> np.ndarray | int:
+def passing_rows(check: PhysicsCheck, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> np.ndarray | np.bool_:
     """Which rows of a `check_physics_rows` check pass (the conditions of `PhysicsCheck.passes`); for a
-    one-state check, a number whose truth says whether it passes."""
+    one-state check, whether it passes."""
     return ((check.force_residual <= balance_tol) & (check.moment_residual <= balance_tol)
             & (check.min_tension >= 0.0) & (check.max_overstretch <= length_tol)
             & (check.taut_length_error <= length_tol) & (check.rigid_error <= length_tol)
-            & (check.slack_tension == 0.0) & ~check.mirrored)
+            & (check.slack_tension == 0.0) & np.logical_not(check.mirrored))
