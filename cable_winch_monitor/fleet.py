@@ -11,9 +11,10 @@ from __future__ import annotations
 import functools
 import json
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 from .bagio.reader import BagError
 from .bagio.scene import REPLAY_RATE

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
-from typing import Any, Generator, Iterable, Iterator, NamedTuple, Union
+from collections.abc import Generator, Iterable, Iterator
+from typing import Any, NamedTuple
 
 from . import channels
 from .ahead import AheadPublisher, Published, SamplePublisher
@@ -34,8 +35,7 @@ from .bagio import fields
 from .bagio.records import Record, diagnostics_record
 from .bagio.scene import REPLAY_RATE
 from .model.conditions import Conditions
-from .model.plant import Plant
-from .model.plant import CABLE_NAMES
+from .model.plant import CABLE_NAMES, Plant
 from .monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view
 from .monitor.inputs import StampWindow
 from .monitor.pipeline import CompleteSample, MonitorPipeline, MonitorStats
@@ -47,7 +47,7 @@ MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a secon
 DIAGNOSTICS_PERIOD = 1.0  # [s] of log time between /diagnostics, as the node's default
 COUNTED = ("messages", "used", "rejected", "ignored_names")  # the stats merging counts, ahead of the messages taken
 
-Result = Union[Published, Residuals, None, Exception]
+Result = Published | Residuals | Exception | None
 
 
 class Merged(NamedTuple):
@@ -197,7 +197,7 @@ class LookaheadPipeline(MonitorPipeline):
         for item, outcome, due in zip(prepared.window, prepared.merged, prepared.inputs):
             try:
                 result = self._result(item, outcome, published)
-            except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
+            except Exception as error:
                 result = error
             residuals = result.outcome.residuals if isinstance(result, Published) else result
             if isinstance(residuals, Residuals):
@@ -216,7 +216,7 @@ class LookaheadPipeline(MonitorPipeline):
             if channels.on_topic(item.topic) and item.topic not in self.input_specs:
                 try:
                     stamp = fields.message_seconds(item.message, item.log_time)
-                except Exception:  # noqa: BLE001 - reported with its message when taken
+                except Exception:
                     return None
                 values = self.read_channels(item.topic, item.message)
                 self.keep_reading(stamp, values)
@@ -224,7 +224,7 @@ class LookaheadPipeline(MonitorPipeline):
             return None
         try:
             sample = self._merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival: log time
-        except Exception as error:  # noqa: BLE001 - returned with its message when taken
+        except Exception as error:
             return error
         return None if sample is None else Merged(sample, self.conditions(sample), fields.stamp_of(item.message))
 

@@ -14,18 +14,18 @@ from __future__ import annotations
 import gc
 import time
 from collections import Counter
+from collections.abc import Iterator
 from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
+from .ahead import Published
 from .bagio import fields, records
 from .bagio.clock import clock_offset
 from .bagio.reader import BagMessage, BagReader, ReadReport
 from .bagio.scene import REPLAY_RATE
 from .bagio.topics import require_inputs
 from .bagio.writer import new_bag
-from .ahead import Published
 from .effects import PlantModel
 from .lookahead import LookaheadPipeline
 from .model.plant import CABLE_NAMES, Plant, load_plant
@@ -205,7 +205,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                     outputs = _records(item, stamp, result)
                     if isinstance(result, Published) and result.outcome.status is not SolveStatus.SOLVED:
                         summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
-                except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
+                except Exception as error:
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue
                 log_time = fields.stamp_ns(stamp)

@@ -16,7 +16,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rosbags.interfaces import Nodetype  # noqa: E402
+from rosbags.interfaces import Nodetype  # noqa: E402 - after the path set-up above
 
 from cable_winch_monitor.bagio.typestore import COMMON_TYPES, jazzy_store, with_dependencies  # noqa: E402
 

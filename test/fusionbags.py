@@ -7,11 +7,12 @@ real bag by `write_bag`.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Callable
 
 import numpy as np
+from root_truth import elastic_truth, slack_truth, weak_mode_truth
 from scipy.spatial.transform import Rotation
 
 from cable_winch_monitor import channels
@@ -19,7 +20,6 @@ from cable_winch_monitor.bagio import fields
 from cable_winch_monitor.bagio.cdr import encoder
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.model.plant import CABLE_NAMES
-from root_truth import elastic_truth, slack_truth, weak_mode_truth
 
 NOISE = {"length": 1e-3, "tension": 150.0, "roll": np.radians(0.01), "pitch": np.radians(0.01), "depth": 5e-3}
 RATE, SPEED = 10.0, 0.4  # [Hz] winches, [m/s] lowering

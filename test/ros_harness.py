@@ -15,9 +15,10 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import rclpy
 from builtin_interfaces.msg import Time
@@ -28,10 +29,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, JointState
 
+from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
-
-from cable_winch_monitor.model.plant import CABLE_NAMES
 
 ROOT = Path(__file__).resolve().parent.parent
 NODE_EXECUTABLE = Path(sys.executable).parent / "winch_monitor"

@@ -10,11 +10,17 @@ from typing import Any
 import numpy as np
 import pytest
 
+from cable_winch_monitor.bagio.scene import (
+    DELETEALL,
+    LEVEL_COLOURS,
+    LINE_LIST,
+    LINE_STRIP,
+    SLACK_COLOUR,
+    tension_colour,
+)
 from cable_winch_monitor.model.plant import CABLE_NAMES, Plant
 from cable_winch_monitor.model.result import Solution
 from cable_winch_monitor.monitor.alarm import AlarmLevel
-from cable_winch_monitor.bagio.scene import (DELETEALL, LEVEL_COLOURS, LINE_LIST, LINE_STRIP, SLACK_COLOUR,
-                                               tension_colour)
 
 LENGTH_TOL = 1e-3  # [m]
 

@@ -13,12 +13,11 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy.spatial.transform import Rotation
 
-from scipy.spatial.transform import Rotation  # noqa: E402
-
-from cable_winch_monitor.bagio.scene import CYLINDER, LINE_LIST, LINE_STRIP, SPHERE, SPHERE_LIST, TEXT  # noqa: E402
+from cable_winch_monitor.bagio.scene import CYLINDER, LINE_LIST, LINE_STRIP, SPHERE, SPHERE_LIST, TEXT
 
 
 def _points(marker: dict[str, Any]) -> np.ndarray:

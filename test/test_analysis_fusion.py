@@ -13,13 +13,13 @@ model without the rope weight: above 100) and selects nothing.
 from __future__ import annotations
 
 import pytest
+from fusionbags import NOISE, elastic_lowering_truths, lowering_truths, noisy, sensed, write_bag
 
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.diagnose import diagnose
 from cable_winch_monitor.analysis.evaluate import noise
 from cable_winch_monitor.effects import PlantModel
-from fusionbags import NOISE, elastic_lowering_truths, lowering_truths, noisy, sensed, write_bag
 
 CANDIDATES = ("rope_elasticity",)  # what a model taking its lengths as exact selects on such a bag (issue 11)
 

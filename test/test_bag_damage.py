@@ -12,9 +12,8 @@ import random
 from pathlib import Path
 
 import pytest
-from mcap.writer import CompressionType
-
 from bagdamage import check_replayed, locate, read_damaged, write_bag, write_compressed
+from mcap.writer import CompressionType
 
 SEED = 20261123
 CASES = 50

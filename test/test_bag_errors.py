@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from simbags import assert_clean, run_cli, simulated
 
 from cable_winch_monitor.bagio.reader import BagError, BagReader
 from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.replay import replay
-from simbags import assert_clean, run_cli, simulated
 
 JOINTS = "/winch/joint_states"
 IMAGE_BYTES = 300_000

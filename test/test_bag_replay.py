@@ -9,15 +9,25 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
+from simbags import assert_clean, messages, run_cli, simulated, truth
 
 from cable_winch_monitor import forked
-from cable_winch_monitor.bagio.records import (ALARM, DIAGNOSTICS, OUTLINE, OUTPUT_TYPES, POSE, RESIDUALS, SCENE,
-                                               TENSION, TF, TF_STATIC)
+from cable_winch_monitor.bagio.fields import input_topics
+from cable_winch_monitor.bagio.records import (
+    ALARM,
+    DIAGNOSTICS,
+    OUTLINE,
+    OUTPUT_TYPES,
+    POSE,
+    RESIDUALS,
+    SCENE,
+    TENSION,
+    TF,
+    TF_STATIC,
+)
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
-from cable_winch_monitor.bagio.fields import input_topics
 from cable_winch_monitor.replay import replay
-from simbags import assert_clean, messages, run_cli, simulated, truth
 
 SLACK_TOLERANCE = AlarmPolicy().slack_tolerance
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from simbags import simulated
+from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.records import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
@@ -21,8 +23,6 @@ from cable_winch_monitor.model.energy import solve_energy
 from cable_winch_monitor.model.result import SolveStatus, check_physics
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
-from simbags import simulated
-from test_solver_agreement import random_lengths
 
 TOLERANCE = 1e-6  # relative: the fused estimate converges to this (model.fusion.STEP_TOL), warm or batched
 PRINTED = 1e-5    # relative: a number printed to six digits

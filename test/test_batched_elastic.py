@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_batched import assert_same, per_sample
+from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.model.batched_elastic import solve_batch_elastic
 from cable_winch_monitor.model.elastic import solve_elastic
 from cable_winch_monitor.model.result import SolveStatus
-from test_batched import assert_same, per_sample
-from test_solver_agreement import random_lengths
 
 EA = 7.5e7      # [N]
 WEIGHT = 60.0   # [N/m]

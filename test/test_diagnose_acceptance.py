@@ -3,8 +3,8 @@ time budget -- on recordings a site or a laboratory would have, each simulated b
 for the hidden effect (sim/physics.py, root-found equilibrium in sim/truth.py) at realistic noise:
 
 1. a 20-minute sinking run 50-650 m (config/scenarios/sinking_run.yaml) whose ropes are elastic (EA 6.8e7 N)
-   and weigh 58 N/m, against the bundled rigid plant: exactly rope_elasticity and rope_weight; the same with one winch's zero 3 cm off and the centre
-   of gravity moved (+0.10, -0.08) m: exactly those four effects;
+   and weigh 58 N/m, against the bundled rigid plant: exactly rope_elasticity and rope_weight; the same with one
+   winch's zero 3 cm off and the centre of gravity moved (+0.10, -0.08) m: exactly those four effects;
 2. ropes lengthening with the shaft air (alpha 1.2e-5 /K, 18-34 degC on /shaft/temperature) against the right
    elastic plant: with the user's effect (examples/rope_temperature.py) exactly that; without it, what the
    error follows names the temperature times the payout, and the library effect standing in for it is a
@@ -22,7 +22,9 @@ from pathlib import Path
 
 import pytest
 import yaml
-from labbags import EA as LAB_EA, HIDDEN as LAB_HIDDEN, LAB_PLANT, lab_bag
+from labbags import EA as LAB_EA
+from labbags import HIDDEN as LAB_HIDDEN
+from labbags import LAB_PLANT, lab_bag
 from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.analysis.data import read_bag

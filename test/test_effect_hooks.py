@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 import yaml
+from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.paths import default_plant_file, demo_bag
-from simbags import assert_clean, run_cli
 
 HOOKS = '''
 import numpy as np

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 import yaml
+from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.bagio.topics import listed_topics
 from cable_winch_monitor.paths import default_plant_file, demo_bag
-from simbags import assert_clean, run_cli
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 WORDS = "the plant's effects read /shaft/temperature.temperature (sensor_msgs/msg/Temperature), which the bag does " \

@@ -7,13 +7,13 @@ the rope hanging below them, written here from the truth's points.
 from __future__ import annotations
 
 import numpy as np
+from root_truth import elastic_truth
+from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.effects.estimate import estimate_recording, estimate_sample, length_noise
 from cable_winch_monitor.effects.model import NO_CONDITIONS, PlantModel
 from cable_winch_monitor.effects.rope import RopeElasticity, RopeWeight
 from cable_winch_monitor.model.result import check_physics
-from root_truth import elastic_truth
-from test_solver_agreement import random_lengths
 
 NOISE = {"length": 1e-3, "tension": 150.0, "roll": np.radians(0.01), "pitch": np.radians(0.01), "depth": 5e-3}
 

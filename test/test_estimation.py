@@ -8,16 +8,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from root_truth import elastic_truth, weak_mode_samples, weak_mode_truth
+from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.bench.node_latency import lowering
 from cable_winch_monitor.bench.solvers import lowering_samples
-from cable_winch_monitor.model import estimation, observations as obs
+from cable_winch_monitor.model import estimation
+from cable_winch_monitor.model import observations as obs
 from cable_winch_monitor.model.elastic import solve_elastic
 from cable_winch_monitor.model.energy import solve_energy
 from cable_winch_monitor.model.estimation import estimate, estimate_batch
 from cable_winch_monitor.model.result import SolveStatus, check_physics
-from test_solver_agreement import random_lengths
-from root_truth import elastic_truth, weak_mode_samples, weak_mode_truth
 
 PIN, TILT, DEPTH, ENCODER = 150.0, np.radians(0.01), 5e-3, 1e-3
 

@@ -21,8 +21,8 @@ import yaml
 
 from cable_winch_monitor.analysis.bagfields import read_fields
 from cable_winch_monitor.analysis.compare import compare
-from cable_winch_monitor.analysis.diagnose import diagnose_bag
 from cable_winch_monitor.analysis.data import read_bag
+from cable_winch_monitor.analysis.diagnose import diagnose_bag
 from cable_winch_monitor.effects import PlantModel, available, load_module
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.scenario import load_scenario

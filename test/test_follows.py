@@ -13,8 +13,7 @@ from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.analysis.bagfields import read_fields
 from cable_winch_monitor.analysis.compare import compare
-from cable_winch_monitor.analysis.data import read_bag
-from cable_winch_monitor.analysis.data import Dataset
+from cable_winch_monitor.analysis.data import Dataset, read_bag
 from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows, what_follows
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.records import build
@@ -116,8 +115,11 @@ def _write_bag(path, count: int = 300):
     (no header: log time), an IMU on a crane, and a vendor type the reading type store does not know."""
     store = get_typestore(Stores.ROS2_JAZZY)  # the writer's store knows the vendor type, the reader's does not
     store.register(get_types_from_msg("float64 pressure\nstring note", "vendor_msgs/msg/Status"))
-    stamp = lambda t: {"sec": int(t), "nanosec": int(round((t - int(t)) * 1e9))}  # noqa: E731
-    header = lambda t: {"stamp": stamp(t), "frame_id": "shaft"}  # noqa: E731
+    def stamp(t: float) -> dict[str, int]:
+        return {"sec": int(t), "nanosec": int(round((t - int(t)) * 1e9))}
+
+    def header(t: float) -> dict[str, object]:
+        return {"stamp": stamp(t), "frame_id": "shaft"}
     zero = [0.0] * 9
     with BagWriter(path, store) as writer:
         for k in range(count):

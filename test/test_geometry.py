@@ -2,9 +2,15 @@
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.geometry import (quaternion_from_rotation, roll_pitch_of_quaternion, roll_pitch_yaw,
-                                                rotation_from_vector, structure_matrix, wrench_residual,
-                                                wrench_residuals)
+from cable_winch_monitor.model.geometry import (
+    quaternion_from_rotation,
+    roll_pitch_of_quaternion,
+    roll_pitch_yaw,
+    rotation_from_vector,
+    structure_matrix,
+    wrench_residual,
+    wrench_residuals,
+)
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.model.result import solved, solved_rows
 from cable_winch_monitor.monitor.clearance import clearance_at_pose, clearances_at_poses

@@ -127,7 +127,8 @@ def test_absurd_orientations_are_refused(plant, quaternion):
     pipeline = MonitorPipeline(plant)
     pipeline.on_joint_state(merged(1.0, [20.0] * 4, received=1.0))
     x, y, z, w = quaternion
-    assert pipeline.on_measurement("/platform/imu", 1.01, SimpleNamespace(orientation=SimpleNamespace(x=x, y=y, z=z, w=w))) is None
+    imu = SimpleNamespace(orientation=SimpleNamespace(x=x, y=y, z=z, w=w))
+    assert pipeline.on_measurement("/platform/imu", 1.01, imu) is None
     assert "orientation is not a unit quaternion" in pipeline.stats.last_rejection
 
 
@@ -163,10 +164,11 @@ def test_a_constant_clock_offset_is_judged_from_and_bad_stamps_are_still_refused
 
 def test_a_recording_whose_stamps_lie_30_s_behind_its_log_times_replays_with_a_note(tmp_path):
     """Every winch message was refused as "stamp behind the clock", and the replay exited 0 with nothing solved."""
+    from simbags import assert_clean, run_cli
+
     from cable_winch_monitor.bagio.reader import BagReader
     from cable_winch_monitor.bagio.writer import BagWriter
     from cable_winch_monitor.paths import demo_bag
-    from simbags import assert_clean, run_cli
 
     late = tmp_path / "late"
     with BagWriter(late) as writer:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from simbags import simulated
 
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.evaluate import Evaluator
@@ -22,7 +23,6 @@ from cable_winch_monitor.effects.encoder import EncoderScale
 from cable_winch_monitor.effects.sheave import SheaveGeometry
 from cable_winch_monitor.model.conditions import Conditions
 from cable_winch_monitor.model.result import SolveStatus
-from simbags import simulated
 
 
 class SidePull(Effect):

@@ -14,6 +14,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from fusionbags import NOISE, header, lowering_truths, noisy, sensed
+from root_truth import weak_mode_truth
 from scipy.special import chdtri
 
 from cable_winch_monitor import ahead, channels, forked
@@ -25,8 +27,7 @@ from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.result import check_physics
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 from cable_winch_monitor.monitor.sensors import sensors_used
-from fusionbags import NOISE, header, lowering_truths, noisy, sensed
-from root_truth import weak_mode_truth
+
 
 def live(pipeline: MonitorPipeline, items) -> list[MonitorOutput]:
     """What the node does with each message, the samples it publishes."""

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
 from cable_winch_monitor.monitor.clearance import solution_clearance
-from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.monitor.limits import BISECTION_TOL, synchronisation_limits
 
 PAYOUT = 300.0
@@ -51,4 +51,4 @@ def test_taut_limit_is_where_a_cable_goes_loose(plant, limits):
 
 def test_a_longer_cable_that_only_goes_slack_never_moves_the_platform(limits):
     """Paying out a lightly loaded cable just slackens it: no clearance limit within the scan."""
-    assert not np.isfinite(next(l for l in limits if l.label == "cable_3 longer").clearance_limit)
+    assert not np.isfinite(next(lim for lim in limits if lim.label == "cable_3 longer").clearance_limit)

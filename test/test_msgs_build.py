@@ -7,7 +7,6 @@ import array
 import math
 
 import pytest
-
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, Quaternion
 from rclpy.serialization import deserialize_message, serialize_message

@@ -10,10 +10,19 @@ import time
 
 import pytest
 from builtin_interfaces.msg import Time
+from ros_harness import (
+    INPUTS_STATUS,
+    WINCH_TOPIC,
+    DomainLease,
+    LiveNode,
+    input_value,
+    rejected_count,
+    run_node_to_exit,
+    stamp_from_ns,
+    stamp_key,
+)
 
 from cable_winch_monitor.model.plant import CABLE_NAMES
-from ros_harness import (INPUTS_STATUS, WINCH_TOPIC, DomainLease, LiveNode, input_value, rejected_count,
-                         run_node_to_exit, stamp_from_ns, stamp_key)
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -85,7 +94,8 @@ def test_a_far_future_stamp_costs_one_message_not_the_cable(live, topic):
             stamps = {stamp_key(live.client.publish((20.0, 20.0, 20.0), names=("cable_1", "cable_2", "cable_4"))),
                       stamp_key(live.client.publish((length,), names=("cable_3",), topic=topic))}
             live.client.collectors["tension"].wait_for(
-                lambda m: stamp_key(m.header.stamp) in stamps and abs(m.cables[2].length - length) < 1e-9,
+                lambda m, stamps=stamps, length=length: stamp_key(m.header.stamp) in stamps
+                and abs(m.cables[2].length - length) < 1e-9,
                 f"a sample with winch 3's new length {length} m")
 
 

@@ -10,17 +10,20 @@ import time
 import numpy as np
 import pytest
 import yaml
+from ros_harness import PARAMS_FILE, ROOT, LiveNode, stamped
 
-from cable_winch_monitor.model.geometry import (quaternion_from_rotation, roll_pitch_of_quaternion, roll_pitch_yaw,
-                                                 rotation_from_vector)
+from cable_winch_monitor.bagio.fields import STATUS_NUMBERS
+from cable_winch_monitor.model.geometry import (
+    quaternion_from_rotation,
+    roll_pitch_of_quaternion,
+    rotation_from_vector,
+)
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
 from cable_winch_monitor.monitor.clearance import solution_clearance
-from cable_winch_monitor.bagio.fields import STATUS_NUMBERS
 from cable_winch_monitor.nodes.winch_monitor import NODE_NAME, PARAMETERS
 from cable_winch_monitor.seed002 import TABLE_1
-from ros_harness import PARAMS_FILE, ROOT, LiveNode, stamped
 
 pytestmark = pytest.mark.timeout(60)
 

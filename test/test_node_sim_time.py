@@ -12,9 +12,8 @@ import time
 
 import pytest
 from builtin_interfaces.msg import Time
-from rosgraph_msgs.msg import Clock
-
 from ros_harness import INPUTS_STATUS, LiveNode, input_value, rejected_count, stamp_from_ns
+from rosgraph_msgs.msg import Clock
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -45,7 +44,7 @@ class SimClock:
     def stamp(self) -> Time:
         return stamp_from_ns(int(round(self.now() * 1e9)))
 
-    def start(self) -> "SimClock":
+    def start(self) -> SimClock:
         self.thread.start()
         return self
 

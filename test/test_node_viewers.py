@@ -6,14 +6,14 @@ import math
 
 import pytest
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from ros_harness import DEEP_QOS, Collector, LiveNode, stamped
+from scene_checks import check_outline, check_scene, check_static_tf, check_transform
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel
 from cable_winch_monitor.seed002 import TABLE_1
-from ros_harness import DEEP_QOS, Collector, LiveNode, stamped
-from scene_checks import check_outline, check_scene, check_static_tf, check_transform
 
 pytestmark = pytest.mark.timeout(60)
 

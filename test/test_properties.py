@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bagdamage import check_replayed, locate, read_damaged, write_bag
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bagdamage import check_replayed, locate, read_damaged, write_bag
 from cable_winch_monitor.model.batched import solve_batch
 from cable_winch_monitor.model.energy import solve_energy
 from cable_winch_monitor.model.plant import CABLE_NAMES, load_plant

@@ -6,12 +6,10 @@ import subprocess
 import time
 
 import pytest
-
 from ros_harness import TestClient, ros_env
+from simbags import CLI
 
 from cable_winch_monitor.bagio.reader import BagReader
-from domains import domain_id  # noqa: F401 - fixture
-from simbags import CLI
 
 
 @pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])

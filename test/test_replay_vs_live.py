@@ -16,13 +16,12 @@ from pathlib import Path
 
 import ros_harness
 from ros_harness import NodeProcess, TestClient, stamp_key
+from simbags import simulated
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.records import ALARM, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.replay import replay
-from domains import domain_id  # noqa: F401 - fixture
-from simbags import simulated
 
 JOINTS = "/winch/joint_states"
 COLLECTORS = {POSE: "pose", TENSION: "tension", ALARM: "alarm"}
@@ -70,7 +69,7 @@ def fed_live(bag: Path, domain: int, expected: dict) -> dict[str, dict[tuple[int
             start = tension.count()
             client.winch.publish(item.data)
             if key in expected[TENSION]:
-                tension.wait_for(lambda m: stamp_key(m.header.stamp) == key, f"/cables/tension for {key}",
+                tension.wait_for(lambda m, key=key: stamp_key(m.header.stamp) == key, f"/cables/tension for {key}",
                                  start=start)
         time.sleep(0.5)  # anything published without a replay counterpart arrives too
         node.assert_alive()

@@ -6,7 +6,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 import yaml
 from effectbags import ELASTIC, SEED002, plant_file, simulate_bag
 from labbags import EA, HIDDEN, LAB_PLANT, lab_bag

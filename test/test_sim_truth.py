@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import yaml
+from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.effects import PlantModel, effect_class
 from cable_winch_monitor.model.elastic import solve_elastic
@@ -18,7 +19,6 @@ from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.sim.equilibrium import NoEquilibrium, Rig, Trajectory, equilibrium
 from cable_winch_monitor.sim.scenario import ScenarioError, load_scenario
 from cable_winch_monitor.sim.truth import Sample, TruthModel
-from test_solver_agreement import random_lengths
 
 PLANT = load_plant()
 EA = 7.5e7

@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 import ros_harness
+from simbags import simulated
+
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.records import ALARM, DIAGNOSTICS, MODEL_ERROR, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.bagio.writer import BagWriter
@@ -30,8 +31,6 @@ from cable_winch_monitor.bench.plants import SITE_CASES, plant_file
 from cable_winch_monitor.bench.safety import score
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.replay import replay
-from domains import domain_id  # noqa: F401 - fixture
-from simbags import simulated
 
 CASES = {case.name: case for case in SITE_CASES}
 CLI = Path(sys.executable).parent / "cable-winch-monitor"

@@ -6,11 +6,11 @@ import json
 from pathlib import Path
 
 import numpy as np
+from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.paths import demo_bag
-from simbags import assert_clean, run_cli
 
 FROZEN = "/winch_3/joint_states"
 

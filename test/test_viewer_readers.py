@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+from scene_checks import check_outline, check_scene, check_static_tf
+from scene_picture import render
 from scipy.spatial.transform import Rotation
 
 from cable_winch_monitor.bagio.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
@@ -23,8 +25,6 @@ from cable_winch_monitor.model.result import solved
 from cable_winch_monitor.monitor.alarm import AlarmLevel
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
-from scene_checks import check_outline, check_scene, check_static_tf
-from scene_picture import render
 
 ROOT = Path(__file__).resolve().parent.parent
 VIEWER = ROOT / "test" / "viewer"

@@ -16,9 +16,10 @@ MAX_SAMPLES), then cut to MAX_SAMPLES; what was capped is said in `notes`.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype

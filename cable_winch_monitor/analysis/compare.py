@@ -20,8 +20,8 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..model.result import Solution
-from .conditioning import IllConditioned, ill_conditioned
 from .bagfields import BagFields
+from .conditioning import IllConditioned, ill_conditioned
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise
 from .follows import Finding, what_follows

@@ -5,7 +5,8 @@ with the four lengths merged as the monitor merges them (carried to the stamp wi
 payout speed), any other channel's message (inclinometer, depth gauge, a declared sensor)
 at its stamp with the lengths, speeds and accelerations interpolated between the
 neighbouring winch samples. Measurements stamped together (within TOGETHER: a laboratory
-logger stamps its load cells and AHRS at once) are one row, estimated as one state. Each row also carries its conditions (channels and effects
+logger stamps its load cells and AHRS at once) are one row, estimated as one state. Each row
+also carries its conditions (channels and effects
 see the same ones live): speeds and accelerations differentiated over a centred window
 (model.conditions), the direction of motion, and the extra inputs the plant's effects
 declare, interpolated to the row's stamp. Rows are in time order, so solves can be
@@ -66,7 +67,7 @@ class Dataset:
         return [Conditions(t, s, a, d, dict(zip(keys, v.tolist())))
                 for t, s, a, d, v in zip(self.times.tolist(), self.speeds, self.accelerations, self.directions, values)]
 
-    def subset(self, rows: np.ndarray) -> "Dataset":
+    def subset(self, rows: np.ndarray) -> Dataset:
         return Dataset(self.bag, self.times[rows], self.kinds[rows], self.lengths[rows], self.speeds[rows],
                        self.accelerations[rows], self.measured[rows], self.channels, self.sources,
                        {k: v[rows] for k, v in self.inputs.items()}, self.directions[rows])

@@ -42,8 +42,9 @@ acceleration are regressors of their own.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence, TypeGuard
+from typing import Any, TypeGuard
 
 import numpy as np
 from scipy import stats
@@ -78,9 +79,9 @@ class Regressor:
     values: np.ndarray
     levels: Mapping[float, str] | None = None
     cables: np.ndarray | None = None
-    factors: "tuple[Regressor, Regressor] | None" = None
+    factors: tuple[Regressor, Regressor] | None = None
 
-    def take(self, rows: np.ndarray) -> "Regressor":
+    def take(self, rows: np.ndarray) -> Regressor:
         return Regressor(self.name, self.label, self.unit, self.values[rows], self.levels,
                          None if self.cables is None else self.cables[rows],
                          None if self.factors is None else (self.factors[0].take(rows), self.factors[1].take(rows)))
@@ -93,7 +94,7 @@ class Regressor:
             return self.values
         return self.cables[:, cables[0]] if len(cables) == 1 else _nanmean(self.cables[:, cables])
 
-    def times(self, factor: "Regressor") -> "Regressor":
+    def times(self, factor: Regressor) -> Regressor:
         """This condition times `factor` (the payout, the tension), per cable where either is."""
         cables = None
         if factor.cables is not None or self.cables is not None:

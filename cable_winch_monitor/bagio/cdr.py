@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import math
 from array import array
-from functools import lru_cache
+from collections.abc import Callable, Mapping
+from functools import cache, lru_cache
 from struct import Struct, pack
-from typing import Any, Callable, Mapping
+from typing import Any
 
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
@@ -240,7 +241,7 @@ def _literal(value: Any) -> str:
     return repr(value)
 
 
-@lru_cache(maxsize=None)
+@cache
 def encoder(msgtype: str, store: Typestore | None = None) -> Encoder:
     """The compiled encoder of `msgtype` (values as for `records.build`)."""
     return fixed_encoder(msgtype, {}, store)
@@ -257,5 +258,5 @@ def fixed_encoder(msgtype: str, fixed: Mapping[str, Mapping[str, Any]], store: T
     namespace: dict[str, Any] = {"pack": pack, "array": array, "strings": strings,
                                  "ZEROS": tuple(bytes(n) for n in range(8))}
     namespace.update({name: Struct(fmt) for fmt, name in generator.structs.items()})
-    exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)  # noqa: S102 - generated above
+    exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)
     return namespace["encode"]

@@ -7,7 +7,7 @@ solved pose (/tf), and each head sheave's tangent point A_i is a fixed frame `sh
 """
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..model.plant import Plant
 from ..model.result import Solution

@@ -18,17 +18,27 @@ import os
 import struct
 import zlib
 from collections import Counter
+from collections.abc import Callable, Generator, Iterable, Iterator
 from dataclasses import dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import Callable, Generator, Iterable, Iterator
 
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, ChunkIndex, MessageIndex, Schema, Statistics
 
 from .decode import decodes_as
-from .framing import (CHUNK_HEAD, RECORD_HEADER, McapDamage, RawMessage, chunk_data, chunk_layout, keep_definition,
-                      parse_record, read_message, read_records)
+from .framing import (
+    CHUNK_HEAD,
+    RECORD_HEADER,
+    McapDamage,
+    RawMessage,
+    chunk_data,
+    chunk_layout,
+    keep_definition,
+    parse_record,
+    read_message,
+    read_records,
+)
 from .salvage import ChunkContext, IndexEntries, PayloadCheck, Salvage, readable_prefix, salvage
 from .typestore import typestore
 
@@ -93,7 +103,7 @@ class McapFile:
     def close(self) -> None:
         self._file.close()
 
-    def __enter__(self) -> "McapFile":
+    def __enter__(self) -> McapFile:
         return self
 
     def __exit__(self, *_: object) -> None:

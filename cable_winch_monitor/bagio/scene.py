@@ -12,8 +12,8 @@ with `SceneBuilder` and thin the scenes by header stamp with `SceneThrottle`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
-from typing import Sequence
 
 import numpy as np
 

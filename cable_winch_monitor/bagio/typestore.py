@@ -12,9 +12,10 @@ against 15 ms for this one). `knows` adds any other Jazzy type (a user's channel
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterable
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Iterable, cast
+from typing import Any, cast
 
 from rosbags.interfaces import Nodetype
 from rosbags.interfaces.typing import Typesdict

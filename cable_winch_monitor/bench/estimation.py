@@ -18,8 +18,8 @@ from ..model.batched import solve_batch
 from ..model.estimation import estimate, estimate_batch
 from ..model.geometry import roll_pitch_yaw
 from ..model.plant import CABLE_NAMES, load_plant
-from ..monitor.pipeline import MonitorPipeline
 from ..model.solve import solve
+from ..monitor.pipeline import MonitorPipeline
 from .solvers import lowering_samples
 
 ENCODER, PIN, TILT, DEPTH = 1e-3, 150.0, np.radians(0.01), 5e-3

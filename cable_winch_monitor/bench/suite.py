@@ -21,19 +21,20 @@ import shutil
 import struct
 import tempfile
 import time
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
+from ..bagio.fields import input_topics
 from ..bagio.reader import BagReader
 from ..bagio.writer import BagWriter
 from ..effects import PlantModel
 from ..fleet import find_bags, replay_job, run_fleet
 from ..model.plant import Plant, load_plant
 from ..model.solve import solve
-from ..bagio.fields import input_topics
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
 from .plants import REALISTIC_EFFECTS, SITE_CASES, plant_file, realistic, realistic_plant_file
@@ -262,7 +263,7 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
         files = {"rigid": None, "realistic": realistic_plant_file(directory)}
         bags = recordings(directory)
         byte_compile_package()
-        for label, plant in plants.items():
+        for label in plants:
             rows += _progress(replay_rows(bags[label], directory, label, files[label], large_mb, traversal_ms))
         site, site_fast, site_plant = site_recordings(directory)
         rows += _progress(site_rows(site, site_plant, directory, traversal_ms))

@@ -31,8 +31,9 @@ motion, extra inputs): an effect that reads a topic declares it in `inputs`
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Mapping, Protocol, Union, cast
+from typing import Any, ClassVar, Protocol, cast
 
 import numpy as np
 
@@ -49,8 +50,8 @@ class EffectError(ValueError):
     """An effect name, parameter or value is wrong; the message names it."""
 
 
-Number = Union[float, Callable[[Plant], float]]
-Bounds = Union[tuple[float, float], Callable[[Plant], tuple[float, float]]]
+Number = float | Callable[[Plant], float]
+Bounds = tuple[float, float] | Callable[[Plant], tuple[float, float]]
 UNKNOWN = float("nan")  # a plant-relative default without a plant: the value must be given
 
 
@@ -80,7 +81,7 @@ class Parameter:
     doc: str = ""
     fit: bool = True
 
-    def resolved(self, plant: Plant | None, bounds: tuple[float, float] | None = None) -> "Resolved":
+    def resolved(self, plant: Plant | None, bounds: tuple[float, float] | None = None) -> Resolved:
         """The numbers for this plant; `bounds` (the plant file's effect_bounds) replace the declared ones.
         Without a plant, plant-relative bounds are open and a plant-relative default unknown."""
         def number(spec: Any, unknown: Any) -> Any:
@@ -187,7 +188,7 @@ class Effect:
         """The parameters a fit adjusts, resolved for the plant (bounds, step)."""
         return tuple(p for p in self.specs if p.fit)
 
-    def replaced(self, **values: float) -> "Effect":
+    def replaced(self, **values: float) -> Effect:
         """A copy with some parameter values changed (for the same plant)."""
         return type(self)({**self.values, **values}, self.for_plant)
 

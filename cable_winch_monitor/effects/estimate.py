@@ -18,9 +18,10 @@ grows with the attachment's motion along the free span alone), only the converge
 """
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -33,8 +34,7 @@ from ..model.result import Solution
 from .model import NO_CONDITIONS, REFINE_STEPS, REFINE_TOL, PlantModel
 
 BUILT_IN = {
-    **{name: (lambda i: lambda value, sigma: obs.load_pin(i, value, sigma))(i)
-       for i, name in enumerate(channels.TENSION_CHANNELS)},
+    **{name: functools.partial(obs.load_pin, i) for i, name in enumerate(channels.TENSION_CHANNELS)},
     "roll": obs.roll, "pitch": obs.pitch,
     "x": lambda value, sigma: obs.position_component(0, value, sigma),
     "y": lambda value, sigma: obs.position_component(1, value, sigma),

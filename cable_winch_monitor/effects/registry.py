@@ -96,7 +96,7 @@ def load_module(path: str | Path) -> list[str]:
         sys.modules[module_name] = module
         try:
             spec.loader.exec_module(module)
-        except Exception as error:  # noqa: BLE001 - any error in a user's module is reported, not raised raw
+        except Exception as error:
             del sys.modules[module_name]
             raise EffectError(f"effect module {path}: {type(error).__name__}: {error}") from None
     classes = _effect_classes(sys.modules[module_name])

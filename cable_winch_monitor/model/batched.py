@@ -13,14 +13,23 @@ fails the physics check. The answers are the same.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from . import load as loads_
-from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTON_TOL, SLACK_TOL, TENSION_TOL, \
-    solve_energy
+from .energy import (
+    ACTIVE_SET_ROUNDS,
+    MAX_TURN,
+    METHOD,
+    NEWTON_MAX_STEPS,
+    NEWTON_TOL,
+    SLACK_TOL,
+    TENSION_TOL,
+    solve_energy,
+)
 from .geometry import rotations_from_vectors, skew
 from .plant import Plant
 from .result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import load as loads
-from .geometry import cross, rotation_from_vector, skew, structure_matrix
 from .equal_lengths import level_pose
+from .geometry import cross, rotation_from_vector, skew, structure_matrix
 from .plant import Plant
 from .plumb_hang import PlumbHang, lowest_hang_cable
 from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved

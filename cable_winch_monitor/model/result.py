@@ -1,9 +1,10 @@
 """One result type for every solve, and the physics checks every solution must pass."""
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, Callable, Generic, Sequence, TypeVar
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
@@ -198,7 +199,7 @@ def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray],
         with np.errstate(all="ignore"):
             solution = solve_valid(array)
             return solution if plant is None else physics_guard(plant, solution)
-    except Exception as error:  # noqa: BLE001 -- the contract is a status, never an exception
+    except Exception as error:
         return failed(SolveStatus.SOLVER_FAILED, f"{method} solver failed: {type(error).__name__}: {error}",
                       method, array)
 

@@ -20,7 +20,7 @@ class Ropes:
     weight: float = 0.0
 
     @classmethod
-    def of(cls, axial_stiffness: object = None, weight: float = 0.0) -> "Ropes":
+    def of(cls, axial_stiffness: object = None, weight: float = 0.0) -> Ropes:
         """Ropes from a scalar or per-rope EA (None: rigid); ValueError names what is wrong."""
         if axial_stiffness is None:
             return cls(None, 0.0)

@@ -36,7 +36,7 @@ class AlarmPolicy:
     slack_tolerance: float = 0.02
 
     @classmethod
-    def from_plant(cls, plant: Plant) -> "AlarmPolicy":
+    def from_plant(cls, plant: Plant) -> AlarmPolicy:
         policy = cls(**plant.alarm)
         if not (policy.warning_margin > policy.critical_margin > 0.0 and policy.hysteresis >= 0.0
                 and policy.slack_tolerance >= 0.0):

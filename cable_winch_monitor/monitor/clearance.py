@@ -1,8 +1,8 @@
 """Horizontal clearance between the platform outline and the shaft wall."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import threading
 from collections import deque
-from typing import Any, Hashable
+from collections.abc import Hashable
+from typing import Any
 
 from .inputs import JointSample
 from .pipeline import CompleteSample, MonitorOutput, MonitorPipeline

@@ -6,16 +6,17 @@ replay); this module only turns those nested values into rclpy message objects.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping, Sequence
 from functools import cache
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from rosidl_parser.definition import AbstractNestedType, NamespacedType
 
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
+from ..bagio import fields
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution
-from ..bagio import fields
 from ..monitor.alarm import Alarm
 
 

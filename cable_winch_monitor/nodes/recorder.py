@@ -10,18 +10,18 @@ from __future__ import annotations
 
 import sys
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..bagio.fields import input_topics
 from ..bagio.reader import BagError
 from ..bagio.typestore import knows
 from ..bagio.writer import BagWriter
-from ..bagio.fields import input_topics
 from .conversions import message_class
 
 NODE_NAME = "cable_winch_monitor_recorder"

@@ -6,12 +6,12 @@ is not known, or a value of the wrong kind, is an error that names the dotted ke
 from __future__ import annotations
 
 import copy
-from collections.abc import Collection
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
-from ..paths import config_dir
 from ..model.safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
+from ..paths import config_dir
 
 # None marks an optional value; its kind is in OPTIONAL.
 DEFAULTS: dict[str, Any] = {

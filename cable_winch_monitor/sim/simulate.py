@@ -14,20 +14,21 @@ import csv
 import heapq
 import time
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 import yaml
 
+from ..bagio.fields import Stamp, stamp_ns
 from ..bagio.records import build
 from ..bagio.writer import BagWriter
 from ..model.geometry import roll_pitch_yaw
 from ..model.plant import load_plant
 from ..model.result import Solution
 from ..monitor.clearance import solution_clearance
-from ..bagio.fields import Stamp, stamp_ns
 from .profile import Profile, air_temperature
 from .sensors import Sensors, Stream, sensor_streams
 from .sync import SyncErrors

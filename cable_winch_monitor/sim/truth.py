@@ -20,8 +20,9 @@ package cannot enter the truth: that would make it the code under test again.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
