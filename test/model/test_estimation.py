@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from lengths import random_lengths
 from root_truth import elastic_truth, weak_mode_samples, weak_mode_truth
-from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.bench.node_latency import lowering
 from cable_winch_monitor.bench.solvers import lowering_samples

@@ -15,7 +15,7 @@ from cable_winch_monitor.analysis.fit import fit_effects
 from cable_winch_monitor.effects import PlantModel, effect_class
 from cable_winch_monitor.model.plant import load_plant
 
-BAG = Path(__file__).parents[1] / "bags" / "all_channels"
+BAG = Path(__file__).parents[2] / "bags" / "all_channels"
 
 
 @pytest.fixture(scope="module")

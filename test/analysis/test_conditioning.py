@@ -15,7 +15,7 @@ from cable_winch_monitor.model.plant import load_plant
 @pytest.fixture(scope="module")
 def bag_data():
     from pathlib import Path
-    return read_bag(Path(__file__).parents[1] / "bags" / "all_channels")
+    return read_bag(Path(__file__).parents[2] / "bags" / "all_channels")
 
 
 def test_rigid_ropes_leave_tensions_undetermined_where_the_taut_set_changes(bag_data):

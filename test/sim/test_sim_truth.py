@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import yaml
-from test_solver_agreement import random_lengths
+from lengths import random_lengths
 
 from cable_winch_monitor.effects import PlantModel, effect_class
 from cable_winch_monitor.model.elastic import solve_elastic

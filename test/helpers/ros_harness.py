@@ -33,7 +33,7 @@ from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 NODE_EXECUTABLE = Path(sys.executable).parent / "winch_monitor"
 PARAMS_FILE = ROOT / "config" / "winch_monitor.yaml"
 DOMAIN_POOL = [d for d in range(40, 100) if d != 87]  # 87: the Makefile's own domain

@@ -9,7 +9,7 @@ for the hidden effect (sim/physics.py, root-found equilibrium in sim/truth.py) a
    elastic plant: with the user's effect (examples/rope_temperature.py) exactly that; without it, what the
    error follows names the temperature times the payout, and the library effect standing in for it is a
    partial explanation;
-3. the laboratory robot over its swivel pulleys with four calibration errors (test/labbags.py): exactly those.
+3. the laboratory robot over its swivel pulleys with four calibration errors (test/helpers/labbags.py): exactly those.
 
 Values within 10 %, held-out score <= 1.3, every selected fit converged. The stamps start at 1.7e9 s (clock
 time): every time in the output is from the start of the recording. Minutes each: `make test-slow`.
@@ -35,7 +35,7 @@ from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario, scenario_path
 from cable_winch_monitor.sim.simulate import simulate
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 WEIGHT = {"rope_weight": {"w": 58.0}}
 MIXED = {**WEIGHT, "encoder_offset": {"d_2": 0.03}, "cog_offset": {"dx": 0.10, "dy": -0.08}}
 TEMPERATURE = {"rope_temperature": {"alpha": 1.2e-5, "T_ref": 20.0}}

@@ -11,8 +11,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from batch_checks import assert_same, per_sample
+from lengths import random_lengths
 from simbags import simulated
-from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.records import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
@@ -20,7 +21,7 @@ from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.model.batched import solve_batch
 from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.result import SolveStatus, check_physics
+from cable_winch_monitor.model.result import SolveStatus
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
 
@@ -29,34 +30,6 @@ PRINTED = 1e-5    # relative: a number printed to six digits
 # Absolute [N, m] where forces are compared: the model's error is learnt from a window's estimates, whose last
 # digits move it, and so the next windows' tensions, by fractions of a millinewton (a load pin's noise: 150 N)
 FLOORS = {MODEL_ERROR: 1e-2, RESIDUALS: 1e-2, TENSION: 1e-2, DIAGNOSTICS: 1e-2}
-
-
-def per_sample(plant, lengths, warm: bool, solver=solve_energy):
-    """`solver(plant, lengths, warm_start=...)` on each row, warm-started from the last solved row or cold."""
-    solutions, previous = [], None
-    for row in lengths:
-        solution = solver(plant, row, warm_start=previous if warm else None)
-        solutions.append(solution)
-        previous = solution if solution.ok else previous
-    return solutions
-
-
-def rigid_physics(plant, solution) -> bool:
-    return check_physics(plant, solution).passes()
-
-
-def assert_same(plant, batch, solutions, physics=rigid_physics):
-    """Status, taut set, tensions within 1 N, poses within 1 mm; every solved state passes `physics`."""
-    for i, want in enumerate(solutions):
-        got = batch.solution(i)
-        assert got.status is want.status, i
-        assert got.taut_set == want.taut_set, i
-        if want.tensions is not None:
-            assert np.abs(got.tensions - want.tensions).max() < 1.0, i
-        if want.ok:
-            assert np.abs(got.position - want.position).max() < 1e-3, i
-            assert np.abs(got.points_b - want.points_b).max() < 1e-3, i
-            assert physics(plant, got), i
 
 
 def test_lowering_same_as_warm_started_solver(plant):

@@ -9,7 +9,7 @@ import pytest
 from cable_winch_monitor.effects import EffectError, available, effect_class, registry
 from cable_winch_monitor.effects.rope import RopeElasticity
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 @pytest.fixture

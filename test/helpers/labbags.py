@@ -14,7 +14,7 @@ import yaml
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LAB_PLANT = ROOT / "config" / "lab_robot_plant.yaml"
 HIDDEN = {"inclinometer_offset": {"roll": 0.0140, "pitch": -0.0087}, "payload_mass": {"dm": 1.0},
           "sheave_friction": {"mu": 0.06}}

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_batched import assert_same, per_sample
-from test_solver_agreement import random_lengths
+from batch_checks import assert_same, per_sample
+from lengths import random_lengths
 
 from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.model.batched_elastic import solve_batch_elastic

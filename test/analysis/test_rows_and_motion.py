@@ -22,7 +22,7 @@ from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LAB_SCENARIO = ROOT / "config" / "scenarios" / "lab_robot.yaml"
 
 

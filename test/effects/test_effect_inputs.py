@@ -12,7 +12,7 @@ from simbags import assert_clean, run_cli
 from cable_winch_monitor.bagio.topics import listed_topics
 from cable_winch_monitor.paths import default_plant_file, demo_bag
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 WORDS = "the plant's effects read /shaft/temperature.temperature (sensor_msgs/msg/Temperature), which the bag does " \
         "not have"
 

@@ -20,7 +20,7 @@ from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.profile import Profile
 from cable_winch_monitor.sim.simulate import TRUTH_FILE
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCREENSHOT = ROOT / "build" / "report" / "report.png"  # docs/report.png is a copy
 MOVES = 27
 # 27 moves: down 1 m and up 0.5 m in turn, a second's stop between; the ropes weigh 60 N/m, which the plant

@@ -13,7 +13,7 @@ from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.effects import PlantModel, effect_class
 from cable_winch_monitor.model.plant import load_plant
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _scores(base: PlantModel, a: PlantModel, b: PlantModel, rows, sigma, reference: PlantModel | None):

@@ -7,8 +7,8 @@ the rope hanging below them, written here from the truth's points.
 from __future__ import annotations
 
 import numpy as np
+from lengths import random_lengths
 from root_truth import elastic_truth
-from test_solver_agreement import random_lengths
 
 from cable_winch_monitor.effects.estimate import estimate_recording, estimate_sample, length_noise
 from cable_winch_monitor.effects.model import NO_CONDITIONS, PlantModel

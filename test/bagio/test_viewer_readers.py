@@ -26,7 +26,7 @@ from cable_winch_monitor.monitor.alarm import AlarmLevel
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 VIEWER = ROOT / "test" / "viewer"
 PICTURE = ROOT / "build" / "viewer" / "scene.png"  # docs/scene.png is a copy
 FOXGLOVE_LAYOUT = ROOT / "config" / "foxglove" / "cable_winch_monitor.json"

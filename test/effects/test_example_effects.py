@@ -28,7 +28,7 @@ from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 PLANT = {"plant": {
     "name": "elastic seed-002 platform", "geometry": {"a": 2.0, "b": 2.5, "h": 10.0, "k1": 0.25, "k2": 0.2},
     "mass": 10000.0, "g": 9.8, "shaft": {"radius": 4.0},
