@@ -11,16 +11,27 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
 PYTEST_ARGS ?=
 
-.PHONY: all setup setup-test demo test test-slow clean
+.PHONY: all setup setup-test setup-docs demo docs test test-slow clean
 
 all: test
 
 setup:
 	@scripts/setup_env.sh
 
-# The set-up plus what only the tests need: Chromium, Node and Foxglove's readers (test/viewer).
+# The set-up plus what only the tests need: Chromium, Node and Foxglove's readers (test/viewer),
+# and the documentation tools.
 setup-test:
 	@scripts/setup_env.sh --test
+
+# The set-up plus MkDocs and its theme (requirements/docs.txt), which setup-test installs too.
+setup-docs:
+	@scripts/setup_env.sh --docs
+
+# The manual (docs/, mkdocs.yml) as a site in build/docs; a warning (a broken link, a page
+# left out of the navigation) fails the build.
+docs: setup-docs
+	rm -rf build/docs
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir build/docs
 
 # Replay the bundled all-channels bag through the monitor into build/demo_out (seed 002's
 # Table 2 comparison: cable-winch-monitor paper).
@@ -28,7 +39,8 @@ demo: setup
 	rm -rf build/demo_out
 	$(VENV)/bin/cable-winch-monitor demo --out build/demo_out
 
-test: setup-test
+# The docs are built first: a broken link fails in seconds, not after the suite.
+test: setup-test docs
 	$(VENV)/bin/python -m pytest -q test $(PYTEST_ARGS)
 
 # The full diagnose runs (every candidate effect against recordings at site noise): tens of minutes.

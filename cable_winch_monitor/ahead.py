@@ -9,37 +9,30 @@ while it reads and merges the next ones; it then writes the records the worker e
 log order, with the sensor messages' residuals between them. What comes back is bytes and
 small outcomes, not objects per sample, whose pickling would cost as much as the work.
 
-A window's results (about 1 kB a sample) come back through a file in SPOOL (/dev/shm where
-there is one), not the pool's pipe: a thread of the replaying process reads that pipe, and
-it needs the interpreter lock for every 64 kB. With each window comes the publisher's state
-after it, so that where the worker is lost, the replay publishes the rest itself from there.
-Only a fork can start it (the process inherits the plant model as it is, a user's effects
-included); where there is none, the replay publishes the samples itself.
+A window's job and its results (about 1 kB a sample) go through files in the worker's spool
+(forked.py: /dev/shm, or TMPDIR where that cannot be written), not a pipe, which would make
+either process wait for the other to read. With each window comes the publisher's state
+after it, so that where the worker is lost -- it died, failed on a window, or stopped
+answering -- the replay publishes the rest itself from there. Only a fork can start it (the
+process inherits the plant model as it is, a user's effects included); where there is none,
+or no spool or process can be had, the replay publishes the samples itself.
 """
 from __future__ import annotations
 
+import functools
 import math
-import multiprocessing
 import os
 import pickle
-import shutil
-import signal
-import tempfile
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
-from contextlib import suppress
 from typing import Any, NamedTuple, Sequence
 
 from .bagio import records
 from .bagio.fields import Stamp
 from .bagio.records import Record
 from .bagio.scene import SceneBuilder, SceneThrottle
+from .forked import ForkedWorker, WorkerLost
 from .model.conditions import Conditions
 from .monitor.diagnostics import SampleView, sample_view
 from .monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
-
-SPOOL = "/dev/shm"  # where the worker's results are written, if the system has it (memory, not a disk)
-_worker: "SamplePublisher | None" = None  # the worker's publisher, made at the fork from the replay's
 
 
 class Published(NamedTuple):
@@ -95,93 +88,65 @@ class SamplePublisher:
             scene
 
 
-def _start(worker: SamplePublisher) -> None:
-    global _worker
-    _worker = worker
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _job(spool: str, samples: list[CompleteSample], conditions: list[Conditions], headers: list[Stamp],
-         batched: bool) -> str | None:
-    """The worker's job: a window's Published and its state after them, pickled to a file in `spool` (its
-    path; None where it could not be written: the replay then publishes from the last state it got)."""
-    assert _worker is not None, "the worker was started without its publisher"
-    published = [p._replace(output=None) for p in _worker.publish(samples, conditions, headers, batched)]
-    try:
-        with tempfile.NamedTemporaryFile(dir=spool, delete=False) as file:
-            pickle.dump((published, _worker.state()), file, protocol=pickle.HIGHEST_PROTOCOL)
-    except OSError:
-        return None
-    return file.name
+def _job(publisher: SamplePublisher, job: tuple[Any, ...]) -> tuple[list[Published], bytes]:
+    """The worker's job: a window's Published (without the outputs themselves) and its publisher's state
+    after them."""
+    return [p._replace(output=None) for p in publisher.publish(*job)], publisher.state()
 
 
 class AheadPublisher:
-    """One worker process publishing windows in order for a replay's pipeline (forked before it merges)."""
+    """A worker process publishing windows in order for a replay's pipeline (forked before it merges); where
+    it cannot be started, or is lost, the windows are published here."""
 
     def __init__(self, publisher: SamplePublisher):
         self.local = publisher
-        self.spool = tempfile.mkdtemp(prefix="cable-winch-monitor-", dir=SPOOL if os.path.isdir(SPOOL) else None)
-        self.pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
-            1, mp_context=multiprocessing.get_context("fork"), initializer=_start, initargs=(publisher,))
-        self.pending: list[tuple[Future | None, tuple[Any, ...]]] = []
+        try:
+            self.worker: ForkedWorker | None = ForkedWorker(functools.partial(_job, publisher),
+                                                            f"cable-winch-monitor-{os.getpid()}-")
+        except OSError:
+            self.worker = None  # no spool folder or no process to be had: published here
+        self.pending: list[tuple[bool, tuple[Any, ...]]] = []  # (handed to the worker, job) in order
         self.state: bytes | None = None  # the worker's state after the last window taken from it
+        self.lost = ""  # why the worker was given up, where it was
 
     @staticmethod
     def available() -> bool:
-        return "fork" in multiprocessing.get_all_start_methods()
+        return ForkedWorker.available()
 
     def submit(self, samples: list[CompleteSample], conditions: list[Conditions], headers: list[Stamp],
                batched: bool) -> None:
         """Start publishing a window's samples in the worker (in order after the windows before it)."""
         job = (samples, conditions, headers, batched)
-        future = None
-        if self.pool is not None:
+        if self.worker is not None:
             try:
-                future = self.pool.submit(_job, self.spool, *job)
-            except BrokenProcessPool:
-                self._lost()
-        self.pending.append((future, job))
+                self.worker.submit(job)
+            except WorkerLost as lost:
+                self._lost(str(lost))
+        self.pending.append((self.worker is not None, job))
 
     def take(self) -> list[Published]:
         """The oldest submitted window's Published: the worker's, or published here from the worker's last
-        state where it was lost or could not hand its results over."""
-        future, job = self.pending.pop(0)
-        result = None
-        if future is not None and self.pool is not None:
+        state where it was lost, failed on the window, or stopped answering."""
+        handed, job = self.pending.pop(0)
+        if handed and self.worker is not None:
             try:
-                path = future.result()
-            except Exception:  # noqa: BLE001 - lost, or failed in the worker: published here, where it fails as itself
-                self._lost()
-                path = None
-            if path is not None:
-                with open(path, "rb") as file:
-                    result, self.state = pickle.load(file)
-                os.unlink(path)
-        if result is None:
-            result = self._here(job)
-        return result
-
-    def _here(self, job: tuple[Any, ...]) -> list[Published]:
-        """Publish a window in this process, from the worker's last state (its initial one where it sent
-        none); the windows after it are published here too."""
-        if self.pool is not None:
-            self._lost()
+                result, self.state = self.worker.result()
+                return result
+            except WorkerLost as lost:
+                self._lost(str(lost))
         if self.state is not None:
             self.local.restore(self.state)
             self.state = None
         return self.local.publish(*job)
 
-    def _lost(self) -> None:
-        """The worker is gone (or could not hand over a window): publish the rest here."""
-        if self.pool is not None:
-            self.pool.shutdown(wait=False, cancel_futures=True)
-            self.pool = None
-        for k, (future, job) in enumerate(self.pending):
-            self.pending[k] = (None, job)
+    def _lost(self, why: str) -> None:
+        """The worker is gone (or could not hand a window over): it is ended, the rest published here."""
+        self.lost = why
+        self.close()
+        self.pending = [(False, job) for _, job in self.pending]
 
     def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
-            self.pool = None
-        shutil.rmtree(self.spool, ignore_errors=True)
-
+        """End the worker, if there is one (killed where it still has work)."""
+        if self.worker is not None:
+            self.worker.close()
+            self.worker = None

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from functools import lru_cache
-from typing import Any, Callable, Sequence
+from functools import cache, lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -106,7 +107,10 @@ class Channel:
 
 
 def _tension(cable: int) -> Prediction:
-    return lambda solution, plant, conditions: float(solution.tensions[cable])
+    def predict(solution: Solution, plant: Plant, conditions: Conditions) -> float:
+        assert solution.tensions is not None  # predicted for a solved state
+        return float(solution.tensions[cable])
+    return predict
 
 
 def _roll_pitch(which: int) -> Callable[[Any], float]:
@@ -125,20 +129,39 @@ def _inclination(quaternion: tuple[float, float, float, float]) -> tuple[float, 
 
 
 def _position(axis: int) -> Prediction:
-    return lambda solution, plant, conditions: float(solution.position[axis])
+    def predict(solution: Solution, plant: Plant, conditions: Conditions) -> float:
+        assert solution.position is not None  # predicted for a solved state
+        return float(solution.position[axis])
+    return predict
+
+
+def _attitude(which: int) -> Prediction:
+    """Roll (0) or pitch (1) of a solved state [rad]."""
+    def predict(solution: Solution, plant: Plant, conditions: Conditions) -> float:
+        assert solution.rotation is not None  # predicted for a solved state
+        return roll_pitch_yaw(solution.rotation)[which]
+    return predict
+
+
+def _tension_states(cable: int) -> Callable[[Any], np.ndarray]:
+    return lambda states: states.tensions[:, cable]
+
+
+def _position_states(axis: int) -> Callable[[Any], np.ndarray]:
+    return lambda states: states.position[:, axis]
 
 
 TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # the load pins, one per cable
 BUILTIN = (
     *(Channel(name, "N", "tension", WINCH_TOPICS, JOINT_STATE, f"effort[{cable}]", _tension(i),
-              predict_states=(lambda i: lambda states: states.tensions[:, i])(i))
+              predict_states=_tension_states(i))
       for i, (name, cable) in enumerate(zip(TENSION_CHANNELS, CABLE_NAMES))),
     Channel("roll", "rad", "roll", ("/platform/imu",), IMU, "orientation (roll)",
-            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[0], _roll_pitch(0), roll_of),
+            _attitude(0), _roll_pitch(0), roll_of),
     Channel("pitch", "rad", "pitch", ("/platform/imu",), IMU, "orientation (pitch)",
-            lambda solution, plant, conditions: roll_pitch_yaw(solution.rotation)[1], _roll_pitch(1), pitch_of),
+            _attitude(1), _roll_pitch(1), pitch_of),
     *(Channel(name, "m", name, ("/platform/position",), POINT, f"point.{axis}", _position(k),
-              predict_states=(lambda k: lambda states: states.position[:, k])(k))
+              predict_states=_position_states(k))
       for k, (name, axis) in enumerate(zip(("x", "y", "depth"), "xyz"))),
 )
 _BUILTIN_BY_NAME: dict[str, Channel] = {c.name: c for c in BUILTIN}
@@ -158,7 +181,7 @@ def declare(channel: Channel) -> Channel:
     return channel
 
 
-@lru_cache(maxsize=None)  # asked for every sample; cleared when a channel is declared
+@cache  # asked for every sample; cleared when a channel is declared
 def user_declared() -> bool:
     """Some channel is a user's: declared beside the built-ins, or in place of one."""
     return any(c is not _BUILTIN_BY_NAME.get(c.name) for c in _declared.values())
@@ -187,7 +210,7 @@ def topic_types() -> dict[str, str]:
     return {topic: c.msgtype for c in _declared.values() for topic in c.topics}
 
 
-@lru_cache(maxsize=None)  # asked for every sensor message; cleared when a channel is declared
+@cache  # asked for every sensor message; cleared when a channel is declared
 def on_topic(topic: str) -> tuple[Channel, ...]:
     """The channels read from messages of `topic` by their own reader (not the winch merger's)."""
     return tuple(c for c in _declared.values() if topic in c.topics and c.read is not None)

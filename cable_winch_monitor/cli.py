@@ -113,11 +113,17 @@ def _simulate(args: argparse.Namespace) -> int:
 
 def _replay_summary(bag: str, args: argparse.Namespace) -> int:
     from .replay import replay
+    from .stopping import ignore_stop_signals
 
     summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet,
                      scene_rate=args.scene_rate,
                      stamp_window=_stamp_window(args))
+    if summary.stopped:
+        ignore_stop_signals()  # stopping: the summary and the exit status are what is left to give
     print(summary.format())
+    if summary.refused:
+        print(f"error: {summary.refused}", file=sys.stderr)
+        return 2
     return 0 if summary.complete else 1
 
 
@@ -349,7 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=_simulate)
 
     replay_help = ("Exit status: 0 when the whole bag was read, 1 when parts of it could not be read (a partial "
-                   "replay: the summary lists what was skipped), 2 on an error (nothing written).")
+                   "replay: the summary lists what was skipped) or a signal stopped it (SIGINT, SIGTERM, SIGHUP: the "
+                   "output bag holds what was replayed until then), 2 on an error (nothing written) or where no "
+                   "sample could be solved (every one invalid input: the reason on standard error).")
     for name, what in (("replay", "replay a bag through the monitor into a new bag with every output"),
                        ("demo", "replay the bundled all-channels bag (bags/all_channels) and print the summary")):
         p = sub.add_parser(name, help=what, epilog=replay_help,

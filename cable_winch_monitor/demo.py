@@ -11,6 +11,8 @@ from .model.solve import METHODS, solve
 
 def table2_values(solution: Solution) -> np.ndarray:
     """A solution in Table 2's row order: B1, B2, B3, C [m], tau_1..tau_4 [kN]."""
+    assert solution.points_b is not None and solution.point_c is not None  # of a solved state
+    assert solution.tensions is not None
     return np.concatenate([solution.points_b[:3].ravel(), solution.point_c, solution.tensions / 1e3])
 
 
@@ -28,8 +30,8 @@ def run_demo(plant: Plant) -> int:
         for method, solution in solutions.items():
             print(f"  {method:<10} {solution.tension_state}")
         if example == 1:
-            paper = " U ".join(f"[{lo}, {hi}]" for lo, hi in seed002.EXAMPLE_1_RANGE)
-            print(f"  {'paper':<10} single cable 1, phi = {paper} rad")
+            paper_phi = " U ".join(f"[{lo}, {hi}]" for lo, hi in seed002.EXAMPLE_1_RANGE)
+            print(f"  {'paper':<10} single cable 1, phi = {paper_phi} rad")
             for method, solution in solutions.items():
                 print(f"  {method:<10} phi = {_ranges(solution)} rad")
             print()

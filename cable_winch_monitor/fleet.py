@@ -11,9 +11,10 @@ from __future__ import annotations
 import functools
 import json
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 from .bagio.reader import BagError
 from .bagio.scene import REPLAY_RATE
@@ -52,7 +53,8 @@ def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, stalenes
     stats = summary.stats
     return {"bag": bag.name, "samples": summary.samples, "solved": stats.solved, "failures": stats.failures,
             **{level.name: stats.levels[level.name] for level in AlarmLevel},
-            "written": sum(summary.written.values()), "complete": summary.complete, "wall [s]": summary.wall}
+            "written": sum(summary.written.values()), "complete": summary.complete, "wall [s]": summary.wall,
+            **({"error": summary.refused} if summary.refused else {})}
 
 
 def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: float = 0.5,

@@ -1,6 +1,9 @@
 """Plain-text views of solutions for the command line."""
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Any
+
 import numpy as np
 
 from .model.geometry import roll_pitch_yaw
@@ -8,7 +11,7 @@ from .model.plant import CABLE_NAMES
 from .model.result import Solution
 
 
-def _row(label: str, values: object, fmt: str = "{:>10.3f}") -> str:
+def _row(label: str, values: Iterable[Any], fmt: str = "{:>10.3f}") -> str:
     return f"{label:<22}" + "".join(fmt.format(v) for v in values)
 
 
@@ -18,6 +21,8 @@ def format_solution(solution: Solution) -> str:
     lines.append(f"{'tension state':<22}{solution.tension_state}   ({solution.status.value}, {solution.method} solver, "
                  f"{solution.iterations} iterations)")
     if solution.ok:
+        assert solution.taut is not None and solution.tensions is not None and solution.spans is not None  # solved
+        assert solution.points_b is not None and solution.point_c is not None and solution.rotation is not None
         lines += [
             _row("taut", ["yes" if t else "slack" for t in solution.taut], "{:>10}"),
             _row("tension [kN]", solution.tensions / 1e3),

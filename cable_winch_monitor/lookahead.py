@@ -25,8 +25,9 @@ None, or the exception the pipeline raised on it (counted like the node's callba
 from __future__ import annotations
 
 import math
-from collections import deque
-from typing import Any, Iterable, Iterator, NamedTuple, Union
+from collections import Counter, deque
+from collections.abc import Generator, Iterable, Iterator
+from typing import Any, NamedTuple
 
 from . import channels
 from .ahead import AheadPublisher, Published, SamplePublisher
@@ -34,18 +35,19 @@ from .bagio import fields
 from .bagio.records import Record, diagnostics_record
 from .bagio.scene import REPLAY_RATE
 from .model.conditions import Conditions
-from .model.plant import Plant
-from .model.plant import CABLE_NAMES
+from .model.plant import CABLE_NAMES, Plant
 from .monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view
 from .monitor.inputs import StampWindow
-from .monitor.pipeline import CompleteSample, MonitorPipeline
+from .monitor.pipeline import CompleteSample, MonitorPipeline, MonitorStats
 from .monitor.residuals import Residuals
+from .stopping import interruptible
 
 WINDOW = 2000  # messages read ahead
 MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a second process
 DIAGNOSTICS_PERIOD = 1.0  # [s] of log time between /diagnostics, as the node's default
+COUNTED = ("messages", "used", "rejected", "ignored_names")  # the stats merging counts, ahead of the messages taken
 
-Result = Union[Published, Residuals, None, Exception]
+Result = Published | Residuals | Exception | None
 
 
 class Merged(NamedTuple):
@@ -54,6 +56,26 @@ class Merged(NamedTuple):
     sample: CompleteSample
     conditions: Conditions
     header: fields.Stamp
+
+
+class Prepared(NamedTuple):
+    """A window merged and handed to the publisher (step 1): its messages, what merging made of each, the
+    diagnostics due at each, and what merging it added to the stats (COUNTED)."""
+
+    window: list[Any]
+    merged: list[Any]
+    inputs: list[Any]
+    counted: list[Counter[str]]
+
+
+def _counters(stats: MonitorStats) -> list[Counter[str]]:
+    """A copy of the stats merging counts (COUNTED), to tell later what a window added."""
+    return [getattr(stats, name).copy() for name in COUNTED]
+
+
+def _since(before: list[Counter[str]], stats: MonitorStats) -> list[Counter[str]]:
+    """What merging has counted since `before` (a `_counters` copy)."""
+    return [getattr(stats, name) - counter for name, counter in zip(COUNTED, before)]
 
 
 class LookaheadPipeline(MonitorPipeline):
@@ -76,6 +98,9 @@ class LookaheadPipeline(MonitorPipeline):
         self.last_view: SampleView | None = None  # what /diagnostics says of the latest sample taken
         self.reporter = DiagnosticsReporter(plant.name)
         self.diagnostics_due = -math.inf  # [s] of log time: the next /diagnostics
+        self._merging: list[Counter[str]] | None = None  # the stats COUNTED before the window being merged
+        self.not_taken: Counter[str] = Counter()  # after a stop: messages read but not taken, by topic
+        self.worker_lost = ""  # why the second process was given up (the rest published here), where it was
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
         """Every item in order, with what became of it: a winch message that made a complete sample with its
@@ -84,47 +109,74 @@ class LookaheadPipeline(MonitorPipeline):
         for item, result, _ in self.run_diagnosed(items):
             yield item, result
 
-    def run_diagnosed(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result, list[Record]]]:
+    def run_diagnosed(self, items: Iterable[Any]) -> Generator[tuple[Any, Result, list[Record]], None, None]:
         """`run`, with /diagnostics after the messages where DIAGNOSTICS_PERIOD of log time has passed, as
-        the node publishes them at its clock (log time stands for it)."""
+        the node publishes them at its clock (log time stands for it).
+
+        A stop signal (stopping.py) breaks it off only while a window is merged or its samples are awaited,
+        never between the messages of a window taken; the counts of the messages read or merged but not
+        taken are then taken back (`not_taken`: the reader's)."""
         ahead = AheadPublisher(self.publisher) if self.second_process else None
+        depth = MERGED_AHEAD if ahead is not None else 0
+        prepared: deque[Prepared] = deque()
+        window: list[Any] = []
         try:
-            depth = MERGED_AHEAD if ahead is not None else 0
-            merged: deque[tuple[list[Any], list[Any], list[Any]]] = deque()
-            window: list[Any] = []
             for item in items:
                 window.append(item)
                 if len(window) == self.window:
-                    merged.append(self._prepare(window, ahead))
+                    prepared.append(self._prepare(window, ahead))
                     window = []
-                    if len(merged) > depth:
-                        yield from self._take(*merged.popleft(), ahead)
-            merged.append(self._prepare(window, ahead))
-            while merged:
-                yield from self._take(*merged.popleft(), ahead)
+                    if len(prepared) > depth:
+                        yield from self._take(prepared[0], ahead)
+                        prepared.popleft()
+            prepared.append(self._prepare(window, ahead))
+            window = []
+            while prepared:
+                yield from self._take(prepared[0], ahead)
+                prepared.popleft()
+        except KeyboardInterrupt:
+            self._take_back(prepared, window)
+            raise
         finally:
             if ahead is not None:
                 ahead.close()
+                self.worker_lost = ahead.lost
 
-    def _prepare(self, window: list[Any], ahead: AheadPublisher | None) -> tuple[list[Any], list[Any], list[Any]]:
+    def _take_back(self, prepared: Iterable[Prepared], unmerged: list[Any]) -> None:
+        """After a stop: what merging counted of the messages not taken (never written) taken back from the
+        stats, and those messages counted by topic in `not_taken`."""
+        counted = [p.counted for p in prepared]
+        if self._merging is not None:  # stopped while merging
+            counted.append(_since(self._merging, self.stats))
+        for counters in counted:
+            for name, counter in zip(COUNTED, counters):
+                total = getattr(self.stats, name)
+                total -= counter
+        self.not_taken = Counter(item.topic for p in prepared for item in p.window)
+        self.not_taken.update(item.topic for item in unmerged)
+
+    def _prepare(self, window: list[Any], ahead: AheadPublisher | None) -> Prepared:
         """Step 1 for a window: extra inputs taken in first (a sample's is interpolated between the readings
         around it), every message merged; its complete samples handed to the publisher."""
-        for item in window:
-            spec = self.input_specs.get(item.topic)
-            if spec is not None:
-                self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
-        merged, inputs = [], []
-        for item in window:
-            merged.append(self._merge_item(item))
-            inputs.append(self._inputs_due(item))
-        samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
-        job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
-               self.batched)
-        if ahead is not None:
-            ahead.submit(*job)
-        else:
-            self._published = self.publisher.publish(*job)
-        return window, merged, inputs
+        with interruptible():
+            self._merging = _counters(self.stats)
+            for item in window:
+                spec = self.input_specs.get(item.topic)
+                if spec is not None:
+                    self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
+            merged, inputs = [], []
+            for item in window:
+                merged.append(self._merge_item(item))
+                inputs.append(self._inputs_due(item))
+            samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
+            job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
+                   self.batched)
+            if ahead is not None:
+                ahead.submit(*job)
+            else:
+                self._published = self.publisher.publish(*job)
+            counted, self._merging = _since(self._merging, self.stats), None
+            return Prepared(window, merged, inputs, counted)
 
     def _inputs_due(self, item: Any) -> tuple[float, Any] | None:
         """The arrival of a winch message's cables, and where /diagnostics are due at this message, the
@@ -138,14 +190,14 @@ class LookaheadPipeline(MonitorPipeline):
         self.diagnostics_due = now + DIAGNOSTICS_PERIOD
         return now, winch_view(self, self.reporter.rates(now))
 
-    def _take(self, window: list[Any], merged: list[Any], inputs: list[Any], ahead: AheadPublisher | None
-              ) -> Iterator[tuple[Any, Result, list[Record]]]:
+    def _take(self, prepared: Prepared, ahead: AheadPublisher | None) -> Iterator[tuple[Any, Result, list[Record]]]:
         """The window's messages in log order with what became of them, and the diagnostics due there."""
-        published = iter(ahead.take() if ahead is not None else self._published)
-        for item, outcome, due in zip(window, merged, inputs):
+        with interruptible():
+            published = iter(ahead.take() if ahead is not None else self._published)
+        for item, outcome, due in zip(prepared.window, prepared.merged, prepared.inputs):
             try:
                 result = self._result(item, outcome, published)
-            except Exception as error:  # noqa: BLE001 - reported with the message, the replay goes on
+            except Exception as error:
                 result = error
             residuals = result.outcome.residuals if isinstance(result, Published) else result
             if isinstance(residuals, Residuals):
@@ -164,7 +216,7 @@ class LookaheadPipeline(MonitorPipeline):
             if channels.on_topic(item.topic) and item.topic not in self.input_specs:
                 try:
                     stamp = fields.message_seconds(item.message, item.log_time)
-                except Exception:  # noqa: BLE001 - reported with its message when taken
+                except Exception:
                     return None
                 values = self.read_channels(item.topic, item.message)
                 self.keep_reading(stamp, values)
@@ -172,7 +224,7 @@ class LookaheadPipeline(MonitorPipeline):
             return None
         try:
             sample = self._merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival: log time
-        except Exception as error:  # noqa: BLE001 - returned with its message when taken
+        except Exception as error:
             return error
         return None if sample is None else Merged(sample, self.conditions(sample), fields.stamp_of(item.message))
 

@@ -14,18 +14,18 @@ from __future__ import annotations
 import gc
 import time
 from collections import Counter
-from contextlib import contextmanager
+from collections.abc import Iterator
+from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
+from .ahead import Published
 from .bagio import fields, records
 from .bagio.clock import clock_offset
 from .bagio.reader import BagMessage, BagReader, ReadReport
 from .bagio.scene import REPLAY_RATE
 from .bagio.topics import require_inputs
-from .bagio.writer import BagWriter
-from .ahead import Published
+from .bagio.writer import new_bag
 from .effects import PlantModel
 from .lookahead import LookaheadPipeline
 from .model.plant import CABLE_NAMES, Plant, load_plant
@@ -35,7 +35,9 @@ from .monitor.inputs import StampWindow
 from .monitor.pipeline import MonitorStats
 from .monitor.residuals import Residuals
 from .progress import Progress
+from .stopping import Stopped, stop_signals
 
+INVALID = "invalid input"  # the tension state of a sample whose input could not be used
 
 
 @dataclass(frozen=True)
@@ -63,7 +65,7 @@ class ReplaySummary:
     written: Counter[str] = field(default_factory=Counter)
     errors: Counter[str] = field(default_factory=Counter)  # pipeline exceptions (as the node's callback errors)
     wall: float = 0.0
-    interrupted: bool = False  # stopped by Ctrl-C: the output bag holds what was replayed until then
+    stopped: str = ""  # the signal that stopped it (SIGINT: Ctrl-C): the output bag holds what was replayed until then
     unsolved: dict[str, str] = field(default_factory=dict)  # tension state without a pose -> why, its first sample
 
     @property
@@ -72,7 +74,16 @@ class ReplaySummary:
 
     @property
     def complete(self) -> bool:
-        return self.report.complete and not self.interrupted
+        return self.report.complete and not self.stopped
+
+    @property
+    def refused(self) -> str:
+        """Where every sample was invalid input (the job could not be done), why, in one line; else ''."""
+        invalid = self.stats.states[INVALID]
+        if not invalid or invalid < self.samples:
+            return ""
+        why = " ".join(self.unsolved.get(INVALID, INVALID).split())
+        return f"no sample of {self.bag} could be solved: all {invalid} are {why}"
 
     def topics(self) -> list[TopicCount]:
         rejected: Counter[str] = Counter()
@@ -118,8 +129,8 @@ class ReplaySummary:
         if not report.complete:
             lines.append("PARTIAL REPLAY: parts of the bag could not be read and were skipped:")
             lines += [f"  {damage}" for damage in report.damage]
-        if self.interrupted:
-            lines.append(f"INTERRUPTED: replay stopped after {sum(report.read.values())} messages; "
+        if self.stopped:
+            lines.append(f"INTERRUPTED by {self.stopped}: replay stopped after {sum(report.read.values())} messages; "
                          f"{self.out} holds what was replayed until then")
         return "\n".join(lines)
 
@@ -163,7 +174,9 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     two cores (a fleet of bags keeps each replay to one).
 
     Raises BagError (nothing written) when `bag` holds no bag, lacks a topic the plant's effects read, or
-    `out` exists; damage met while reading is in the summary (`complete` False), never raised.
+    `out` exists; damage met while reading is in the summary (`complete` False), never raised. An error
+    during the replay leaves no output bag. SIGINT, SIGTERM or SIGHUP stop it (stopping.py): the output
+    bag is closed with what was replayed until then, which the summary counts (`stopped`).
     """
     started = time.perf_counter()
     plant = plant or load_plant()
@@ -176,9 +189,10 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     reader.report.notes += [clock_note] if clock_note else []
     summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
-    with BagWriter(out) as writer, _fewer_collections():
+    with stop_signals(), new_bag(out) as writer, _fewer_collections(), \
+            closing(pipeline.run_diagnosed(reader)) as taken:
         try:
-            for count, (item, result, diagnostics) in enumerate(pipeline.run_diagnosed(reader), 1):
+            for count, (item, result, diagnostics) in enumerate(taken, 1):
                 if count == 1:
                     first = divmod(item.log_time, 1_000_000_000)
                     for topic, msgtype, data in records.static_records(first, pipeline.publisher.builder):
@@ -191,7 +205,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                     outputs = _records(item, stamp, result)
                     if isinstance(result, Published) and result.outcome.status is not SolveStatus.SOLVED:
                         summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
-                except Exception as error:  # noqa: BLE001 - counted like the node's callback errors
+                except Exception as error:
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
                     continue
                 log_time = fields.stamp_ns(stamp)
@@ -200,10 +214,14 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 for topic, msgtype, data in diagnostics:
                     writer.write_raw(topic, msgtype, item.log_time, data)
                 bar.update(count)
-        except KeyboardInterrupt:
-            summary.interrupted = True
+        except KeyboardInterrupt as stop:
+            summary.stopped = stop.signal if isinstance(stop, Stopped) else "SIGINT"
+            reader.report.read -= pipeline.not_taken
         finally:
             bar.finish()
+            if pipeline.worker_lost:
+                reader.report.notes.append(f"second process given up ({pipeline.worker_lost}): the rest was "
+                                           "replayed in this process")
             summary.written = Counter({t: n for t, n in writer.counts.items() if t not in inputs})
     summary.wall = time.perf_counter() - started
     return summary

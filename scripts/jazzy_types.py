@@ -4,7 +4,7 @@ the monitor reads and writes, and of the types they use.
 The bag tools start with these alone (building rosbags' whole Jazzy store imports every older
 distribution's store: 55 ms at every start); other types are taken from the whole
 store when a bag or a user's channel first needs one. Run this after upgrading rosbags if
-test/test_typestore.py says the definitions differ:
+test/bagio/test_typestore.py says the definitions differ:
 
     .venv/bin/python scripts/jazzy_types.py
 """
@@ -16,14 +16,14 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rosbags.interfaces import Nodetype  # noqa: E402
+from rosbags.interfaces import Nodetype  # noqa: E402 - after the path set-up above
 
 from cable_winch_monitor.bagio.typestore import COMMON_TYPES, jazzy_store, with_dependencies  # noqa: E402
 
 TARGET = ROOT / "cable_winch_monitor" / "bagio" / "jazzy_types.py"
 HEADER = '''"""rosbags' ROS 2 Jazzy definitions (rosbags {version}) of the message types the monitor reads and writes.
 
-Written by scripts/jazzy_types.py from rosbags' type store; test/test_typestore.py checks
+Written by scripts/jazzy_types.py from rosbags' type store; test/bagio/test_typestore.py checks
 that they are still rosbags' own. Do not edit: run the script again.
 """
 from rosbags.interfaces import Nodetype as T

@@ -4,7 +4,8 @@
 # mode. Idempotent: each step runs only when what it depends on has changed (stamp
 # files in .venv keyed on content hashes), so a re-run without changes takes ~1 s.
 #
-# Argument: --test also installs what only the tests need (Chromium, Node, test/viewer).
+# Argument: --test also installs what only the tests need (Chromium, Node, test/viewer)
+#           and the documentation tools; --docs the documentation tools alone (MkDocs).
 # Environment: PYTHON=/path/to/python3.11 to choose the interpreter,
 #              FORCE=1 to redo every step.
 set -euo pipefail
@@ -161,7 +162,17 @@ fi
 # otherwise compile the whole package at every start (70 ms of a replay's start-up).
 "$VENV/bin/python" -m compileall -q -j0 cable_winch_monitor >/dev/null || die "byte-compiling cable_winch_monitor failed"
 
-# --- 5. test tools (--test only): headless Chromium and Node --------------------------------
+# --- 5. documentation tools (--test, --docs): MkDocs and its theme, pinned ------------------
+if [[ "${1:-}" == "--test" || "${1:-}" == "--docs" ]]; then
+    DOCS_HASH=$(hash_files "$CONSTRAINTS" "$REQ/docs.txt")
+    if ! stamp_ok docs "$DOCS_HASH"; then
+        log "installing the documentation tools (MkDocs)"
+        quiet_pip install -q -c "$CONSTRAINTS" -r "$REQ/docs.txt"
+        stamp_set docs "$DOCS_HASH"
+    fi
+fi
+
+# --- 6. test tools (--test only): headless Chromium and Node --------------------------------
 # The package needs neither: Chromium renders the HTML report and the scene page in tests,
 # Node runs Foxglove's own bag readers (test/viewer, versions pinned in its package-lock.json).
 # Missing Debian packages are installed only as root with apt-get (a clean CI machine).

@@ -1,7 +1,8 @@
-"""Shared fixtures: the bundled seed-002 plant."""
+"""Shared fixtures: the bundled seed-002 plant, and a ROS domain id of the test's own for DDS processes."""
 from __future__ import annotations
 
 import pytest
+import ros_harness
 
 from cable_winch_monitor.model.plant import Plant, load_plant
 
@@ -9,3 +10,13 @@ from cable_winch_monitor.model.plant import Plant, load_plant
 @pytest.fixture(scope="session")
 def plant() -> Plant:
     return load_plant()
+
+
+@pytest.fixture
+def domain_id(monkeypatch: pytest.MonkeyPatch):
+    """ROS domain ids 60-69 for the bag tests' DDS processes, leased as the live-node harness leases its own
+    (its lock files), so that no other test run holds the same one."""
+    monkeypatch.setattr(ros_harness, "DOMAIN_POOL", list(range(60, 70)))
+    lease = ros_harness.DomainLease()
+    yield lease.domain_id
+    lease.release()

@@ -9,15 +9,25 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
+from simbags import assert_clean, messages, run_cli, simulated, truth
 
-from cable_winch_monitor import ahead
-from cable_winch_monitor.bagio.records import (ALARM, DIAGNOSTICS, OUTLINE, OUTPUT_TYPES, POSE, RESIDUALS, SCENE,
-                                               TENSION, TF, TF_STATIC)
+from cable_winch_monitor import forked
+from cable_winch_monitor.bagio.fields import input_topics
+from cable_winch_monitor.bagio.records import (
+    ALARM,
+    DIAGNOSTICS,
+    OUTLINE,
+    OUTPUT_TYPES,
+    POSE,
+    RESIDUALS,
+    SCENE,
+    TENSION,
+    TF,
+    TF_STATIC,
+)
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
-from cable_winch_monitor.bagio.fields import input_topics
 from cable_winch_monitor.replay import replay
-from simbags import assert_clean, messages, run_cli, simulated, truth
 
 SLACK_TOLERANCE = AlarmPolicy().slack_tolerance
 
@@ -170,7 +180,7 @@ def test_a_second_process_writes_the_bag_one_process_writes(tmp_path, monkeypatc
     """The second process estimates, judges and encodes the samples (ahead.SamplePublisher) while the
     replay merges and writes; the bag is the one a single process writes, byte for byte, /diagnostics
     included, here with an inclinometer knocked 2 deg off its mounting halfway through."""
-    monkeypatch.setattr(ahead, "SPOOL", str(tmp_path / "spool"))
+    monkeypatch.setattr(forked, "SPOOL", str(tmp_path / "spool"))
     (tmp_path / "spool").mkdir()
     bag = simulated(tmp_path, "all_channels", "duration=20",
                     "sensors.faults=[{sensor: imu, kind: offset, roll: 0.0349, start: 10.0}]")

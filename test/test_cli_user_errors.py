@@ -6,11 +6,11 @@ import shutil
 from pathlib import Path
 
 import pytest
+from simbags import assert_clean, run_cli, simulated
 
 from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.paths import demo_bag
-from simbags import assert_clean, run_cli, simulated
 
 MISSING_FOLDER = Path("/nonexistent-folder/out")
 

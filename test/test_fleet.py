@@ -10,12 +10,12 @@ import shutil
 from pathlib import Path
 
 import pytest
+from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.fleet import diagnose_job, find_bags, is_fleet, replay_job, run_fleet
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.paths import demo_bag
-from simbags import assert_clean, run_cli
 
 BAGS = ("shaft_a", "shaft_b", "shaft_c")
 

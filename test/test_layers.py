@@ -12,7 +12,7 @@ import cable_winch_monitor
 
 PACKAGE = Path(cable_winch_monitor.__file__).parent
 LAYERS = (  # bottom first
-    {"paths", "progress", "seed002"},   # no package imports
+    {"paths", "progress", "seed002", "forked", "stopping"},  # no package imports (replay's worker, its signals)
     {"model"},                          # plant file, mechanics, solvers, estimation
     {"channels", "formatting", "demo"},  # what a sensor channel is; printing solutions; the paper's examples
     {"effects"},                        # physical effects and the plant model they make

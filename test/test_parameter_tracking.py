@@ -21,9 +21,24 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 import rclpy
-import yaml
-
 import ros_harness
+import yaml
+from simbags import simulated
+from trackbags import (
+    NAMES,
+    SLIP,
+    TRUTH,
+    Tracked,
+    after_motion,
+    motion_between,
+    moving_time,
+    parameter_lines,
+    tracked,
+    tracking_plant,
+    tracking_statuses,
+    untracked,
+)
+
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.bench.plants import SITE_EA
@@ -32,10 +47,6 @@ from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.replay import ReplaySummary, replay
 from cable_winch_monitor_msgs.srv import WritePlantFile
-from domains import domain_id  # noqa: F401 - fixture
-from simbags import simulated
-from trackbags import (NAMES, SLIP, TRUTH, Tracked, after_motion, motion_between, moving_time, parameter_lines,
-                       tracked, tracking_plant, tracking_statuses, untracked)
 
 CLI = Path(sys.executable).parent / "cable-winch-monitor"
 SHORT = 480.0  # [s] the fast suite's recordings: a lowering, a stop, a hoist, a stop, the next lowering

@@ -16,9 +16,10 @@ MAX_SAMPLES), then cut to MAX_SAMPLES; what was capped is said in `notes`.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype
@@ -80,6 +81,7 @@ class _Topic:
 def flatten(message: Any, msgtype: str, store: Typestore, prefix: str = "") -> dict[str, float]:
     """The numeric fields of a message keyed by their path (".a.b[0]"), as described in the module."""
     out: dict[str, float] = {}
+    argument: Any  # as `node` says: a base type, a message type's name, or an array's (element, length)
     for name, (node, argument) in store.fielddefs[msgtype][1]:
         if "covariance" in name:
             continue
@@ -163,16 +165,16 @@ def read_fields(bag: str | Path, exclude: Iterable[str] | None = None, max_serie
             paths.add(key)
             values[key] = value
         topic.add(_stamp(item.message, item.msgtype, reader.store, item.log_time), values)
-    for (topic, reason), count in reader.report.skipped.items():
-        if topic not in excluded and reason != "not an input topic":
-            result.skipped[topic] = f"{reason}, {count} messages"
+    for (skipped, reason), count in reader.report.skipped.items():
+        if skipped not in excluded and reason != "not an input topic":
+            result.skipped[skipped] = f"{reason}, {count} messages"
     if dropped:
         result.notes.append(f"more than {max_series} numeric fields: {len(dropped)} not read "
                             f"(e.g. {', '.join(sorted(dropped)[:3])})")
     for name, topic in sorted(topics.items()):
         thinned = False
-        for key, (times, values) in sorted(topic.values.items()):
-            t, v = np.asarray(times), np.asarray(values)
+        for key, (times, series) in sorted(topic.values.items()):
+            t, v = np.asarray(times), np.asarray(series)
             order = np.argsort(t, kind="stable")
             if t.size > max_samples:
                 order = order[np.linspace(0, t.size - 1, max_samples).round().astype(int)]

@@ -25,6 +25,6 @@ class Budget:
 
     def part(self, share: float) -> float | None:
         """A deadline for a part that may take `share` of the time left before the reserve."""
-        if self.deadline is None:
+        if self.deadline is None or self.seconds is None:  # both or neither
             return None
         return time.monotonic() + share * max(self.left() - RESERVE * self.seconds, 0.0)

@@ -83,7 +83,9 @@ class Candidate:
 
     def to_dict(self) -> dict[str, Any]:
         params = self.fit.params(self.name)
-        return {"name": self.name, "title": type(self.fit.model.get(self.name)).title,
+        effect = self.fit.model.get(self.name)
+        assert effect is not None  # the candidate's fit holds it
+        return {"name": self.name, "title": type(effect).title,
                 "params": {k: v["value"] for k, v in params.items()},
                 "uncertainties": {k: v["sigma"] for k, v in params.items()},
                 "units": {k: v["unit"] for k, v in params.items()},

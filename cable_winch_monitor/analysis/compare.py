@@ -20,8 +20,8 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..model.result import Solution
-from .conditioning import IllConditioned, ill_conditioned
 from .bagfields import BagFields
+from .conditioning import IllConditioned, ill_conditioned
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise
 from .follows import Finding, what_follows
@@ -81,7 +81,7 @@ def _describe(c: Comparison, rows: np.ndarray, exceed: np.ndarray) -> dict[str, 
     motion = shares(motions(data.speeds[rows]))
     states = Counter(c.solutions[k].tension_state for k in rows)
     z = c.residuals[rows] / c.noise
-    misses = []
+    misses: list[dict[str, Any]] = []
     for ch, name in enumerate(data.channels):
         hits = exceed[:, ch] & np.isfinite(z[:, ch])
         if hits.any():

@@ -5,7 +5,8 @@ ropes are nearly stiff against the internal mode (-1, 1, -1, 1) -- lengthening o
 pair and shortening the other -- a millimetre of encoder error moves the tensions by
 kilonewtons. Errors of such a channel there say little about the model. For a thinned
 set of rows the change of every prediction is taken for a step of LENGTH_STEP along the
-internal mode (each way) and on each cable (forward differences, d(prediction)/d(length)); a channel is ill-conditioned where the internal mode, or the
+internal mode (each way) and on each cable (forward differences, d(prediction)/d(length)); a
+channel is ill-conditioned where the internal mode, or the
 worst mode of a millimetre per cable, moves its prediction by more than LIMIT noise levels
 per millimetre (encoders are good to about a millimetre). The spans in time where that
 holds are reported.

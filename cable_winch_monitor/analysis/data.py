@@ -5,7 +5,8 @@ with the four lengths merged as the monitor merges them (carried to the stamp wi
 payout speed), any other channel's message (inclinometer, depth gauge, a declared sensor)
 at its stamp with the lengths, speeds and accelerations interpolated between the
 neighbouring winch samples. Measurements stamped together (within TOGETHER: a laboratory
-logger stamps its load cells and AHRS at once) are one row, estimated as one state. Each row also carries its conditions (channels and effects
+logger stamps its load cells and AHRS at once) are one row, estimated as one state. Each row
+also carries its conditions (channels and effects
 see the same ones live): speeds and accelerations differentiated over a centred window
 (model.conditions), the direction of motion, and the extra inputs the plant's effects
 declare, interpolated to the row's stamp. Rows are in time order, so solves can be
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -24,7 +26,7 @@ from ..bagio.reader import BagError, BagReader
 from ..bagio.topics import missing_input, require_inputs
 from ..channels import JOINT_STATE, Input
 from ..model.conditions import Conditions, derivatives, directions
-from ..monitor.inputs import CableLengthMerger
+from ..monitor.inputs import CableLengthMerger, CableReading
 
 WINCH = "winches"  # the source of the winch rows (any joint-state topic)
 MAX_GAP = 0.5  # [s] a sensor sample further than this from a winch sample has no lengths
@@ -65,7 +67,7 @@ class Dataset:
         return [Conditions(t, s, a, d, dict(zip(keys, v.tolist())))
                 for t, s, a, d, v in zip(self.times.tolist(), self.speeds, self.accelerations, self.directions, values)]
 
-    def subset(self, rows: np.ndarray) -> "Dataset":
+    def subset(self, rows: np.ndarray) -> Dataset:
         return Dataset(self.bag, self.times[rows], self.kinds[rows], self.lengths[rows], self.speeds[rows],
                        self.accelerations[rows], self.measured[rows], self.channels, self.sources,
                        {k: v[rows] for k, v in self.inputs.items()}, self.directions[rows])
@@ -100,10 +102,12 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[In
             tensions = merger.measured_tensions()
             row = np.full(len(names), np.nan)
             row[[tension_columns[i] for i in merged.accepted]] = tensions[merged.accepted]
-            joints.append((stamp, lengths, np.array([r.velocity for r in merger.readings]), row))
+            readings = cast(list[CableReading], merger.readings)  # every cable read: the lengths are complete
+            joints.append((stamp, lengths, np.array([r.velocity for r in readings]), row))
         elif item.topic in sensor_topics:
             row = np.full(len(names), np.nan)
             for channel in channels.on_topic(item.topic):
+                assert channel.read is not None  # `on_topic` gives the channels with a reader
                 row[column[channel.name]] = channel.read(msg)
             if np.isfinite(row).any():
                 others.append((stamp, 1 + sensor_topics.index(item.topic), row))

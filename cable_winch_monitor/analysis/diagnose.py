@@ -130,6 +130,13 @@ def _cost(name: str) -> int:
     return {"measurement": 0, "rope_law": 1, "load": 1}.get(cls.acts, 2) + refines(cls)
 
 
+def _effect(model: PlantModel, name: str) -> Effect:
+    """The effect `name` of a model that has it (one added, or a candidate's in its own fit)."""
+    effect = model.get(name)
+    assert effect is not None, name
+    return effect
+
+
 def _joint(base: PlantModel, effects: list[Effect], rows: Evaluator, noise: np.ndarray, deadline: float | None,
            clock: Budget, what: str) -> FitResult | list[str] | None:
     """The joint fit of `effects` on `rows` from their values; why it cannot be taken where an effect is
@@ -158,7 +165,7 @@ def _choose(base: PlantModel, added: list[Effect], round_: Round, trials: list[C
         it cannot be taken (a refused one is listed)."""
         label = " and ".join(c.name for c in group)
         bar.update(bar.done, f"refitting {', '.join(names)} with {label}" if names else f"refitting {label}")
-        joint = _joint(base, [*added, *(c.fit.model.get(c.name) for c in group)], fits, noise,
+        joint = _joint(base, [*added, *(_effect(c.fit.model, c.name) for c in group)], fits, noise,
                        clock.part(SETTLE_SHARE), clock, f"candidate {label} (round {round_.number}: its joint fit "
                        "stopped at the budget)")
         if isinstance(joint, list) and len(group) == 1:
@@ -175,7 +182,7 @@ def _choose(base: PlantModel, added: list[Effect], round_: Round, trials: list[C
             break
     for chosen, joint, _ in order:
         bar.update(bar.done, f"refitting {', '.join(names + [chosen.name])} on the training rows")
-        final = _joint(base, [joint.model.get(n) for n in names + [chosen.name]], train, noise, clock.part(1.0),
+        final = _joint(base, [_effect(joint.model, n) for n in names + [chosen.name]], train, noise, clock.part(1.0),
                        clock, f"candidate {chosen.name} (its joint fit with {', '.join(names) or 'nothing'} on the "
                        "training rows stopped at the budget)")
         if final is None:
@@ -183,6 +190,7 @@ def _choose(base: PlantModel, added: list[Effect], round_: Round, trials: list[C
         reasons = final if isinstance(final, list) else \
             ["the joint fit does not lower the training error"] if final.chi2 > chi2 else []
         if not reasons:
+            assert isinstance(final, FitResult)  # `_joint` refuses with at least one reason
             return chosen, final
         chosen.refused = reasons
         refused.append(Refusal(round_.number, chosen.name, reasons))
@@ -198,7 +206,8 @@ def _prune(base: PlantModel, final: FitResult, rows: tuple[Evaluator, Evaluator]
     out or the budget did not allow it (listed)."""
     fits, held = rows
     model = final.model
-    kept, removed = [e for e in model.effects if base.get(e.name) is None], []
+    kept = [e for e in model.effects if base.get(e.name) is None]
+    removed: list[str] = []
     for name in [e.name for e in kept][:-1]:  # the last one added was just shown to gain with the others
         if clock.spent():
             clock.unfinished.append(f"the check that {name} is still needed")
@@ -209,7 +218,7 @@ def _prune(base: PlantModel, final: FitResult, rows: tuple[Evaluator, Evaluator]
             clock.unfinished.append(f"the check that {name} is still needed")
             continue
         (chi2, _), (held_chi2, count) = chi_square(model, fits, noise), chi_square(model, held, noise)
-        penalty = len(model.get(name).fitted()) * np.log(max(count, 1))
+        penalty = len(_effect(model, name).fitted()) * np.log(max(count, 1))
         needed = Candidate(name, final, held.score(without.model, noise), held.score(model, noise),
                            chi2 + penalty - without.chi2, held_chi2 + penalty - chi_square(without.model, held, noise)[0],
                            screened=False)
@@ -247,7 +256,9 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
                for n in pool if any(i.key not in data.inputs for i in available()[n].inputs)}
     pool = [n for n in pool if n not in untried]
     bar = Progress("diagnose", len(pool), enabled=progress, only_tty=True)
-    current, added, final = base, [], None
+    current = base
+    added: list[Effect] = []
+    final: FitResult | None = None
     require_solved(data.bag, held.solutions(base), "score a candidate on", "held-out row")
     not_solved = unsolved(train.solutions(base) + held.solutions(base))
     chi2, count = chi_square(current, train, noise)
@@ -266,16 +277,18 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
         ranking = ranking or trials
         refused += [Refusal(number, c.name, c.refused) for c in trials if not c.screened and c.gains and c.refused]
         chosen, joint = _choose(base, added, round_, trials, train, chi2, clock, bar, refused)
-        if joint is None:
+        if chosen is None or joint is None:  # both or neither
             break
         final, chi2 = joint, joint.chi2
         current = final.model
-        added = [current.get(e.name) for e in [*added, chosen.fit.model.get(chosen.name)]]
+        added = [_effect(current, e.name) for e in [*added, _effect(chosen.fit.model, chosen.name)]]
         pool.remove(chosen.name)
+        assert bar.total is not None  # the bar counts the pool
         bar.total += len(pool)
         ladder.append(Step(chosen.name, float(np.sqrt(final.chi2 / max(final.count, 1))), held.score(current, noise),
                            final.bic))
     if len(added) > 1:
+        assert final is not None  # the joint fit of the effects added
         final = _prune(base, final, rows[1], train, noise, clock, bar, ladder) or final
         current = final.model
     for candidate in ranking:

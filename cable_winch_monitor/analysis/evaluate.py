@@ -25,13 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import channels
 from ..bagio.reader import BagError
 from ..effects import PlantModel
 from ..effects.estimate import estimate_recording, fuses
 from ..model.estimation import Estimate
 from ..model.plant import Plant
 from ..model.result import Solution
-from .. import channels
 from .data import Dataset
 
 FAILED_PENALTY = 30.0  # [sigma] residual of a measured channel whose row the model cannot solve

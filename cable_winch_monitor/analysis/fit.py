@@ -23,13 +23,15 @@ effect's own reason: sheave friction without motion both ways).
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..effects import Effect, Parameter, PlantModel
+from ..effects import Effect, PlantModel
+from ..effects.base import Resolved
 from .evaluate import Evaluator
 
 MAX_EVALUATIONS = 60
@@ -47,7 +49,7 @@ class FitResult:
     """The model with fitted values, the free parameters, their 1-sigma uncertainties and correlations."""
 
     model: PlantModel
-    free: list[tuple[str, Parameter]]
+    free: list[tuple[str, Resolved]]
     values: np.ndarray
     sigmas: np.ndarray
     correlation: np.ndarray
@@ -82,9 +84,11 @@ class FitResult:
     def params(self, effect: str) -> dict[str, dict[str, Any]]:
         """{parameter: {value, sigma, unit, at_bound}} of one effect (all its parameters; fixed ones without sigma)."""
         out = {}
-        for name, value in self.model.get(effect).values.items():
+        fitted = self.model.get(effect)
+        assert fitted is not None, effect  # one of the model's effects
+        for name, value in fitted.values.items():
             index = next((k for k, (e, p) in enumerate(self.free) if e == effect and p.name == name), None)
-            unit = next(p.unit for p in type(self.model.get(effect)).parameters if p.name == name)
+            unit = next(p.unit for p in type(fitted).parameters if p.name == name)
             out[name] = {"value": value, "sigma": None if index is None else float(self.sigmas[index]), "unit": unit,
                          "at_bound": f"{effect}.{name}" in self.at_bound}
         return out
@@ -164,7 +168,7 @@ def fit_effects(base: PlantModel, effects: Sequence[Effect], evaluator: Evaluato
     return fit
 
 
-def _truncated(model: PlantModel, free: list[tuple[str, Parameter]], values: np.ndarray, chi2: float,
+def _truncated(model: PlantModel, free: list[tuple[str, Resolved]], values: np.ndarray, chi2: float,
                count: int, evaluations: int) -> FitResult:
     """A fit stopped at its deadline: the best values met, no uncertainties."""
     fit = FitResult(model, free, values, np.full(len(free), np.nan), np.zeros((len(free), len(free))), chi2, count,

@@ -42,8 +42,9 @@ acceleration are regressors of their own.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, TypeGuard
 
 import numpy as np
 from scipy import stats
@@ -78,9 +79,9 @@ class Regressor:
     values: np.ndarray
     levels: Mapping[float, str] | None = None
     cables: np.ndarray | None = None
-    factors: "tuple[Regressor, Regressor] | None" = None
+    factors: tuple[Regressor, Regressor] | None = None
 
-    def take(self, rows: np.ndarray) -> "Regressor":
+    def take(self, rows: np.ndarray) -> Regressor:
         return Regressor(self.name, self.label, self.unit, self.values[rows], self.levels,
                          None if self.cables is None else self.cables[rows],
                          None if self.factors is None else (self.factors[0].take(rows), self.factors[1].take(rows)))
@@ -93,7 +94,7 @@ class Regressor:
             return self.values
         return self.cables[:, cables[0]] if len(cables) == 1 else _nanmean(self.cables[:, cables])
 
-    def times(self, factor: "Regressor") -> "Regressor":
+    def times(self, factor: Regressor) -> Regressor:
         """This condition times `factor` (the payout, the tension), per cable where either is."""
         cables = None
         if factor.cables is not None or self.cables is not None:
@@ -158,7 +159,7 @@ def _on_rows(times: np.ndarray, t: np.ndarray, v: np.ndarray, discrete: bool) ->
 
 def _is_discrete(values: np.ndarray) -> bool:
     finite = values[np.isfinite(values)]
-    return finite.size > 0 and np.all(finite == np.round(finite)) and np.unique(finite).size <= MAX_LEVELS
+    return finite.size > 0 and bool(np.all(finite == np.round(finite))) and np.unique(finite).size <= MAX_LEVELS
 
 
 def regressors(data: Dataset, fields: BagFields | None = None, tensions: np.ndarray | None = None) -> list[Regressor]:
@@ -325,7 +326,7 @@ def _sentence(target: str, channels: Sequence[str], best: _Test, also: list[_Tes
     return text
 
 
-def _significant(test: _Test | None) -> bool:
+def _significant(test: _Test | None) -> TypeGuard[_Test]:
     return test is not None and abs(test.r) >= MIN_R and test.p < ALPHA
 
 

@@ -8,7 +8,7 @@ share of each motion they span. Every point is drawn: nothing is thinned.
 """
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from html import escape
 from pathlib import Path
 
@@ -32,7 +32,7 @@ EPOCH_AFTER = 1e8  # [s] stamps beyond this are clock time (a real recording), n
 def time_axis_title(start: float) -> str:
     """The time axis: seconds from the first measurement, with its clock time for a real recording."""
     if start > EPOCH_AFTER:
-        clock = datetime.fromtimestamp(start, tz=timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+        clock = datetime.fromtimestamp(start, tz=UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
         return f"time from the start of the recording ({clock}) [s]"
     return "time from the start of the recording [s]"
 
@@ -70,7 +70,7 @@ def _channel_figure(c: Comparison, index: int, name: str, kinds: np.ndarray, sta
                                  hovertemplate=f"{motion}<br>t = %{{customdata[0]:.2f}} s<br>predicted %{{x:.6g}}"
                                  f"<br>measured %{{y:.6g}} {unit}<extra>{escape(name)}</extra>"),
                       row=1, col=len(panels) + 1)
-    for col, (label, _, title) in enumerate(panels, 1):
+    for col, (_, _, title) in enumerate(panels, 1):
         for level in (band, -band):
             fig.add_hline(y=level, line_dash="dash", line_color=REGION_COLOUR, line_width=1, row=1, col=col)
         fig.update_xaxes(title_text=title, row=1, col=col)

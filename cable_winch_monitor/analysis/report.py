@@ -115,6 +115,7 @@ def diagnose_text(d: Diagnosis) -> str:
     if d.final is not None:
         for name in d.selected:
             effect = d.final.model.get(name)
+            assert effect is not None  # a selected effect is in the final model
             values = ", ".join(_value(k, v) for k, v in d.final.params(name).items() if v["sigma"] is not None)
             verdict = "found" if d.found(name) else "partial explanation" if d.partial else \
                 "not determined (see warnings)"

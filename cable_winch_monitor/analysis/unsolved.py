@@ -9,7 +9,7 @@ model's error, and the report says why; where none is solved, nothing is compare
 from __future__ import annotations
 
 from collections import Counter
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..bagio.reader import BagError
 from ..model.result import Solution

@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import math
 from array import array
-from functools import lru_cache
+from collections.abc import Callable, Mapping
+from functools import cache, lru_cache
 from struct import Struct, pack
-from typing import Any, Callable, Mapping
+from typing import Any
 
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
@@ -44,7 +45,8 @@ class Layout:
         self.store = store
         self.lines: list[str] = []
         self.structs: dict[str, str] = {}  # struct format -> name in the generated code
-        self.fmt, self.pending = "", []
+        self.fmt = ""
+        self.pending: list[str] = []
         self.base, self.rem, self.indent, self.names = 8, 0, 1, 0
 
     def emit(self, line: str) -> None:
@@ -149,6 +151,7 @@ class _EncoderSource(Layout):
 
     def message(self, msgtype: str, expr: str, fixed: Mapping[str, Any] | None = None) -> None:
         fixed = self.fixed.get(msgtype, {}) if fixed is None else fixed
+        argument: Any  # as `node` says: a base type, a message type's name, or an array's (element, length)
         for name, (node, argument) in self.store.fielddefs[msgtype][1]:
             if name in fixed and node == Nodetype.NAME:
                 self.message(argument, f"{expr}[{name!r}]", fixed[name])
@@ -238,7 +241,7 @@ def _literal(value: Any) -> str:
     return repr(value)
 
 
-@lru_cache(maxsize=None)
+@cache
 def encoder(msgtype: str, store: Typestore | None = None) -> Encoder:
     """The compiled encoder of `msgtype` (values as for `records.build`)."""
     return fixed_encoder(msgtype, {}, store)
@@ -255,5 +258,5 @@ def fixed_encoder(msgtype: str, fixed: Mapping[str, Mapping[str, Any]], store: T
     namespace: dict[str, Any] = {"pack": pack, "array": array, "strings": strings,
                                  "ZEROS": tuple(bytes(n) for n in range(8))}
     namespace.update({name: Struct(fmt) for fmt, name in generator.structs.items()})
-    exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)  # noqa: S102 - generated above
+    exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)
     return namespace["encode"]

@@ -7,7 +7,7 @@ solved pose (/tf), and each head sheave's tangent point A_i is a fixed frame `sh
 """
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..model.plant import Plant
 from ..model.result import Solution
@@ -36,6 +36,7 @@ def platform_tf(stamp: Stamp, solution: Solution) -> Fields:
     """/tf for a solved pose: `shaft` -> `platform` (only for a solution with a pose)."""
     if not solution.ok:
         raise ValueError(f"no transform without a solved pose ({solution.tension_state})")
+    assert solution.position is not None and solution.quaternion is not None  # solved: a pose
     return {"transforms": [transform_stamped(stamp, PLATFORM_FRAME, solution.position.tolist(),
                                              solution.quaternion.tolist())]}
 

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from io import BytesIO
-from typing import BinaryIO, Callable, Iterator
+from typing import BinaryIO, TypeVar
 
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
@@ -18,6 +19,7 @@ from mcap.records import Channel, Chunk, ChunkIndex, Schema
 RECORD_HEADER = struct.Struct("<BQ")
 MESSAGE_HEADER = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 CHUNK_HEAD = struct.Struct("<QQQII")  # start time, end time, uncompressed size, CRC, compression name length
+R = TypeVar("R")  # the record type a reader parses
 
 
 class McapDamage(Exception):
@@ -52,10 +54,10 @@ def read_records(stream: BinaryIO, start: int, end: int) -> Iterator[tuple[int, 
         offset += RECORD_HEADER.size + length
 
 
-def parse_record(reader: Callable[[ReadDataStream], object], body: bytes, what: str, offset: int) -> object:
+def parse_record(reader: Callable[[ReadDataStream], R], body: bytes, what: str, offset: int) -> R:
     try:
         return reader(ReadDataStream(BytesIO(body)))
-    except Exception as error:  # noqa: BLE001 - any parse failure is damage, with its cause
+    except Exception as error:
         raise McapDamage(f"{what} record at byte {offset} unreadable ({type(error).__name__}: {error})",
                          offset) from None
 
@@ -114,7 +116,7 @@ def chunk_data(chunk: Chunk, offset: int) -> bytes:
             raise McapDamage(f"unsupported chunk compression {chunk.compression!r}", offset)
     except McapDamage:
         raise
-    except Exception as error:  # noqa: BLE001 - corrupt compressed data raises library-specific errors
+    except Exception as error:
         raise McapDamage(f"{chunk.compression} decompression failed ({error})", offset) from None
     if len(data) != chunk.uncompressed_size:
         raise McapDamage(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}", offset)

@@ -1,6 +1,6 @@
 """rosbags' ROS 2 Jazzy definitions (rosbags 0.11.9) of the message types the monitor reads and writes.
 
-Written by scripts/jazzy_types.py from rosbags' type store; test/test_typestore.py checks
+Written by scripts/jazzy_types.py from rosbags' type store; test/bagio/test_typestore.py checks
 that they are still rosbags' own. Do not edit: run the script again.
 """
 from rosbags.interfaces import Nodetype as T

@@ -18,17 +18,27 @@ import os
 import struct
 import zlib
 from collections import Counter
+from collections.abc import Callable, Generator, Iterable, Iterator
 from dataclasses import dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import Callable, Generator, Iterable, Iterator
 
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, ChunkIndex, MessageIndex, Schema, Statistics
 
 from .decode import decodes_as
-from .framing import (CHUNK_HEAD, RECORD_HEADER, McapDamage, RawMessage, chunk_data, chunk_layout, keep_definition,
-                      parse_record, read_message, read_records)
+from .framing import (
+    CHUNK_HEAD,
+    RECORD_HEADER,
+    McapDamage,
+    RawMessage,
+    chunk_data,
+    chunk_layout,
+    keep_definition,
+    parse_record,
+    read_message,
+    read_records,
+)
 from .salvage import ChunkContext, IndexEntries, PayloadCheck, Salvage, readable_prefix, salvage
 from .typestore import typestore
 
@@ -93,7 +103,7 @@ class McapFile:
     def close(self) -> None:
         self._file.close()
 
-    def __enter__(self) -> "McapFile":
+    def __enter__(self) -> McapFile:
         return self
 
     def __exit__(self, *_: object) -> None:
@@ -161,7 +171,9 @@ class McapFile:
     def _whole(self, chunk: Chunk, offset: int) -> list[RawMessage]:
         """The messages of a chunk that reads whole with a matching CRC; its definitions kept."""
         data = chunk_data(chunk, offset)
-        schemas, channels, messages = {}, {}, []
+        schemas: dict[int, Schema] = {}
+        channels: dict[int, Channel] = {}
+        messages: list[RawMessage] = []
         try:
             for inner, opcode, record in read_records(BytesIO(data), 0, len(data)):
                 if opcode == Opcode.MESSAGE:
@@ -233,6 +245,7 @@ class McapFile:
         return found
 
     def _indexed_chunks(self) -> Iterator[tuple[int, list[RawMessage]]]:
+        assert self._index is not None  # read only where the file has its summary's chunk index
         for index in self._index:
             offset = index.chunk_start_offset
 

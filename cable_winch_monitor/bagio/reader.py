@@ -8,9 +8,10 @@ they cost. Only a path that holds no bag at all raises BagError, before any read
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any
 
 from rosbags.typesys.store import Typestore
 
@@ -173,7 +174,7 @@ class BagReader:
             if not reason:
                 try:
                     message = decode(raw.data, msgtype, self.store)
-                except Exception:  # noqa: BLE001 - corrupt bytes raise anything; counted, never raised
+                except Exception:
                     reason = f"cannot be decoded as {msgtype}"
                 else:
                     yield BagMessage(topic, msgtype, raw.log_time, raw.data, message)

@@ -12,8 +12,8 @@ with `SceneBuilder` and thin the scenes by header stamp with `SceneThrottle`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
-from typing import Sequence
 
 import numpy as np
 
@@ -58,7 +58,8 @@ def tension_colour(share: float) -> RGBA:
     for (lo, c0), (hi, c1) in zip(TENSION_SCALE, TENSION_SCALE[1:]):
         if share <= hi:
             f = (share - lo) / (hi - lo)
-            return (*(a + f * (b - a) for a, b in zip(c0, c1)), 1.0)
+            red, green, blue = (a + f * (b - a) for a, b in zip(c0, c1))
+            return (red, green, blue, 1.0)
     raise AssertionError("unreachable: the scale ends at 1.0")
 
 
@@ -73,10 +74,11 @@ def _colour(c: RGBA) -> Fields:
 # Fields no marker of a scene varies (shared, never modified): `marker` fills them in, and the scene's encoder
 # packs them once instead of at every scene.
 MARKER = "visualization_msgs/msg/Marker"
-SCENE_FIXED = {"pose": {"orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}, "lifetime": {"sec": 0, "nanosec": 0},
-               "frame_locked": False, "colors": [], "texture_resource": "",
-               "texture": {"header": header((0, 0), ""), "format": "", "data": []}, "uv_coordinates": [],
-               "mesh_resource": "", "mesh_file": {"filename": "", "data": []}, "mesh_use_embedded_materials": False}
+SCENE_FIXED: Fields = {"pose": {"orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                       "lifetime": {"sec": 0, "nanosec": 0}, "frame_locked": False, "colors": [],
+                       "texture_resource": "", "texture": {"header": header((0, 0), ""), "format": "", "data": []},
+                       "uv_coordinates": [], "mesh_resource": "", "mesh_file": {"filename": "", "data": []},
+                       "mesh_use_embedded_materials": False}
 
 
 @lru_cache(maxsize=1)
@@ -127,6 +129,7 @@ class SceneBuilder:
         bottom = -small_mean(known) if any(map(math.isfinite, known)) else 0.0
         label_at = (*self.plant.shaft_centre.tolist(), bottom + 2.0)
         if solution.ok:
+            assert solution.position is not None and solution.rotation is not None  # solved: a pose
             heights = solution.position[2] + self.plant.outline_array @ solution.rotation[2]
             bottom = float(heights.min())
             label_at = (*solution.position[:2].tolist(), float(heights.max()) + 5.0)
@@ -154,6 +157,8 @@ class SceneBuilder:
 
     def _ropes(self, head: Fields, solution: Solution) -> list[Fields]:
         """Rope i from A_i to B_i: coloured by tension when taut, grey and dashed when slack; a label near B_i."""
+        assert solution.tensions is not None and solution.points_b is not None  # drawn for a solved pose only
+        assert solution.spans is not None
         out = []
         weight = self.plant.weight
         tensions = solution.tensions.tolist()

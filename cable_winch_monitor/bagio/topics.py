@@ -7,8 +7,8 @@ it is read, and the reading refuses the bag then (analysis.data).
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from ..channels import Input
 from .mcapfile import McapError, McapFile

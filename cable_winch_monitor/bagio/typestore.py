@@ -12,11 +12,13 @@ against 15 ms for this one). `knows` adds any other Jazzy type (a user's channel
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterable
 from functools import lru_cache
 from pathlib import Path
-from typing import Iterable
+from typing import Any, cast
 
 from rosbags.interfaces import Nodetype
+from rosbags.interfaces.typing import Typesdict
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -44,7 +46,7 @@ def typestore() -> Typestore:
     if not files:
         raise FileNotFoundError(f"no {MSG_PACKAGE} message definitions in {msg_dir()}")
     store = get_typestore(Stores.EMPTY)
-    types = dict(FIELDDEFS)
+    types = cast(Typesdict, dict(FIELDDEFS))  # rosbags' own definitions; mypy infers only the literal's outline
     for path in files:
         types.update(get_types_from_msg(path.read_text(), f"{MSG_PACKAGE}/msg/{path.stem}"))
     store.register(types)
@@ -74,6 +76,8 @@ def with_dependencies(store: Typestore, msgtypes: Iterable[str]) -> set[str]:
     """`msgtypes` and every message type their fields use, at any depth."""
     found: set[str] = set()
     pending = list(msgtypes)
+    node: Nodetype
+    argument: Any  # as `node` says: a base type, a message type's name, or an array's (element, length)
     while pending:
         name = pending.pop()
         if name in found:

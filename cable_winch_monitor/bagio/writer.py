@@ -14,17 +14,20 @@ for the same reason.
 from __future__ import annotations
 
 import itertools
+import shutil
 import struct
 import zlib
 from collections import Counter, defaultdict
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from io import BytesIO
 from pathlib import Path
 from typing import Any
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
 from rosbags.rosbag2.errors import WriterError
+from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
 from rosbags.typesys.store import Typestore
 
 from .reader import BagError
@@ -149,11 +152,33 @@ class BagWriter:
             self._writer = None
             _seal_summary(self._storage.path)
 
-    def __enter__(self) -> "BagWriter":
+    def discard(self) -> None:
+        """Remove the bag (a job that failed leaves none)."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            with suppress(Exception):  # the failure is the job's, reported by the caller
+                writer.close()
+        shutil.rmtree(self.path, ignore_errors=True)
+
+    def __enter__(self) -> BagWriter:
         return self
 
     def __exit__(self, *_: object) -> None:
         self.close()
+
+
+@contextmanager
+def new_bag(path: str | Path) -> Iterator[BagWriter]:
+    """A new bag at `path` for a job: closed when the job ends or is stopped (KeyboardInterrupt), so that it holds
+    what was written; removed where the job fails with an error."""
+    writer = BagWriter(path)
+    try:
+        yield writer
+    except Exception:
+        writer.discard()
+        raise
+    finally:
+        writer.close()
 
 
 def _seal_summary(mcap: Path) -> None:

@@ -59,7 +59,8 @@ def main() -> int:
         started = time.perf_counter()
         result, _ = diagnose_bag(directory / "bag", load_plant(plant_path), budget=TARGET)
         wall = time.perf_counter() - started
-    print(f"diagnose: {result.train_rows} training and {result.heldout_rows} held-out rows, {result.solves} equilibrium solves, selected {result.selected}, "
+    print(f"diagnose: {result.train_rows} training and {result.heldout_rows} held-out rows, "
+          f"{result.solves} equilibrium solves, selected {result.selected}, "
           f"held-out score {result.ladder[0].score_heldout:.3f} -> {result.ladder[-1].score_heldout:.3f}")
     print(f"unfinished at the {TARGET:.0f} s budget: {'; '.join(result.unfinished) or 'nothing'}")
     print(f"wall time {wall:.1f} s (target {TARGET:.0f} s): {'OK' if wall <= TARGET else 'TOO SLOW'}")

@@ -18,8 +18,8 @@ from ..model.batched import solve_batch
 from ..model.estimation import estimate, estimate_batch
 from ..model.geometry import roll_pitch_yaw
 from ..model.plant import CABLE_NAMES, load_plant
-from ..monitor.pipeline import MonitorPipeline
 from ..model.solve import solve
+from ..monitor.pipeline import MonitorPipeline
 from .solvers import lowering_samples
 
 ENCODER, PIN, TILT, DEPTH = 1e-3, 150.0, np.radians(0.01), 5e-3
@@ -109,7 +109,7 @@ def main() -> None:
     plant = load_plant()
     count = 2000
     lengths, readings = fused_samples(plant, count)
-    one = [[r.with_value(float(r.value[k])) for r in readings] for k in range(count)]
+    one = [[r.with_value(float(np.asarray(r.value)[k])) for r in readings] for k in range(count)]  # (count,) each
     few = 300
     rates = {
         "traversal (seed 002)": per_sample_rate(lambda k, _: solve(plant, lengths[k], "traversal"), few),

@@ -36,6 +36,7 @@ def replay_child(bag: Path, out: Path, plant_file: Path | None = None) -> tuple[
     config = ["--config", str(plant_file)] if plant_file else []
     child = subprocess.Popen([str(CLI), "replay", str(bag), "--out", str(out), "--quiet", *config],
                              stdout=subprocess.PIPE, text=True)
+    assert child.stdout is not None  # piped
     stdout = child.stdout.read()
     _, status, usage = os.wait4(child.pid, 0)  # the rusage of this child alone
     wall = time.perf_counter() - started
@@ -43,8 +44,11 @@ def replay_child(bag: Path, out: Path, plant_file: Path | None = None) -> tuple[
     child.returncode = os.waitstatus_to_exitcode(status)
     if child.returncode != 0:
         raise RuntimeError(f"replay of {bag} failed:\n{stdout}")
-    samples = int(re.search(r"^samples: (\d+)", stdout, re.M).group(1))
-    replay_wall = float(re.search(r"^wall time ([\d.]+) s", stdout, re.M).group(1))
+    samples_line = re.search(r"^samples: (\d+)", stdout, re.M)
+    wall_line = re.search(r"^wall time ([\d.]+) s", stdout, re.M)
+    if samples_line is None or wall_line is None:
+        raise RuntimeError(f"replay of {bag} printed no sample count or wall time:\n{stdout}")
+    samples, replay_wall = int(samples_line.group(1)), float(wall_line.group(1))
     return samples, wall, usage.ru_maxrss / 1024.0, replay_wall, usage.ru_utime + usage.ru_stime
 
 

@@ -21,18 +21,20 @@ import shutil
 import struct
 import tempfile
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
+from ..bagio.fields import input_topics
 from ..bagio.reader import BagReader
 from ..bagio.writer import BagWriter
 from ..effects import PlantModel
 from ..fleet import find_bags, replay_job, run_fleet
 from ..model.plant import Plant, load_plant
 from ..model.solve import solve
-from ..bagio.fields import input_topics
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
 from .plants import REALISTIC_EFFECTS, SITE_CASES, plant_file, realistic, realistic_plant_file
@@ -68,7 +70,7 @@ def recordings(directory: Path) -> dict[str, Path]:
     """The 10,000-sample benchmark recording on each plant, its truth that plant's physics: rigid ropes
     for the rigid plant; elastic ropes with their weight and sheave friction for the realistic one (each
     plant replays what its model explains, as a fitted plant file does at site; sensors at site noise)."""
-    truths = {"rigid": {"ropes": {"model": "rigid"}, "effects": {}},
+    truths: dict[str, dict[str, Any]] = {"rigid": {"ropes": {"model": "rigid"}, "effects": {}},
               "realistic": {"ropes": {"model": "elastic", "EA": REALISTIC_EFFECTS["rope_elasticity"]["EA"]},
                             "effects": {name: values for name, values in REALISTIC_EFFECTS.items()
                                         if name != "rope_elasticity"}}}
@@ -198,9 +200,9 @@ def node_rows(files: dict[str, Path | None], traversal_ms: float,
         from .node_latency import SETTLE, leased_domain, measure, measure_recording
     except ImportError as error:
         return [("node latency at 50 Hz", "not available", f"ROS 2 not importable: {error}", "")]
-    jobs = [(label, lambda domain, plant_file=plant_file: measure(NODE_SAMPLES, NODE_RATE, domain,
-                                                                  plant_file=plant_file))
-            for label, plant_file in files.items()]
+    jobs: list[tuple[str, Callable[[int], Any]]] = [  # (label, domain -> Latency)
+        (label, partial(measure, NODE_SAMPLES, NODE_RATE, plant_file=plant_file))
+        for label, plant_file in files.items()]
     if recording is not None:
         jobs.append(("site (a), every sensor", lambda domain: measure_recording(recording[0], domain, recording[1],
                                                                                 NODE_SECONDS + SETTLE)))
@@ -261,7 +263,7 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
         files = {"rigid": None, "realistic": realistic_plant_file(directory)}
         bags = recordings(directory)
         byte_compile_package()
-        for label, plant in plants.items():
+        for label in plants:
             rows += _progress(replay_rows(bags[label], directory, label, files[label], large_mb, traversal_ms))
         site, site_fast, site_plant = site_recordings(directory)
         rows += _progress(site_rows(site, site_plant, directory, traversal_ms))

@@ -31,8 +31,9 @@ motion, extra inputs): an effect that reads a topic declares it in `inputs`
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Mapping, Union
+from typing import Any, ClassVar, Protocol, cast
 
 import numpy as np
 
@@ -49,8 +50,8 @@ class EffectError(ValueError):
     """An effect name, parameter or value is wrong; the message names it."""
 
 
-Number = Union[float, Callable[[Plant], float]]
-Bounds = Union[tuple[float, float], Callable[[Plant], tuple[float, float]]]
+Number = float | Callable[[Plant], float]
+Bounds = tuple[float, float] | Callable[[Plant], tuple[float, float]]
 UNKNOWN = float("nan")  # a plant-relative default without a plant: the value must be given
 
 
@@ -80,14 +81,34 @@ class Parameter:
     doc: str = ""
     fit: bool = True
 
-    def resolved(self, plant: Plant | None, bounds: tuple[float, float] | None = None) -> "Parameter":
+    def resolved(self, plant: Plant | None, bounds: tuple[float, float] | None = None) -> Resolved:
         """The numbers for this plant; `bounds` (the plant file's effect_bounds) replace the declared ones.
         Without a plant, plant-relative bounds are open and a plant-relative default unknown."""
         def number(spec: Any, unknown: Any) -> Any:
             return (unknown if plant is None else spec(plant)) if callable(spec) else spec
         low, high = bounds if bounds is not None else number(self.bounds, (-np.inf, np.inf))
-        return Parameter(self.name, self.unit, float(number(self.default, UNKNOWN)), (float(low), float(high)),
-                         float(number(self.scale, UNKNOWN)), self.doc, self.fit)
+        return cast(Resolved, Parameter(self.name, self.unit, float(number(self.default, UNKNOWN)),
+                                        (float(low), float(high)), float(number(self.scale, UNKNOWN)), self.doc,
+                                        self.fit))  # its default, bounds and scale are numbers now
+
+
+class Resolved(Protocol):
+    """A `Parameter` with the numbers for one plant (`Parameter.resolved`): what `Effect.specs` holds."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def unit(self) -> str: ...
+    @property
+    def default(self) -> float: ...
+    @property
+    def bounds(self) -> tuple[float, float]: ...
+    @property
+    def scale(self) -> float: ...
+    @property
+    def doc(self) -> str: ...
+    @property
+    def fit(self) -> bool: ...
 
 
 def relative(factor: float, size: Callable[[Plant], float]) -> Callable[[Plant], float]:
@@ -136,7 +157,7 @@ class Effect:
                               f"(known: {', '.join(sorted(known)) or 'none'})")
         self.for_plant = plant
         given_bounds = plant.effect_bounds.get(self.name, {}) if plant is not None else {}
-        self.specs: tuple[Parameter, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
+        self.specs: tuple[Resolved, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
         self.values: dict[str, float] = {}
         for p in self.specs:
             try:
@@ -163,11 +184,11 @@ class Effect:
         """The effect has parameters a fit adjusts."""
         return any(p.fit for p in cls.parameters)
 
-    def fitted(self) -> tuple[Parameter, ...]:
+    def fitted(self) -> tuple[Resolved, ...]:
         """The parameters a fit adjusts, resolved for the plant (bounds, step)."""
         return tuple(p for p in self.specs if p.fit)
 
-    def replaced(self, **values: float) -> "Effect":
+    def replaced(self, **values: float) -> Effect:
         """A copy with some parameter values changed (for the same plant)."""
         return type(self)({**self.values, **values}, self.for_plant)
 

@@ -18,9 +18,10 @@ grows with the attachment's motion along the free span alone), only the converge
 """
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -33,8 +34,7 @@ from ..model.result import Solution
 from .model import NO_CONDITIONS, REFINE_STEPS, REFINE_TOL, PlantModel
 
 BUILT_IN = {
-    **{name: (lambda i: lambda value, sigma: obs.load_pin(i, value, sigma))(i)
-       for i, name in enumerate(channels.TENSION_CHANNELS)},
+    **{name: functools.partial(obs.load_pin, i) for i, name in enumerate(channels.TENSION_CHANNELS)},
     "roll": obs.roll, "pitch": obs.pitch,
     "x": lambda value, sigma: obs.position_component(0, value, sigma),
     "y": lambda value, sigma: obs.position_component(1, value, sigma),
@@ -123,7 +123,9 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
     if model.refining:
         return _estimate_refined(model, lengths[None], observations, load[None], [conditions], [warm_start],
                                  live=True)[0]
-    return estimate(model.physical, lengths, observations, length_noise(model),
+    sigma = length_noise(model)
+    assert sigma is not None  # the model fuses (above)
+    return estimate(model.physical, lengths, observations, sigma,
                     law.EA, law.weight if law.EA is not None else 0.0, load, warm_start)
 
 
@@ -177,7 +179,9 @@ def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observ
     """The estimator on true (or free) lengths (N, 4) with the model's rope law under each sample's load
     (N, 6) (`live`: the warm start is the previous sample's state)."""
     law = model.rope_law
-    return estimate_batch(model.physical, lengths, observations, length_noise(model), law.EA,
+    sigma = length_noise(model)
+    assert sigma is not None  # only a model that fuses is estimated in batches
+    return estimate_batch(model.physical, lengths, observations, sigma, law.EA,
                           law.weight if law.EA is not None else 0.0, loads=loads, warm_starts=warm_starts,
                           anchors=anchors, same_samples=not live)
 
@@ -224,6 +228,6 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
     return estimates
 
 
-def forward_estimate(solution: Solution, reported: Sequence[float]) -> Estimate:
+def forward_estimate(solution: Solution, reported: Sequence[float] | np.ndarray) -> Estimate:
     """A solve of the reported lengths as an estimate that fused nothing."""
     return Estimate(solution, np.asarray(reported, dtype=float), np.zeros(4), float("nan"))

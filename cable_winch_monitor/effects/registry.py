@@ -14,6 +14,7 @@ import inspect
 import sys
 from importlib.metadata import entry_points
 from pathlib import Path
+from types import ModuleType
 
 from .base import ACTS, Effect, EffectError
 from .body import CogOffset, PayloadMass
@@ -56,9 +57,9 @@ def register(cls: type[Effect]) -> type[Effect]:
 
 def _origin(cls: type[Effect]) -> str:
     """Where an effect class is defined: its module, or the file of a user's module."""
-    module = sys.modules.get(cls.__module__)
-    if cls.__module__.startswith(USER_MODULES) and getattr(module, "__file__", None):
-        return module.__file__
+    file = getattr(sys.modules.get(cls.__module__), "__file__", None)
+    if cls.__module__.startswith(USER_MODULES) and file:
+        return file
     return cls.__module__
 
 
@@ -76,7 +77,7 @@ def _load_entry_points() -> None:
             register(cls)
 
 
-def _effect_classes(module: object) -> list[type[Effect]]:
+def _effect_classes(module: ModuleType) -> list[type[Effect]]:
     return [obj for _, obj in inspect.getmembers(module, inspect.isclass)
             if issubclass(obj, Effect) and obj is not Effect and obj.name and obj.__module__ == module.__name__]
 
@@ -89,11 +90,13 @@ def load_module(path: str | Path) -> list[str]:
     module_name = f"{USER_MODULES}{path.stem}_{abs(hash(str(path))) % 10**8}"
     if module_name not in sys.modules:
         spec = importlib.util.spec_from_file_location(module_name, path)
+        if spec is None or spec.loader is None:
+            raise EffectError(f"effect module {path}: not a Python file")
         module = importlib.util.module_from_spec(spec)
         sys.modules[module_name] = module
         try:
             spec.loader.exec_module(module)
-        except Exception as error:  # noqa: BLE001 - any error in a user's module is reported, not raised raw
+        except Exception as error:
             del sys.modules[module_name]
             raise EffectError(f"effect module {path}: {type(error).__name__}: {error}") from None
     classes = _effect_classes(sys.modules[module_name])

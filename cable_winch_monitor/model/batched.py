@@ -13,14 +13,23 @@ fails the physics check. The answers are the same.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any
 
 import numpy as np
 
 from . import load as loads_
-from .energy import ACTIVE_SET_ROUNDS, MAX_TURN, METHOD, NEWTON_MAX_STEPS, NEWTON_TOL, SLACK_TOL, TENSION_TOL, \
-    solve_energy
+from .energy import (
+    ACTIVE_SET_ROUNDS,
+    MAX_TURN,
+    METHOD,
+    NEWTON_MAX_STEPS,
+    NEWTON_TOL,
+    SLACK_TOL,
+    TENSION_TOL,
+    solve_energy,
+)
 from .geometry import rotations_from_vectors, skew
 from .plant import Plant
 from .result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
@@ -74,7 +83,7 @@ class BatchSolution:
             out[i] = solution
         return [out[i] for i in range(len(self))]
 
-    def _extras(self, i: int) -> dict[str, np.ndarray]:
+    def _extras(self, i: int) -> dict[str, Any]:
         return {} if self.stretch is None else {"stretch": self.stretch[i]}
 
 
@@ -176,6 +185,7 @@ class _Group:
 
 def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:
     """Batched Newton on the rows of one chunk, every taut set from the same start pose (as `energy`)."""
+    assert seed.rotation is not None and seed.taut is not None  # `solve_chunks` seeds with a solved sample
     lengths = out.lengths[rows]
     scales = np.linalg.norm(out.loads[rows, :3], axis=1)
     unit_loads = out.loads[rows] / scales[:, None]

@@ -44,6 +44,7 @@ def solve_batch_elastic(plant: Plant, lengths: np.ndarray, axial_stiffness: obje
 def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, ea: np.ndarray, seed: Solution) -> None:
     """Every STRIDE-th row of the chunk from the seed's pose, then each other row from the solved row
     before it (closer: fewer Newton steps); converged rows are stored in `out`."""
+    assert seed.rotation is not None and seed.position is not None  # `solve_chunks` seeds with a solved sample
     coarse = np.arange(0, rows.size, STRIDE)
     _newton(plant, out, rows[coarse], ea, np.broadcast_to(seed.rotation, (coarse.size, 3, 3)),
             np.broadcast_to(seed.position, (coarse.size, 3)), np.full(coarse.size, seed.lengths.mean()))
@@ -137,6 +138,7 @@ def _store(out: BatchSolution, rows: np.ndarray, rotation: np.ndarray, position:
            stretch: np.ndarray, steps: np.ndarray) -> None:
     """Record converged samples as `elastic._newton` does (a rope is taut where it pulls); a platform on
     fewer than two ropes (its turn about the rope is free) is left to the per-sample solver."""
+    assert out.stretch is not None  # the elastic batch keeps its stretch (`solve_batch_elastic`)
     held = np.count_nonzero(tensions > 0.0, axis=1) >= 2
     rows, rotation, position, tensions, stretch, steps = (rows[held], rotation[held], position[held], tensions[held],
                                                           stretch[held], steps[held])

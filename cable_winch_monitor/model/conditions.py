@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -61,7 +61,7 @@ class StackedConditions:
     inputs: Mapping[str, np.ndarray]
 
     @classmethod
-    def of(cls, conditions: Sequence[Conditions]) -> "StackedConditions":
+    def of(cls, conditions: Sequence[Conditions]) -> StackedConditions:
         keys = sorted({key for c in conditions for key in c.inputs})
         return cls(np.array([c.time for c in conditions], dtype=float),
                    np.array([c.speeds for c in conditions], dtype=float).reshape(-1, 4),
@@ -69,7 +69,7 @@ class StackedConditions:
                    np.array([c.direction for c in conditions], dtype=float).reshape(-1, 4),
                    {key: np.array([c.inputs.get(key, NAN) for c in conditions], dtype=float) for key in keys})
 
-    def take(self, index: np.ndarray) -> "StackedConditions":
+    def take(self, index: np.ndarray) -> StackedConditions:
         """The conditions of the states `index` (e.g. each candidate state's sample)."""
         return StackedConditions(self.time[index], self.speeds[index], self.accelerations[index],
                                  self.direction[index], {key: value[index] for key, value in self.inputs.items()})

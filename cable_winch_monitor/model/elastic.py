@@ -52,6 +52,7 @@ def solve_elastic(plant: Plant, lengths: object, axial_stiffness: object,
 def _newton(plant: Plant, lengths: np.ndarray, ea: np.ndarray, start: Solution, load: np.ndarray,
             sag: float = 0.0) -> Solution:
     """Newton on the force and moment balance under `load` from `start`'s pose, lowered by `sag` [m]."""
+    assert start.rotation is not None and start.position is not None  # `start` is a solved pose
     rotation, position = start.rotation, start.position - np.array([0.0, 0.0, sag])
     stiffness = ea / lengths
     weight, scale = loads.magnitude(load), plant.moment_scale

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import load as loads
-from .geometry import cross, rotation_from_vector, skew, structure_matrix
 from .equal_lengths import level_pose
+from .geometry import cross, rotation_from_vector, skew, structure_matrix
 from .plant import Plant
 from .plumb_hang import PlumbHang, lowest_hang_cable
 from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
@@ -67,10 +67,12 @@ def solve_energy(plant: Plant, lengths: object, warm_start: Solution | None = No
 
 def _solve(plant: Plant, lengths: np.ndarray, warm_start: Solution | None, load: np.ndarray) -> Solution:
     if warm_start is not None and warm_start.ok:
-        state = _State(warm_start.rotation, warm_start.position, warm_start.taut.copy(),
-                       warm_start.tensions / loads.magnitude(load), load)
-        if _settle_active_set(plant, lengths, state):
-            result = _result(plant, lengths, state)
+        assert warm_start.rotation is not None and warm_start.position is not None  # a solved pose
+        assert warm_start.taut is not None and warm_start.tensions is not None
+        warm = _State(warm_start.rotation, warm_start.position, warm_start.taut.copy(),
+                      warm_start.tensions / loads.magnitude(load), load)
+        if _settle_active_set(plant, lengths, warm):
+            result = _result(plant, lengths, warm)
             if len(result.taut_set) > 1:  # one taut cable: the single-cable test below decides
                 return result
     single = _single_cable(plant, lengths, load)

@@ -26,8 +26,8 @@ ropes. The admissible row of least cost is kept.
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -343,7 +343,8 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
     visited = np.zeros((count, 16), bool)
     visited[np.arange(count), best.taut @ BITS] = True
     best.residuals = np.zeros((count, 4 + len(problem.observations)))
-    pending, pinned = np.zeros(0, int), (np.zeros(0, int), np.zeros(0, int))
+    pending = np.zeros(0, int)
+    pinned: tuple[np.ndarray, np.ndarray] | None = (np.zeros(0, int), np.zeros(0, int))
     if probe and problem.observations:
         observed = residuals(problem, best, np.arange(count))[:, 4:]
         pending = np.flatnonzero(np.abs(observed).max(axis=1) > SEARCH_SIGMA)
@@ -498,13 +499,14 @@ def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np
 def _candidates(best: Rows, pending: np.ndarray, visited: np.ndarray, search: list[list[int]]) \
         -> tuple[np.ndarray, np.ndarray]:
     """Rows and taut-set codes of the unvisited sets `search` lists for the pending rows' sets (marked visited)."""
-    owner, codes = [], []
+    found_rows: list[int] = []
+    found_codes: list[int] = []
     for row in pending.tolist():
         for code in search[int(best.taut[row] @ BITS)]:
             if not visited[row, code]:
-                owner.append(row)
-                codes.append(code)
-    owner, codes = np.array(owner, dtype=int), np.array(codes, dtype=int)
+                found_rows.append(row)
+                found_codes.append(code)
+    owner, codes = np.array(found_rows, dtype=int), np.array(found_codes, dtype=int)
     visited[owner, codes] = True
     return owner, codes
 

@@ -11,9 +11,9 @@ A user declares any other channel the same way, with its own prediction function
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -41,7 +41,7 @@ class States:
     anchors: np.ndarray | None = None
 
     @classmethod
-    def of(cls, plant: Plant, solutions: Sequence[Solution]) -> "States":
+    def of(cls, plant: Plant, solutions: Sequence[Solution]) -> States:
         """The states of solved samples, keeping their Solutions."""
         return cls(plant, np.array([s.rotation for s in solutions]).reshape(-1, 3, 3),
                    np.array([s.position for s in solutions]).reshape(-1, 3),
@@ -68,14 +68,14 @@ class States:
         return solved_rows(self.plant, "estimate", self.spans, self.rotation, self.position, self.tensions,
                            self.tensions > 0.0, [0] * len(self), anchors=self.anchors)
 
-    def repeated(self, times: int) -> "States":
+    def repeated(self, times: int) -> States:
         """The n states `times` over, stacked (times * n rows, in blocks of n)."""
         sample = None if self.sample is None else np.tile(self.sample, times)
         anchors = None if self.anchors is None else np.tile(self.anchors, (times, 1, 1))
         return States(self.plant, np.tile(self.rotation, (times, 1, 1)), np.tile(self.position, (times, 1)),
                       np.tile(self.tensions, (times, 1)), sample, anchors=anchors)
 
-    def moved(self, step: np.ndarray) -> "States":
+    def moved(self, step: np.ndarray) -> States:
         """The states moved by `step` (n, 10) in the state coordinates."""
         rotation = rotations_from_vectors(step[:, 3:6]) @ self.rotation
         return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10], self.sample,
@@ -122,7 +122,7 @@ class Observation:
             return np.asarray(self.gradient(states), dtype=float).reshape(len(states), STATE_SIZE)
         return forward_differences(self.evaluate, states)
 
-    def with_value(self, value: float | np.ndarray) -> "Observation":
+    def with_value(self, value: float | np.ndarray) -> Observation:
         """The same channel with another reading."""
         return replace(self, value=value)
 

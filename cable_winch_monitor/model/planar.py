@@ -76,6 +76,7 @@ def solve_planar(plant: Plant, lengths: np.ndarray, tol: float, load: np.ndarray
     guess_b = position + plant.attachments @ rotation.T
     guess_c = position + rotation @ plant.cog
     even = even_tensions(plant, guess_b, guess_c, load)
+    assert even is not None  # the rectangle hangs plumb at its level pose, where eq. (12) gives the tensions
     weight = float(np.linalg.norm(load[:3]))
     start = np.concatenate([guess_b[plus[0], plane], guess_b[minus[0], plane], guess_c[plane],
                             [even[list(plus)].sum() / weight, even[list(minus)].sum() / weight]])

@@ -18,8 +18,9 @@ values up to date from the samples it has seen.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,7 @@ class Prior:
     pin_covariance: np.ndarray
 
     @classmethod
-    def noise_only(cls, count: int, sigma_length: float, sigma_pin: float) -> "Prior":
+    def noise_only(cls, count: int, sigma_length: float, sigma_pin: float) -> Prior:
         """A model taken as exact: corrections expected zero with the sensors' own noise."""
         eye = np.broadcast_to(np.eye(4), (count, 4, 4))
         return cls(np.zeros((count, 4)), eye * sigma_length ** 2, np.zeros((count, 4)), eye * sigma_pin ** 2)
@@ -47,7 +48,7 @@ class Prior:
     def __len__(self) -> int:
         return len(self.lengths)
 
-    def take(self, rows: np.ndarray) -> "Prior":
+    def take(self, rows: np.ndarray) -> Prior:
         return Prior(self.lengths[rows], self.length_covariance[rows], self.pins[rows], self.pin_covariance[rows])
 
     def check(self, count: int) -> None:
@@ -103,7 +104,7 @@ class ModelErrorSpec:
     pin_own_walk: float = 5.0            # [N/sqrt(s)] random walk of each pin's own error
 
     @classmethod
-    def from_mapping(cls, section: Mapping[str, Any] | None) -> "ModelErrorSpec":
+    def from_mapping(cls, section: Mapping[str, Any] | None) -> ModelErrorSpec:
         """The spec of a plant file's `model_error:` mapping; unknown keys and values that are not positive,
         finite numbers are refused, naming the key."""
         if section is None:

@@ -1,9 +1,10 @@
 """One result type for every solve, and the physics checks every solution must pass."""
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, Callable, Generic, Sequence, TypeVar
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
@@ -85,6 +86,7 @@ class Solution:
         if self.status is SolveStatus.SOLVED:
             return "taut {" + ",".join(str(i) for i in self.taut_set) + "}"
         if self.status is SolveStatus.SINGLE_CABLE_INDETERMINATE:
+            assert self.single_cable is not None  # a single-cable solution names its cable
             return f"single cable {self.single_cable + 1}: pose indeterminate"
         return self.status.value.replace("_", " ")
 
@@ -197,7 +199,7 @@ def guarded_solve(method: str, lengths: Any, solve_valid: Callable[[np.ndarray],
         with np.errstate(all="ignore"):
             solution = solve_valid(array)
             return solution if plant is None else physics_guard(plant, solution)
-    except Exception as error:  # noqa: BLE001 -- the contract is a status, never an exception
+    except Exception as error:
         return failed(SolveStatus.SOLVER_FAILED, f"{method} solver failed: {type(error).__name__}: {error}",
                       method, array)
 
@@ -249,18 +251,23 @@ def solved_rows(plant: Plant, method: str, lengths: np.ndarray, rotation: np.nda
             for i in range(len(lengths))]
 
 
+FloatRows = float | np.ndarray  # one state's value, or one per row
+BoolRows = bool | np.ndarray
+
+
 @dataclass(frozen=True)
 class PhysicsCheck:
-    """What a solved state must satisfy: balance, tensions >= 0, slack spans within their lengths."""
+    """What a solved state must satisfy: balance, tensions >= 0, slack spans within their lengths.
+    Each field is a number for one state, or an (N,) array from `check_physics_rows`."""
 
-    force_residual: float
-    moment_residual: float
-    min_tension: float
-    max_overstretch: float  # max(span - length) over all cables [m]
-    taut_length_error: float  # max |span - length| over taut cables [m]
-    rigid_error: float  # max deviation of the solved points from the rigid body [m]
-    slack_tension: float  # max |tension| over slack cables [N]
-    mirrored: bool  # solved points are the mirror image of the body
+    force_residual: FloatRows
+    moment_residual: FloatRows
+    min_tension: FloatRows
+    max_overstretch: FloatRows  # max(span - length) over all cables [m]
+    taut_length_error: FloatRows  # max |span - length| over taut cables [m]
+    rigid_error: FloatRows  # max deviation of the solved points from the rigid body [m]
+    slack_tension: FloatRows  # max |tension| over slack cables [N]
+    mirrored: BoolRows  # solved points are the mirror image of the body
 
     def passes(self, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> bool:
         return bool(passing_rows(self, balance_tol, length_tol))
@@ -284,6 +291,7 @@ def check_physics(plant: Plant, solution: Solution) -> PhysicsCheck:
     """Recompute the physics of a SOLVED solution from its points, independently of the solver."""
     if solution.status is not SolveStatus.SOLVED:
         raise ValueError(f"no pose to check: {solution.tension_state}")
+    assert solution.points_b is not None and solution.point_c is not None  # a SOLVED solution has its points
     rows = check_physics_rows(plant, solution.lengths[None], solution.points_b[None], solution.point_c[None],
                               np.asarray(solution.tensions)[None], np.asarray(solution.taut)[None],
                               None if solution.load is None else np.asarray(solution.load)[None])
@@ -317,9 +325,10 @@ def check_physics_rows(plant: Plant, lengths: np.ndarray, points_b: np.ndarray, 
     )
 
 
-def passing_rows(check: PhysicsCheck, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> np.ndarray:
-    """Which rows of a `check_physics_rows` check pass (the conditions of `PhysicsCheck.passes`)."""
+def passing_rows(check: PhysicsCheck, balance_tol: float = 1e-6, length_tol: float = 1e-6) -> np.ndarray | np.bool_:
+    """Which rows of a `check_physics_rows` check pass (the conditions of `PhysicsCheck.passes`); for a
+    one-state check, whether it passes."""
     return ((check.force_residual <= balance_tol) & (check.moment_residual <= balance_tol)
             & (check.min_tension >= 0.0) & (check.max_overstretch <= length_tol)
             & (check.taut_length_error <= length_tol) & (check.rigid_error <= length_tol)
-            & (check.slack_tension == 0.0) & ~check.mirrored)
+            & (check.slack_tension == 0.0) & np.logical_not(check.mirrored))

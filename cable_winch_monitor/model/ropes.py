@@ -20,7 +20,7 @@ class Ropes:
     weight: float = 0.0
 
     @classmethod
-    def of(cls, axial_stiffness: object = None, weight: float = 0.0) -> "Ropes":
+    def of(cls, axial_stiffness: object = None, weight: float = 0.0) -> Ropes:
         """Ropes from a scalar or per-rope EA (None: rigid); ValueError names what is wrong."""
         if axial_stiffness is None:
             return cls(None, 0.0)
@@ -37,7 +37,7 @@ class Ropes:
 
     def effective(self, lengths: np.ndarray) -> np.ndarray:
         """L = l + w l^2 / (2 EA): the length the rope behaves as under its own weight [m]."""
-        if self.rigid:
+        if self.axial_stiffness is None:  # rigid
             return lengths
         return lengths + self.weight * lengths ** 2 / (2.0 * self.axial_stiffness)
 

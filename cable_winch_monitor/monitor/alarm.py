@@ -36,7 +36,7 @@ class AlarmPolicy:
     slack_tolerance: float = 0.02
 
     @classmethod
-    def from_plant(cls, plant: Plant) -> "AlarmPolicy":
+    def from_plant(cls, plant: Plant) -> AlarmPolicy:
         policy = cls(**plant.alarm)
         if not (policy.warning_margin > policy.critical_margin > 0.0 and policy.hysteresis >= 0.0
                 and policy.slack_tolerance >= 0.0):
@@ -97,6 +97,7 @@ class AlarmTracker:
             if level > AlarmLevel.OK:
                 reasons.append(f"clearance {clearance.value:.3f} m at {clearance.point_name}")
         if solution.status is SolveStatus.SINGLE_CABLE_INDETERMINATE:
+            assert solution.single_cable is not None  # a single-cable solution names its cable
             level = max(level, AlarmLevel.WARNING)
             reasons.append(f"platform hangs from {CABLE_NAMES[solution.single_cable]} alone and can turn")
         elif solution.ok:

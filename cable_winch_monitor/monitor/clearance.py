@@ -1,8 +1,8 @@
 """Horizontal clearance between the platform outline and the shaft wall."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -44,6 +44,7 @@ def clearance_at_pose(plant: Plant, rotation: np.ndarray, position: np.ndarray) 
 
 def swing_clearance(plant: Plant, solution: Solution) -> Clearance:
     """Worst clearance over every pose a single-cable platform can turn to (its range phi)."""
+    assert solution.single_cable is not None  # a single-cable state names its cable
     hang = PlumbHang(plant, solution.single_cable, float(solution.lengths[solution.single_cable]))
     thetas = np.concatenate([np.linspace(lo, hi, max(2, int((hi - lo) * SWING_SAMPLES_PER_RAD) + 1))
                              for lo, hi in solution.rotation_range])
@@ -66,6 +67,7 @@ def solution_clearances(plant: Plant, solutions: Sequence[Solution]) -> list[Cle
 def solution_clearance(plant: Plant, solution: Solution) -> Clearance | None:
     """Clearance of a solved pose, or the worst over the swing of a single-cable state; None otherwise."""
     if solution.ok:
+        assert solution.rotation is not None and solution.position is not None  # solved: a pose
         return clearance_at_pose(plant, solution.rotation, solution.position)
     if solution.single_cable is not None and solution.rotation_range:
         return swing_clearance(plant, solution)

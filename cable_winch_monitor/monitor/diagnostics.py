@@ -6,7 +6,8 @@ the collision alarm (with what its clearance is based on), model-versus-measurem
 residuals and the sensor fusion (the sensors the estimate used, those it rejected or left
 out because they contradict the others, those stuck or silent, the model's estimated error
 per rope); a sixth where the plant file tracks parameters (each one's value, sigma, use,
-whether it is held, and a WARNING naming a parameter that drifted from the plant file). Ages and rates are taken against the caller's clock: the node's (under
+whether it is held, and a WARNING naming a parameter that drifted from the plant file).
+Ages and rates are taken against the caller's clock: the node's (under
 `use_sim_time` the bag's /clock), or replay's log time: a reading stamped further ahead of
 the clock than the stamp window allows is an error like a stale one, the alarm of a sample
 older than the staleness limit is no data (STALE) rather than its last level, and a clock
@@ -17,7 +18,8 @@ recording's faults can be read back from its output bag.
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, Mapping, NamedTuple
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -104,8 +106,8 @@ class DiagnosticsReporter:
             arrivals.popleft()
 
     def build(self, pipeline: MonitorPipeline, now: float, stamp: tuple[int, int],
-              node: Mapping[str, int] | None = None, last: "SampleView | None" = None,
-              winch: "WinchView | None" = None) -> Fields:
+              node: Mapping[str, int] | None = None, last: SampleView | None = None,
+              winch: WinchView | None = None) -> Fields:
         """All five statuses at time `now` [s], and a sixth where the plant file tracks parameters (from the
         start, so that a reader finds it in every message), stamped `stamp` (sec, nanosec); `node`: the live
         node's own counters (complete samples, skipped, winch messages, lost before the node, waiting); `last`:
@@ -124,7 +126,7 @@ class DiagnosticsReporter:
     def _status(self, name: str, level: int, message: str, values: dict[str, object]) -> Fields:
         return _status(name, level, message, values, self.hardware_id)
 
-    def throughput_rates(self, pipeline: MonitorPipeline, now: float, winch: "WinchView") -> tuple[float, float]:
+    def throughput_rates(self, pipeline: MonitorPipeline, now: float, winch: WinchView) -> tuple[float, float]:
         """Winch messages and samples solved per second over the last RATE_WINDOW of the clock."""
         samples = sum(pipeline.stats.states.values())
         offered = sum(winch.messages.values())
@@ -138,7 +140,7 @@ class DiagnosticsReporter:
         return (offered - first) / span, (samples - solved) / span
 
     def _solver(self, pipeline: MonitorPipeline, now: float, node: Mapping[str, int] | None,
-                last: "SampleView", winch: "WinchView") -> Fields:
+                last: SampleView, winch: WinchView) -> Fields:
         stats = pipeline.stats
         input_rate, solve_rate = self.throughput_rates(pipeline, now, winch)
         values: dict[str, object] = {"solver": pipeline.solver, "solved": stats.solved, "failed": stats.failures,
@@ -148,7 +150,7 @@ class DiagnosticsReporter:
         level, message, latest = last.solver
         return self._status("solver", level, f"{message} ({pipeline.solver})", {**values, **latest})
 
-    def inputs(self, pipeline: MonitorPipeline, now: float, winch: "WinchView | None" = None) -> Fields:
+    def inputs(self, pipeline: MonitorPipeline, now: float, winch: WinchView | None = None) -> Fields:
         """The inputs' status at `now` [s]: each cable's stamp, age and rate, the messages used and rejected
         (the winches' as `winch` saw them, where replay merged them ahead of the other messages)."""
         stats, staleness, ahead = pipeline.stats, pipeline.staleness, pipeline.merger.window.ahead
@@ -168,10 +170,11 @@ class DiagnosticsReporter:
                 stale.append(f"{name} ({age:.3f} s old)")
             elif age < -ahead:
                 early.append(f"{name} ({-age:.3f} s after the clock)")
-        messages = {**{t: n for t, n in stats.messages.items() if t not in winch.messages}, **winch.messages}
-        used = {**{t: n for t, n in stats.used.items() if t not in winch.messages}, **winch.used}
-        rejected = {**{key: n for key, n in stats.rejected.items() if key.split(": ", 1)[0] not in winch.messages},
-                    **winch.rejected}
+        # the winch topics only as `winch` saw them: one replay merges later is not counted yet
+        messages = {**{t: n for t, n in stats.messages.items() if t not in stats.winch_topics}, **winch.messages}
+        used = {**{t: n for t, n in stats.used.items() if t not in stats.winch_topics}, **winch.used}
+        rejected = {**{key: n for key, n in stats.rejected.items()
+                       if key.split(": ", 1)[0] not in stats.winch_topics}, **winch.rejected}
         for topic, count in sorted(messages.items()):
             values[f"{topic} messages"] = count
             values[f"{topic} used"] = used.get(topic, 0)
@@ -203,7 +206,7 @@ class DiagnosticsReporter:
         level = ERROR if missing or stale or early else WARN if recent or jumped else OK
         return _status("inputs", level, "; ".join(problems) or "all four cables fresh", values, self.hardware_id)
 
-    def _alarm(self, pipeline: MonitorPipeline, last: "SampleView", now: float) -> Fields:
+    def _alarm(self, pipeline: MonitorPipeline, last: SampleView, now: float) -> Fields:
         """The last sample's alarm; no data (STALE) once that sample is older than the staleness limit, or
         stamped further ahead of the clock than the stamp window allows: a level is never held without data."""
         values: dict[str, object] = {f"samples {level}": count for level, count in pipeline.stats.levels.items()}

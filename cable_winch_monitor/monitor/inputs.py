@@ -2,9 +2,10 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, NamedTuple, Sequence
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 
@@ -190,12 +191,13 @@ class CableLengthMerger:
         """
         if None in self.readings:
             return None, "waiting for " + ", ".join(CABLE_NAMES[i] for i, r in enumerate(self.readings) if r is None)
-        if any(abs(stamp - r.stamp) > self.staleness for r in self.readings):
+        readings = cast(list[CableReading], self.readings)  # none is None (above)
+        if any(abs(stamp - r.stamp) > self.staleness for r in readings):
             return None, "stale: " + ", ".join(f"{CABLE_NAMES[i]} ({stamp - r.stamp:.3f} s old)"
-                                               for i, r in enumerate(self.readings)
+                                               for i, r in enumerate(readings)
                                                if abs(stamp - r.stamp) > self.staleness)
         return np.array([r.length + (r.velocity * (stamp - r.stamp) if math.isfinite(r.velocity) else 0.0)
-                         for r in self.readings]), ""
+                         for r in readings]), ""
 
     def measured_tensions(self) -> np.ndarray:
         """Load-pin tensions of the latest readings [N] (NaN where not measured)."""

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import threading
 from collections import deque
-from typing import Any, Hashable
+from collections.abc import Hashable
+from typing import Any
 
 from .inputs import JointSample
 from .pipeline import CompleteSample, MonitorOutput, MonitorPipeline
@@ -30,7 +31,8 @@ class LatestSamplePipeline(MonitorPipeline):
     """
 
     def __init__(self, *args: Any, backlog: float = BACKLOG, **kwargs: Any):
-        super().__init__(*args, background=True, **kwargs)  # the model error's updates beside the samples
+        # the model error's updates beside the samples (`args` are the pipeline's first four, never `background`)
+        super().__init__(*args, background=True, **kwargs)  # type: ignore[misc]
         self.backlog = backlog
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)

@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 import math
-from typing import Mapping, NamedTuple
+from collections.abc import Mapping
+from typing import NamedTuple
 
 from .. import channels
 from ..model.plant import Plant

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable, Mapping
 from functools import lru_cache
-from typing import Callable, Mapping
 
 from .. import channels
 from ..model.estimation import Estimate
@@ -94,7 +94,8 @@ class LatestReadings:
                     if stamp - when <= self.staleness:
                         per_metre = CARRIED.get(name)
                         then = payout_at(when) if per_metre is not None else math.nan
-                        out[name] = value + (per_metre * (payout - then) if carry_known(payout, then) else 0.0)
+                        out[name] = value + (per_metre * (payout - then)
+                                              if per_metre is not None and carry_known(payout, then) else 0.0)
                         taken[name] = when
                     break
         return out, taken

@@ -6,16 +6,17 @@ replay); this module only turns those nested values into rclpy message objects.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping, Sequence
 from functools import cache
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from rosidl_parser.definition import AbstractNestedType, NamespacedType
 
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
+from ..bagio import fields
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution
-from ..bagio import fields
 from ..monitor.alarm import Alarm
 
 
@@ -23,7 +24,8 @@ from ..monitor.alarm import Alarm
 def _message_fields(kind: type) -> dict[str, tuple[type, bool]]:
     """Fields of a message type that hold messages: name -> (message type, is a sequence)."""
     nested = {}
-    for name, slot in zip(kind.get_fields_and_field_types(), kind.SLOT_TYPES):
+    # a rosidl-generated message class: its field listing is made at build time, out of mypy's sight
+    for name, slot in zip(kind.get_fields_and_field_types(), kind.SLOT_TYPES):  # type: ignore[attr-defined]
         sequence = isinstance(slot, AbstractNestedType)
         base = slot.value_type if sequence else slot
         if isinstance(base, NamespacedType):

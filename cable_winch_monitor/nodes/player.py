@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -106,8 +106,8 @@ def _settle(node: Player, deadline: float) -> None:
 
 def _publish(node: Player, reader: BagReader, rate: float, clock: bool, until: float,
              topics: Sequence[str] | None) -> int:
-    """Every message (of `topics`, None: all the reader delivers) at its log time (`rate` times as fast), /clock before it, the first `until` seconds;
-    the count published."""
+    """Every message (of `topics`, None: all the reader delivers) at its log time (`rate` times as fast),
+    /clock before it, the first `until` seconds; the count published."""
     started, first, count = time.monotonic(), None, 0
     for item in reader:
         if topics is not None and item.topic not in topics:

@@ -10,18 +10,18 @@ from __future__ import annotations
 
 import sys
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..bagio.fields import input_topics
 from ..bagio.reader import BagError
 from ..bagio.typestore import knows
 from ..bagio.writer import BagWriter
-from ..bagio.fields import input_topics
 from .conversions import message_class
 
 NODE_NAME = "cable_winch_monitor_recorder"
@@ -63,7 +63,9 @@ class Recorder(Node):
         reliable = offered and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in offered)
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DEPTH,
                          reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT)
-        self.create_subscription(kind, topic, lambda data, t=topic, m=msgtype: self._write(t, m, data), qos, raw=True)
+        # raw=True: rclpy hands the callback the serialised bytes, where its types say a message
+        self.create_subscription(kind, topic, lambda data: self._write(topic, msgtype, data),  # type: ignore[arg-type]
+                                 qos, raw=True)
         self.subscribed[topic] = msgtype
 
     def _write(self, topic: str, msgtype: str, data: bytes) -> None:

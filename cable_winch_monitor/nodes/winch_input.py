@@ -45,7 +45,7 @@ class WinchInput:
 
 def waiting(subscription: Subscription) -> list[tuple[Any, dict[str, Any]]]:
     """Every message waiting in `subscription`'s queue, with its info, in arrival order."""
-    out = []
+    out: list[tuple[Any, dict[str, Any]]] = []
     while True:
         with subscription.handle:
             taken = subscription.handle.take_message(subscription.msg_type, False)

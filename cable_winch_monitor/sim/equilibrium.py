@@ -24,6 +24,7 @@ length (`sim.pulleys`).
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -238,7 +239,8 @@ class Trajectory:
         return state
 
     def _solve(self, t: float, lengths: np.ndarray, load: np.ndarray) -> State:
-        rig, groups = self.rig, [(MANY, None), (SETS[len(MANY):], None)]
+        rig = self.rig
+        groups: list[tuple[Sequence[tuple[int, ...]], State | None]] = [(MANY, None), (SETS[len(MANY):], None)]
         if self.history:
             last = self.history[-1][1]
             taut = tuple(np.flatnonzero(last.taut).tolist())
@@ -252,7 +254,9 @@ class Trajectory:
                                else _unknowns(start, s, rig.weight_scale)) for s in sets]
             admissible = [(energy, k) for k, (state, energy) in enumerate(found) if state is not None]
             if admissible:
-                return found[min(admissible)[1]][0]
+                best = found[min(admissible)[1]][0]
+                assert best is not None  # admissible
+                return best
         raise NoEquilibrium("no taut set of two or more ropes is admissible: the platform hangs from one rope "
                             f"or the lengths {np.round(lengths, 4).tolist()} admit no equilibrium")
 

@@ -6,7 +6,8 @@ applied to the truth's channels. Errors name the key.
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from ..effects import Effect, EffectError, available, load_module
 from ..model.plant import Plant

@@ -9,7 +9,8 @@ fitted data made with them tests the package's effect classes instead of repeati
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 

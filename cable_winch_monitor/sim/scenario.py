@@ -6,11 +6,12 @@ is not known, or a value of the wrong kind, is an error that names the dotted ke
 from __future__ import annotations
 
 import copy
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
-from ..paths import config_dir
 from ..model.safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
+from ..paths import config_dir
 
 # None marks an optional value; its kind is in OPTIONAL.
 DEFAULTS: dict[str, Any] = {
@@ -101,7 +102,7 @@ def _check_value(value: Any, kind: type, where: str) -> Any:
     return float(value) if kind is float else value
 
 
-def _check_item(item: Any, spec: Mapping[str, type], where: str, optional: set[str] = frozenset()) -> dict:
+def _check_item(item: Any, spec: Mapping[str, type], where: str, optional: Collection[str] = frozenset()) -> dict:
     if not isinstance(item, Mapping):
         raise ScenarioError(f"key '{where}' must be a mapping with keys {', '.join(spec)}, got {item!r}")
     unknown = [k for k in item if k not in spec]

@@ -14,20 +14,21 @@ import csv
 import heapq
 import time
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 import yaml
 
+from ..bagio.fields import Stamp, stamp_ns
 from ..bagio.records import build
 from ..bagio.writer import BagWriter
 from ..model.geometry import roll_pitch_yaw
 from ..model.plant import load_plant
 from ..model.result import Solution
 from ..monitor.clearance import solution_clearance
-from ..bagio.fields import Stamp, stamp_ns
 from .profile import Profile, air_temperature
 from .sensors import Sensors, Stream, sensor_streams
 from .sync import SyncErrors
@@ -69,8 +70,12 @@ def _events(streams: list[Stream]) -> Iterator[tuple[float, Stream]]:
 
 
 def _truth_row(t: float, stream: str, lengths: np.ndarray, truth: Solution, clearance: float) -> list[Any]:
-    pose = [*truth.position, *roll_pitch_yaw(truth.rotation)] if truth.ok else [np.nan] * 6
-    tensions = list(truth.tensions) if truth.ok else [np.nan] * 4
+    pose: list[Any] = [np.nan] * 6
+    tensions: list[Any] = [np.nan] * 4
+    if truth.ok:
+        assert truth.position is not None and truth.rotation is not None and truth.tensions is not None  # a pose
+        pose = [*truth.position, *roll_pitch_yaw(truth.rotation)]
+        tensions = list(truth.tensions)
     taut = " ".join(str(i) for i in truth.taut_set)
     number = "{:.9g}".format
     return [f"{t:.9f}", stream, *map(number, lengths), truth.status.value, taut,

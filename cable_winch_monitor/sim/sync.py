@@ -7,7 +7,8 @@ event makes one winch pay out `lag` metres less than commanded: it ramps in over
 """
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 

@@ -20,8 +20,9 @@ package cannot enter the truth: that would make it the code under test again.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -64,8 +65,8 @@ def plant_pulleys(plant: Plant, hidden: Mapping[str, float] | None) -> Pulleys |
     fixed with their planes towards the shaft axis. None: no pulleys."""
     if plant.sheaves:
         radius = [s.radius for s in plant.sheaves] if hidden is None else [hidden["r"]] * 4
-        towards = [np.full(3, np.nan) if s.swivel else s.towards for s in plant.sheaves]
-        return Pulleys(np.array(radius, dtype=float), np.array([s.axis for s in plant.sheaves]), np.array(towards))
+        facing = [np.full(3, np.nan) if s.swivel else s.towards for s in plant.sheaves]
+        return Pulleys(np.array(radius, dtype=float), np.array([s.axis for s in plant.sheaves]), np.array(facing))
     if hidden is None:
         return None
     axis = np.array([hidden["axis_x"], hidden["axis_y"], hidden["axis_z"]])
@@ -139,9 +140,9 @@ class TruthModel:
         return solution, self._readings(state, solution, sample)
 
     def _solution(self, state: State, load: np.ndarray) -> Solution:
-        force, moment = imbalance(state, load)
-        force = np.linalg.norm(force) / self.rig.weight_scale
-        moment = np.linalg.norm(moment) / (self.rig.weight_scale * self.rig.lever_scale)
+        force_vector, moment_vector = imbalance(state, load)
+        force = np.linalg.norm(force_vector) / self.rig.weight_scale
+        moment = np.linalg.norm(moment_vector) / (self.rig.weight_scale * self.rig.lever_scale)
         return Solution(status=SolveStatus.SOLVED, message="true equilibrium", method=METHOD,
                         lengths=state.free_lengths, taut=state.taut, tensions=state.tensions,
                         rotation=state.rotation, position=state.position, points_b=state.points_b,

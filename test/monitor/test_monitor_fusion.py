@@ -1,0 +1,206 @@
+"""The monitor publishes the fused estimate: lengths, load pins, inclinometer and depth, each with its noise.
+
+Truth is computed without the package's solvers (`root_truth`: force and moment balance
+solved by root finding): a rigid lowering at 20-60 m whose lag events slacken a rope and
+move the load share, sensed as the plant's sensors sense it -- encoders 1 mm, load pins
+150 N, inclinometer 0.01 deg stamped 30-40 ms after the winches, depth gauge 5 mm at 2 Hz.
+Live (one message at a time) and replay (a window at a time, batched) give the same
+outputs; a load pin that goes wrong is left out as soon as it contradicts the other sensors.
+"""
+from __future__ import annotations
+
+import os
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from fusionbags import NOISE, header, lowering_truths, noisy, sensed
+from root_truth import weak_mode_truth
+from scipy.special import chdtri
+
+from cable_winch_monitor import ahead, channels, forked
+from cable_winch_monitor.ahead import Published
+from cable_winch_monitor.bagio import fields
+from cable_winch_monitor.lookahead import LookaheadPipeline
+from cable_winch_monitor.model.gate import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
+from cable_winch_monitor.model.plant import CABLE_NAMES
+from cable_winch_monitor.model.result import check_physics
+from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
+from cable_winch_monitor.monitor.sensors import sensors_used
+
+
+def live(pipeline: MonitorPipeline, items) -> list[MonitorOutput]:
+    """What the node does with each message, the samples it publishes."""
+    out = []
+    for entry in items:
+        msg = entry.message
+        if entry.msgtype == channels.JOINT_STATE:
+            output = pipeline.on_joint_state(fields.joint_sample(msg, entry.topic))
+            if output is not None:
+                out.append(output)
+        else:
+            pipeline.on_measurement(entry.topic, fields.seconds(msg.header.stamp), msg)
+    return out
+
+
+def replayed(pipeline: LookaheadPipeline, items) -> list[MonitorOutput]:
+    """What replay makes of the items in one process: each complete sample's outputs."""
+    return [r.output for _, r in pipeline.run(items) if isinstance(r, Published)]
+
+
+@pytest.fixture(scope="module")
+def lowering(plant):
+    truths = lowering_truths(plant, 800, seed=5)
+    return truths, sensed(truths, seed=6)
+
+
+def assert_same(got: list[MonitorOutput], want: list[MonitorOutput]) -> None:
+    """The same state on every sample, to the estimator's convergence: taut set, tensions, points, sensors."""
+    assert len(got) == len(want)
+    for a, b in zip(got, want):
+        assert a.stamp == b.stamp and a.solution.taut_set == b.solution.taut_set
+        assert np.abs(a.solution.tensions - b.solution.tensions).max() < 1.0
+        assert np.abs(a.solution.points_b - b.solution.points_b).max() < 1e-6
+        assert set(a.estimate.used) == set(b.estimate.used) and a.alarm.level == b.alarm.level
+        assert a.refused == b.refused
+
+
+def test_replay_publishes_the_fused_tensions_and_equals_the_live_node(plant, lowering):
+    truths, items = lowering
+    fused = noisy(plant)
+    outputs = replayed(LookaheadPipeline(fused, window=100), items)
+    assert len(outputs) == len(truths)
+    assert len({t.tensions.astype(bool).tobytes() for t in truths}) >= 3  # the lag events switch the taut set
+    errors = np.array([np.abs(o.solution.tensions - t.tensions).max() for o, t in zip(outputs, truths)])
+    assert np.mean(errors <= 3.0 * NOISE["tension"]) >= 0.995
+    for output in outputs:
+        assert output.solution.ok and output.estimate.fused
+        assert check_physics(fused, output.solution).passes()  # balance, tensions >= 0, slack not overstretched
+        assert not output.refused  # no sensor contradicts the others
+    for output in outputs[1:]:  # the inclinometer's first reading comes after the first sample
+        assert {*channels.TENSION_CHANNELS, "/platform/imu"} <= set(sensors_used(output.estimate))
+    assert sum("/platform/position" in sensors_used(o.estimate) for o in outputs) > 0.15 * len(outputs)
+    # once the model's error is learnt (its first update windows: a model error that grows with the payout
+    # is learnt from a few metres of it), poses as good as the lengths taken as exact
+    exact = replayed(LookaheadPipeline(plant.with_changes(noise={**NOISE, "length": float("nan")})), items)
+    learnt = slice(500, None)
+    pose_error = [np.abs(o.solution.position - t.position).max() for o, t in zip(outputs[learnt], truths[learnt])]
+    exact_error = [np.abs(o.solution.position - t.position).max() for o, t in zip(exact[learnt], truths[learnt])]
+    assert np.percentile(pose_error, 95) <= max(np.percentile(exact_error, 95), 2e-3)
+    assert outputs[-1].model.length_sigma.max() < 1.5 * NOISE["length"]  # the plant file is right: nothing to add
+    exact_tension = np.array([np.abs(o.solution.tensions - t.tensions).max() for o, t in zip(exact, truths)])
+    assert np.mean(exact_tension > 3.0 * NOISE["tension"]) > 0.3  # the lengths alone miss the share
+    assert_same(live(MonitorPipeline(fused), items), outputs)  # the node, one message at a time
+
+
+def test_a_pin_that_goes_wrong_is_left_out_from_its_first_wrong_reading(plant, lowering):
+    """A load pin 5 kN off from sample 50 contradicts the other sensors: rejected at each sample from its
+    first wrong reading (the others then agree), left out of the update windows after, and named; the
+    tensions stay within 4 sigma of the truth. Replay, a window at a time, gives the node's states."""
+    truths, _ = lowering
+    truths = truths[:300]
+    items = sensed(truths, seed=7, pin_fault=(1, 50, 5e3))
+    node = live(MonitorPipeline(noisy(plant)), items)
+    assert not any(o.refused for o in node[:50])
+    for output, truth in zip(node[50:], truths[50:]):
+        assert output.refused == ("tension_cable_2",)
+        assert "tension_cable_2" not in output.estimate.used and "tension_cable_1" in output.estimate.used
+        assert output.model.faults["tension_cable_2"] == "contradicts the other sensors"
+        assert np.abs(output.solution.tensions - truth.tensions).max() <= 4.0 * NOISE["tension"]
+    assert any(o.model.left_out == ("tension_cable_2",) for o in node)  # left out of a later window
+    assert_same(replayed(LookaheadPipeline(noisy(plant), window=64), items), node)
+
+
+def test_a_second_process_publishing_ahead_gives_the_same_outputs(plant, lowering, monkeypatch, tmp_path):
+    """Replay's second process estimates, judges and encodes each window while the next ones are merged:
+    every record is the one-process replay's, to the bit, and the files it handed its results over in
+    are gone when it stops."""
+    monkeypatch.setattr(forked, "SPOOL", str(tmp_path))
+    truths, _ = lowering
+    items = sensed(truths[:160], seed=7, pin_fault=(1, 50, 5e3))
+    one = [r for _, r in LookaheadPipeline(noisy(plant), window=64).run(items)]
+    two = [r for _, r in LookaheadPipeline(noisy(plant), window=64, second_process=True).run(items)]
+    assert not any(tmp_path.iterdir())  # the worker stopped with the replay, its spool removed
+    published = [(a, b) for a, b in zip(one, two) if isinstance(a, Published)]
+    assert len(published) == len(truths[:160]) and all(b.output is None for _, b in published)  # from there
+    for a, b in published:
+        assert a.records == b.records and a.outcome == b.outcome and a.view == b.view
+    assert [a for a in one if not isinstance(a, Published)] == [b for b in two if not isinstance(b, Published)]
+
+
+def test_a_second_process_that_is_lost_leaves_the_rest_to_the_replay(plant, lowering, monkeypatch, tmp_path):
+    """Where the worker cannot hand a window's results over (its spool is not a directory: a full or
+    missing /dev/shm), or is killed, the replay publishes the rest itself from the worker's last state:
+    the same records."""
+    items = sensed(lowering[0][:200], seed=11)
+    one = [r for _, r in LookaheadPipeline(noisy(plant), window=64).run(items)]
+    spooled = forked.ForkedWorker.__init__
+
+    def unwritable(self, *args):
+        spooled(self, *args)
+        os.rmdir(self.spool)
+        self.spool = str(tmp_path / "not-a-directory")
+        open(self.spool, "w").close()
+
+    with monkeypatch.context() as patch:
+        patch.setattr(forked.ForkedWorker, "__init__", unwritable)
+        two = [r for _, r in LookaheadPipeline(noisy(plant), window=64, second_process=True).run(items)]
+    taken = ahead.AheadPublisher.take
+    killed = []
+
+    def kill_after_two(self):
+        if len(killed) == 2 and self.worker is not None:
+            self.worker.process.kill()
+            self.worker.process.join()
+        killed.append(True)
+        return taken(self)
+
+    monkeypatch.setattr(ahead.AheadPublisher, "take", kill_after_two)
+    three = [r for _, r in LookaheadPipeline(noisy(plant), window=64, second_process=True).run(items)]
+    for other in (two, three):
+        pairs = [(a, b) for a, b in zip(one, other) if isinstance(a, Published)]
+        assert len(pairs) == 200 and all(a.records == b.records and a.outcome == b.outcome for a, b in pairs)
+    assert any(r.output is None for r in three if isinstance(r, Published))  # the first windows from there
+
+
+def test_equal_lengths_with_pins_give_tensions_independent_of_history(plant):
+    truth = weak_mode_truth(plant, 300.0, np.zeros(3), 12e3)
+    np.testing.assert_allclose(truth.lengths, 300.0, atol=1e-9)
+    tensions = []
+    for history in ([300.02, 300.0, 300.01, 300.0], [300.0, 300.02, 300.0, 300.01], [299.0, 299.0, 299.0, 299.0]):
+        pipeline = MonitorPipeline(noisy(plant))
+        for k in range(3):
+            t = 10.0 + 0.1 * k
+            pipeline.on_joint_state(fields.joint_sample(SimpleNamespace(
+                header=header(t), name=list(CABLE_NAMES), position=history, velocity=[0.0] * 4,
+                effort=[float("nan")] * 4), "/winch/joint_states"))
+        output = pipeline.on_joint_state(fields.joint_sample(SimpleNamespace(
+            header=header(11.0), name=list(CABLE_NAMES), position=truth.lengths.tolist(), velocity=[0.0] * 4,
+            effort=(truth.tensions + np.array([120.0, -80.0, 40.0, -150.0])).tolist()), "/winch/joint_states"))
+        assert output.solution.taut_set == (1, 2, 3, 4) and check_physics(plant, output.solution).passes()
+        tensions.append(output.solution.tensions)
+    tensions = np.array(tensions)
+    assert np.ptp(tensions, axis=0).max() < 1.0
+    assert np.abs(tensions[0] - truth.tensions).max() <= 3.0 * NOISE["tension"]
+
+
+def test_tension_message_says_what_the_estimate_used(plant, lowering):
+    truths, items = lowering
+    output = live(MonitorPipeline(noisy(plant)), items[:40])[-1]
+    values = fields.tension_distribution((100, 0), output.solution, output.estimate)
+    assert values["sensors_used"][:4] == list(channels.TENSION_CHANNELS)
+    assert "/platform/imu" in values["sensors_used"]
+    np.testing.assert_allclose(values["length_corrections_sigma"], output.estimate.corrections / NOISE["length"])
+    exact = live(MonitorPipeline(plant.with_changes(noise={**NOISE, "length": float("nan")})), items[:40])[-1]
+    values = fields.tension_distribution((100, 0), exact.solution, exact.estimate)
+    assert values["sensors_used"] == [] and values["length_corrections_sigma"] == []
+
+
+def test_default_gate_thresholds_are_scipys_chi_square_quantiles():
+    """The gate's thresholds at the default probability are kept as numbers (no scipy import in a replay):
+    they must be scipy's quantiles to the bit, and other probabilities still come from scipy."""
+    for dof, threshold in enumerate(DEFAULT_THRESHOLDS, 1):
+        assert threshold == float(chdtri(dof, 1.0 - DEFAULT_PROBABILITY))
+    assert chi_square_threshold(17) == float(chdtri(17, 1.0 - DEFAULT_PROBABILITY))
+    assert chi_square_threshold(1, 0.9973) == pytest.approx(9.0, rel=1e-3)  # 3 sigma of one channel
+    assert chi_square_threshold(2, 0.99) == pytest.approx(-2.0 * np.log(0.01))  # two channels: exponential
