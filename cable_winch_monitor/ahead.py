@@ -23,7 +23,8 @@ import functools
 import math
 import os
 import pickle
-from typing import Any, NamedTuple, Sequence
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 from .bagio import records
 from .bagio.fields import Stamp

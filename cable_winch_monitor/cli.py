@@ -2,18 +2,18 @@
 from __future__ import annotations
 
 import argparse
-import math
 import json
+import math
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from .bagio.reader import BagError
+from .bagio.scene import LIVE_RATE, REPLAY_RATE
 from .effects.base import EffectError
 from .formatting import format_solution
 from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
-from .bagio.scene import LIVE_RATE, REPLAY_RATE
 from .model.solve import METHODS
 from .paths import config_dir
 from .sim.scenario import ScenarioError
@@ -100,10 +100,9 @@ def _paper(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    from .effects import load_module
     from .sim.scenario import load_scenario, scenario_path
     from .sim.simulate import simulate
-
-    from .effects import load_module
 
     for path in args.effect_module:
         load_module(path)

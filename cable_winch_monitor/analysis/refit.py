@@ -2,8 +2,8 @@
 and write a plant file with the effects on (effects.plantfile; the live node and replay then use it)."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

@@ -7,21 +7,22 @@ that lives in bagio/fields.py, shared with the live node.
 """
 from __future__ import annotations
 
-from functools import lru_cache
-from typing import Any, Mapping
+from collections.abc import Mapping
+from functools import cache
+from typing import Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from . import fields, frames
 from ..model.estimation import Estimate
 from ..model.result import Solution
 from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
-from .scene import SceneBuilder, scene_encoder
+from . import fields, frames
 from .cdr import Encoder, encoder, fixed_encoder
+from .scene import SceneBuilder, scene_encoder
 from .typestore import knows, typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
@@ -67,7 +68,7 @@ def _value(kind: tuple[Any, Any], value: Any, store: Typestore) -> Any:
     return value
 
 
-@lru_cache(maxsize=None)
+@cache
 def sample_encoder(msgtype: str) -> Encoder:
     """The encoder of a per-sample output, its SAMPLE_FRAMES packed once instead of at every sample."""
     return fixed_encoder(msgtype, SAMPLE_FRAMES)

@@ -14,10 +14,11 @@ all go through this object; a model without effects is exactly the monitor's rig
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -78,7 +79,7 @@ def _call(effect: Effect, hook: str, *args: Any) -> Any:
     a user's effect may raise anything, and the sample (or the command) is refused with that line."""
     try:
         return getattr(effect, hook)(*args)
-    except Exception as error:  # noqa: BLE001 - a user's code may raise anything; it is named, never raised raw
+    except Exception as error:
         raise EffectError(f"effect '{effect.name}': its {hook.removesuffix('_states')} hook raised "
                           f"{type(error).__name__}: {error}") from None
 
@@ -139,7 +140,7 @@ class PlantModel:
                               "them elastic: use the energy solver")
 
     @classmethod
-    def from_plant(cls, plant: Plant, solver: str = "energy") -> "PlantModel":
+    def from_plant(cls, plant: Plant, solver: str = "energy") -> PlantModel:
         """The effects the plant file switches on (`plant.effects`, user modules in `plant.effect_modules`)."""
         try:
             for path in plant.effect_modules:
@@ -159,7 +160,7 @@ class PlantModel:
     def get(self, name: str) -> Effect | None:
         return next((e for e in self.effects if e.name == name), None)
 
-    def with_effects(self, effects: Iterable[Effect]) -> "PlantModel":
+    def with_effects(self, effects: Iterable[Effect]) -> PlantModel:
         """Add or replace effects by name."""
         replaced = {e.name: e for e in effects}
         kept = [replaced.pop(e.name, e) for e in self.effects]
@@ -379,7 +380,7 @@ class PlantModel:
         """`predict` for stacked states (row k of `conditions` is state k's): arrays (n,) by channel."""
         try:
             predicted = channels.predicted_states(states, conditions)
-        except Exception as error:  # noqa: BLE001 - a user's channel may raise anything; it is named
+        except Exception as error:
             raise EffectError(f"a channel's prediction raised {type(error).__name__}: {error}") from None
         posed = np.isfinite(states.position).all(axis=1) & np.isfinite(states.rotation).all(axis=(1, 2)) \
             & np.isfinite(states.tensions).all(axis=1)

@@ -11,8 +11,9 @@ costs that model nothing.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -108,8 +109,8 @@ def _tolerance(plant: Plant, key: str, effect: str, start: float, step: float) -
     return value * abs(start)
 
 
-def model_at(base: "PlantModel", tracked: Sequence[TrackedParameter], values: np.ndarray,
-             every: bool = False) -> "PlantModel":
+def model_at(base: PlantModel, tracked: Sequence[TrackedParameter], values: np.ndarray,
+             every: bool = False) -> PlantModel:
     """`base` (the plant file's model) with the tracked parameters at `values`: an effect that is off in the
     file switched on where one of its values differs from its start (`every`: all of them, as the tracker's
     derivatives need: an effect off is not the effect at its default)."""

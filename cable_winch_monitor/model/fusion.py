@@ -18,9 +18,9 @@ load-sharing mode of four rigid taut ropes without load pins) it keeps the start
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Sequence
 
 import numpy as np
 
@@ -61,7 +61,7 @@ class Problem:
     @classmethod
     def build(cls, plant: Plant, lengths: np.ndarray, sigma_length: float, observations: Sequence[Observation],
               ropes: Ropes, load: np.ndarray | None, anchors: np.ndarray | None = None,
-              prior: Prior | None = None) -> "Problem":
+              prior: Prior | None = None) -> Problem:
         """The problem of N samples under `load`: one wrench (6,) for all, one per sample (N, 6), or None
         for gravity; with each sample's `anchors` (N, 4, 3) (None: the plant's) and the model's expected
         error `prior` (None: the model taken as exact, the lengths and pins off by their noise alone);
@@ -174,7 +174,7 @@ class Rows:
         self.steps = np.zeros(n, int)
 
     @staticmethod
-    def joined(first: "Rows", second: "Rows") -> "Rows":
+    def joined(first: Rows, second: Rows) -> Rows:
         """The rows of both, first's then second's."""
         out = Rows(*(np.concatenate([getattr(first, name), getattr(second, name)])
                      for name in ("sample", "taut", "rotation", "position", "mu")))
@@ -182,7 +182,7 @@ class Rows:
             setattr(out, name, np.concatenate([getattr(first, name), getattr(second, name)]))
         return out
 
-    def take(self, index: np.ndarray, taut: np.ndarray | None = None) -> "Rows":
+    def take(self, index: np.ndarray, taut: np.ndarray | None = None) -> Rows:
         """The rows `index` (copies), with another taut set where given (its slack ropes' tensions zeroed)."""
         out = Rows(self.sample[index], self.taut[index] if taut is None else taut, self.rotation[index],
                    self.position[index], self.mu[index])

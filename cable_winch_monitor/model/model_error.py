@@ -94,7 +94,7 @@ class ModelError:
             pin_cov = pin_cov + design @ grown[:, PINS, PINS] @ np.swapaxes(design, 1, 2)
         return Prior(lengths, length_cov, pins, pin_cov)
 
-    def updated(self, problem: Problem, rows: Rows, payouts: np.ndarray, stamp: float) -> "ErrorState":
+    def updated(self, problem: Problem, rows: Rows, payouts: np.ndarray, stamp: float) -> ErrorState:
         """The error after one Gauss-Newton step from a window's estimated samples: `problem` weighed by
         `white` at their stamps, `rows` their estimated states (one row per sample that was estimated),
         `payouts` (N, 4) of the problem's samples, `stamp` [s] where the window ends; the estimate then
@@ -114,7 +114,7 @@ class ModelError:
         covariance = np.linalg.inv(information)
         return ErrorState(mean + step, 0.5 * (covariance + covariance.T), middle)
 
-    def apply(self, state: "ErrorState") -> None:
+    def apply(self, state: ErrorState) -> None:
         self.mean, self.covariance, self.reference = state
         self.updates += 1
 

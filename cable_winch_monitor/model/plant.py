@@ -7,17 +7,18 @@ at the centroid of the attachment points B1..B4 and coincides in orientation wit
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
 from ..paths import default_plant_file
-from .safe_yaml import YamlLimitError, load_yaml_file
 from .plant_checks import degenerate_points
 from .prior import ModelErrorConfigError, ModelErrorSpec
+from .safe_yaml import YamlLimitError, load_yaml_file
 from .track import TrackConfigError, TrackSpec
 
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")
@@ -115,7 +116,7 @@ class Plant:
         """The outline points in `platform` as one (n, 3) array [m], in the order of `outline`."""
         return np.array([p.position for p in self.outline]).reshape(-1, 3)
 
-    def with_changes(self, **changes: Any) -> "Plant":
+    def with_changes(self, **changes: Any) -> Plant:
         """A copy with some fields replaced (for effects and fits)."""
         values = {k: getattr(self, k) for k in self.__dataclass_fields__}
         values.update(changes)
@@ -143,7 +144,8 @@ def _number(section: Mapping[str, Any], key: str, where: str, positive: bool = F
     except (TypeError, ValueError):
         raise PlantConfigError(f"plant file: key '{where}{key}' must be a number, got {section[key]!r}") from None
     if not np.isfinite(value) or (positive and value <= 0.0):
-        raise PlantConfigError(f"plant file: key '{where}{key}' must be a finite{' positive' if positive else ''} number, got {value}")
+        kind = "finite positive" if positive else "finite"
+        raise PlantConfigError(f"plant file: key '{where}{key}' must be a {kind} number, got {value}")
     return value
 
 
@@ -156,7 +158,8 @@ def _points(value: Any, key: str, count: int | None, dim: int = 3) -> np.ndarray
         raise PlantConfigError(f"plant file: key '{key}' must be a list of [x, y, z] points") from None
     expected = (count, dim) if count else (array.shape[0] if array.ndim == 2 else -1, dim)
     if array.ndim != 2 or array.shape != expected or not np.all(np.isfinite(array)):
-        raise PlantConfigError(f"plant file: key '{key}' must hold {count or 'some'} finite {dim}-D points, got shape {array.shape}")
+        raise PlantConfigError(f"plant file: key '{key}' must hold {count or 'some'} finite {dim}-D points, "
+                               f"got shape {array.shape}")
     return array
 
 
@@ -336,7 +339,8 @@ def plant_from_mapping(config: Mapping[str, Any], name: str = "plant", folder: P
     explicit = [key for key in ("anchors", "attachments", "centre_of_gravity") if key in geometry]
     if explicit:
         if len(explicit) != 3:
-            raise PlantConfigError("plant file: give all of 'plant.geometry.anchors', '.attachments' and '.centre_of_gravity', or none")
+            raise PlantConfigError("plant file: give all of 'plant.geometry.anchors', '.attachments' and "
+                                   "'.centre_of_gravity', or none")
         anchors = _points(geometry["anchors"], "plant.geometry.anchors", 4)
         attachments = _points(geometry["attachments"], "plant.geometry.attachments", 4)
         cog = _points([geometry["centre_of_gravity"]], "plant.geometry.centre_of_gravity", 1)[0]

@@ -19,8 +19,9 @@ effects and resolves tolerances against the file's values (effects.tracked).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 KINDS = ("relative", "absolute")
 SHARES = {"track_sigma": 0.2, "track_rate": 1.0, "track_drift": 0.2}
@@ -45,7 +46,7 @@ class TrackSpec:
         return bool(self.names)
 
     @classmethod
-    def from_section(cls, section: Mapping[str, Any]) -> "TrackSpec":
+    def from_section(cls, section: Mapping[str, Any]) -> TrackSpec:
         """The spec of a plant file's `plant` mapping (every key optional)."""
         names = _names(section.get("track"))
         tolerance = _tolerances(section.get("track_tolerance"))

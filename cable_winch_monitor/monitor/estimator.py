@@ -24,9 +24,10 @@ same sample stamps, so they give the same states.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, NamedTuple, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -42,8 +43,8 @@ from ..model.model_error import ErrorState, ModelError
 from ..model.prior import Prior
 from ..model.result import Solution
 from ..model.ropes import Ropes
-from .sensors import sensor_of
 from .sensitivity import WindowSamples
+from .sensors import sensor_of
 from .tracking import ParameterTracker, ParameterView, TrackState
 
 CARRIED = ("roll", "pitch")  # readings carried to the sample's stamp by the model's own rate of change

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, NamedTuple, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -36,12 +37,10 @@ from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .basis import CORROBORATING_PINS, Basis, judged, tilt_sigmas
 from .clearance import Clearance, solution_clearance, solution_clearances
 from .estimator import Estimated, MonitorEstimator, SampleInput
-from .inputs import (CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason,
-                     small_mean)
+from .inputs import CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason, small_mean
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import LatestReadings, PayoutHistory, StuckReadings, sensor_of
 from .tracking import ParameterView
-
 
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
 
@@ -83,7 +82,7 @@ class MonitorOutput:
         """The sensors not fused at this sample because they contradict the others."""
         return () if self.model is None else tuple(sorted(set(self.model.rejected) | set(self.model.left_out)))
 
-    def outcome(self, predicted: dict[str, float] | None) -> "Outcome":
+    def outcome(self, predicted: dict[str, float] | None) -> Outcome:
         view = self.model
         return Outcome(self.stamp, self.solution.status, self.solution.tension_state, self.alarm.level.name,
                        dict(view.faults) if view is not None else {}, predicted, self.residuals,

@@ -34,9 +34,10 @@ same values; the tracker pickles (numbers only), the model is given back by its 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -109,7 +110,7 @@ class ParameterTracker:
         self._view: ParameterView | None = None
 
     @classmethod
-    def of(cls, model: PlantModel) -> "ParameterTracker | None":
+    def of(cls, model: PlantModel) -> ParameterTracker | None:
         """The tracker of a plant model's file (None: it tracks nothing)."""
         plant = model.plant
         if not plant.track.enabled:

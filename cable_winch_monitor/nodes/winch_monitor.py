@@ -13,7 +13,8 @@ import functools
 import importlib
 import sys
 import threading
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
@@ -21,9 +22,9 @@ from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import JumpThreshold, TimeJump
 from rclpy.duration import Duration
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
-from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
@@ -36,13 +37,13 @@ from cable_winch_monitor_msgs.srv import CheckCableLengths, WritePlantFile
 
 from .. import channels
 from ..bagio import fields, frames, records
+from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
-from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
-from ..monitor.inputs import StampWindow
 from ..monitor.diagnostics import DiagnosticsReporter
+from ..monitor.inputs import StampWindow
 from ..monitor.latest import BACKLOG, LatestSamplePipeline
 from ..monitor.pipeline import CompleteSample, MonitorOutput
 from ..monitor.residuals import Residuals
@@ -221,7 +222,7 @@ class WinchMonitorNode(Node):
         def callback(*message: Any) -> None:
             try:
                 handler(*message, *args)
-            except Exception as error:  # noqa: BLE001 - the node must keep running
+            except Exception as error:
                 self.reporter.note_callback_error(where, error)
                 self.get_logger().error(f"{where}: {type(error).__name__}: {error}", throttle_duration_sec=LOG_THROTTLE)
             self._log_rejections()
@@ -308,7 +309,7 @@ class WinchMonitorNode(Node):
                 solution, _, alarm = self.pipeline.evaluate(lengths)
             now = self.get_clock().now().to_msg()
             return check_response((now.sec, now.nanosec), solution, alarm)
-        except Exception as error:  # noqa: BLE001 - answer, do not crash the service
+        except Exception as error:
             self.reporter.note_callback_error("~/check_cable_lengths", error)
             self.get_logger().error(f"check_cable_lengths: {type(error).__name__}: {error}")
             return rejected_response(f"internal error: {type(error).__name__}: {error}")

@@ -17,8 +17,9 @@ The simulator's truth is unaffected: these are the sensors' lies, for the monito
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 

@@ -12,14 +12,15 @@ Every other stream starts at a random phase and has timing jitter, so no two are
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from ..model.plant import CABLE_NAMES
 from ..bagio.fields import Stamp, header
 from ..channels import IMU, JOINT_STATE, POINT, TENSION_CHANNELS
+from ..model.plant import CABLE_NAMES
 from .faults import SensorFaults
 
 NAN = float("nan")
