@@ -112,7 +112,8 @@ class MonitorEstimator:
         self.tracker = ParameterTracker.of(model)
         # the node works each window's update out in a thread of its own beside the samples (`background`)
         self.background = ThreadPoolExecutor(1, thread_name_prefix="model error") if background else None
-        self.pending: Future | ErrorState | None = None  # the last window's update, taken at the next window's end
+        # the last window's update (the model's error, the tracker's state), taken at the next window's end
+        self.pending: Future[tuple[ErrorState, TrackState | None]] | tuple[ErrorState, TrackState | None] | None = None
         sigma_length = length_noise(model)
         if sigma_length is None:
             raise ValueError("the plant file gives the encoders no noise (noise.length): the lengths are taken "
@@ -235,6 +236,7 @@ class MonitorEstimator:
         the gate of its measurements (the load pins are weighed together: an error common to them all is
         the model's, one pin's own is not), a sensor's channels beyond theirs, or (`lengths`) the lengths
         beyond the model's expected error."""
+        assert batch.cost is not None  # the estimator's batches are all weighed by the model's prior (`_batch`)
         measured = np.isfinite(batch.residuals).sum(axis=1)
         verdict = np.nan_to_num(batch.cost, nan=0.0) > _THRESHOLDS[np.minimum(measured, len(_THRESHOLDS) - 1)]
         groups: dict[str, list[int]] = {}
@@ -277,7 +279,7 @@ class MonitorEstimator:
             return rejected, followed
         loose = Prior(prior.lengths, prior.length_covariance * FOLLOW ** 2, prior.pins, prior.pin_covariance)
         again = self._batch(lengths[failing], [measured[i] for i in failing],
-                            [samples[i].conditions for i in failing], loads[failing], loose.take(failing),
+                            [samples[i].conditions for i in failing.tolist()], loads[failing], loose.take(failing),
                             _take(forward, failing))
         disagree = self._failing(again, loose.take(failing), lengths=False)
         for k, i in enumerate(failing.tolist()):
@@ -291,8 +293,9 @@ class MonitorEstimator:
             for (pairs, trial, without, agrees), with_lengths in tiers:  # the model as it is, then loosely held
                 agreeing = [k for k, (row, _) in enumerate(pairs) if row == i and agrees[k]]
                 if agreeing:
-                    again = [k for k in agreeing if pairs[k][1] in self.last_rejected]
-                    best = again[0] if again else min(agreeing, key=lambda k: without.cost[k])
+                    assert without is not None and without.cost is not None  # estimated wherever there were pairs
+                    lasting = [k for k in agreeing if pairs[k][1] in self.last_rejected]
+                    best = lasting[0] if lasting else min(agreeing, key=without.cost.__getitem__)
                     _put(batch, i, without, best)
                     measured[i] = trial[best]
                     rejected[i] = (pairs[best][1],)
@@ -327,6 +330,7 @@ class MonitorEstimator:
         if not self.left_out:
             return
         window = self.window
+        assert window is not None  # `run` opens the window before estimating its samples
         offset = len(window.stamps)
         tries = [(k, sensor) for k in range(len(samples)) if (offset + k) % RETRY_EVERY == 0 and k not in batch.fallback
                  for sensor in sorted(self.left_out) if any(sensor_of(n) == sensor for n in measured[k])]
@@ -347,6 +351,7 @@ class MonitorEstimator:
         only for how far it was off, not for what its error is (the tracked parameters are learnt from
         their states, which the sensors agree on)."""
         window = self.window
+        assert window is not None  # `run` opens the window before estimating its samples
         misfits = self._length_misfit(batch, prior)
         for k, sample in enumerate(samples):
             window.reported.append(sample.reported)
@@ -381,6 +386,7 @@ class MonitorEstimator:
         the samples of the window after, and replay does as the node); this window's update started; its
         sensors rejected on most of its samples left out, those left out that agreed again taken back."""
         window, self.window = self.window, None
+        assert window is not None and self.origin is not None  # `run` closes only a window it opened
         end = self.origin + (window.index + 1) * self.error.spec.period
         if self.pending is not None:
             self._apply(*(self.pending.result() if isinstance(self.pending, Future) else self.pending), end)
@@ -400,6 +406,7 @@ class MonitorEstimator:
         values in use moved, the model changes and its error moves by what the model now explains."""
         self.error.apply(error)
         if tracked is not None:
+            assert self.tracker is not None  # only a tracker's update has a tracked state
             moved = self.tracker.apply(tracked, end)
             if np.any(moved != 0.0):
                 self.error.shift(-tracked.signature @ moved)
@@ -415,8 +422,11 @@ class MonitorEstimator:
         base, tracker, period = self.base, self.tracker, self.error.spec.period
 
         def job() -> tuple[ErrorState, TrackState | None]:
-            error = self._updated(window, end, solved, prior) if solved else \
-                ErrorState(self.error.mean.copy(), self.error.covariance.copy(), self.error.reference)
+            if solved:
+                assert prior is not None  # the solved samples are among those with a state, which are weighed
+                error = self._updated(window, end, solved, prior)
+            else:
+                error = ErrorState(self.error.mean.copy(), self.error.covariance.copy(), self.error.reference)
             return error, None if tracker is None else tracker.updated(base, samples, end, period)
         return job
 
@@ -424,9 +434,9 @@ class MonitorEstimator:
         """What the tracker learns from in a window: its estimated states and the readings they fused."""
         if self.tracker is None or not solved:
             return None
-        rows = tuple(np.array([window.states[k][j] for k in solved]) for j in range(4))
+        assert white is not None  # the samples are weighed wherever one has a state (`_update`)
         return WindowSamples(np.array(window.reported), window.measured, window.conditions,
-                             (np.array(solved), *rows), white, self.sigma_length)
+                             (np.array(solved), *_stacked(window, solved)), white, self.sigma_length)
 
     def _updated(self, window: _Window, end: float, solved: list[int], white: Prior) -> ErrorState:
         lengths = np.array(window.lengths)
@@ -436,9 +446,21 @@ class MonitorEstimator:
         loads = np.array([self.model.load(c) for c in window.conditions])
         problem = Problem.build(self.model.physical, lengths, self.sigma_length, observations, self.ropes, loads,
                                 prior=white)
-        taut, rotation, position, tensions = (np.array([window.states[k][j] for k in solved]) for j in range(4))
+        taut, rotation, position, tensions = _stacked(window, solved)
         rows = Rows(np.array(solved), taut, rotation, position, tensions / problem.scales[solved, None])
         return self.error.updated(problem, rows, lengths, end)
+
+
+def _stacked(window: _Window, rows: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The states of these samples of the window (each has one) stacked: taut sets, rotations, positions,
+    tensions."""
+    states = []
+    for k in rows:
+        state = window.states[k]
+        assert state is not None  # the rows are samples with an estimated state
+        states.append(state)
+    taut, rotation, position, tensions = (np.array([state[j] for state in states]) for j in range(4))
+    return taut, rotation, position, tensions
 
 
 def _line_slopes(times: np.ndarray, values: np.ndarray, at: np.ndarray, span: float) -> np.ndarray:
