@@ -254,10 +254,11 @@ class SampleView(NamedTuple):
 def sample_view(output: MonitorOutput | None, fusing: bool) -> SampleView:
     """The diagnostics of a sample's outputs (None: no sample yet)."""
     if output is None:
-        fusion = (OK, "no estimate yet" if fusing else "lengths taken as exact (no noise.length in the plant file)", {})
+        fusion: tuple[int, str, dict[str, object]] = (
+            OK, "no estimate yet" if fusing else "lengths taken as exact (no noise.length in the plant file)", {})
         return SampleView((OK, "no complete sample yet", {}), (OK, "no sample yet", {}), fusion, None)
     solution, alarm = output.solution, output.alarm
-    solver = (SOLVER_DIAGNOSTIC[solution.status], solution.tension_state,
+    solver: tuple[int, str, dict[str, object]] = (SOLVER_DIAGNOSTIC[solution.status], solution.tension_state,
               {"last stamp": f"{output.stamp:.6f}", "last status": solution.status.value,
                "tension state": solution.tension_state, "iterations": solution.iterations,
                "last message": solution.message})

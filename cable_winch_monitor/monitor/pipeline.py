@@ -20,7 +20,7 @@ import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 
@@ -37,7 +37,16 @@ from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .basis import CORROBORATING_PINS, Basis, judged, tilt_sigmas
 from .clearance import Clearance, solution_clearance, solution_clearances
 from .estimator import Estimated, MonitorEstimator, SampleInput
-from .inputs import CableLengthMerger, InputLimits, InputSeries, JointSample, StampWindow, measurement_reason, small_mean
+from .inputs import (
+    CableLengthMerger,
+    CableReading,
+    InputLimits,
+    InputSeries,
+    JointSample,
+    StampWindow,
+    measurement_reason,
+    small_mean,
+)
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import LatestReadings, PayoutHistory, StuckReadings, sensor_of
 from .tracking import ParameterView
@@ -230,16 +239,19 @@ class MonitorPipeline:
         readings = self.merger.readings
         if self.fusing:
             for cable in merged.accepted:
-                if math.isfinite(readings[cable].tension):
-                    self.pins.add(channels.TENSION_CHANNELS[cable], readings[cable].tension, sample.stamp)
+                reading = readings[cable]
+                assert reading is not None  # the message just gave it
+                if math.isfinite(reading.tension):
+                    self.pins.add(channels.TENSION_CHANNELS[cable], reading.tension, sample.stamp)
         lengths, waiting = self.merger.complete(sample.stamp)
         self.stats.waiting = waiting
         if lengths is None:
             return None
-        speeds = [r.velocity for r in readings]
+        cables = cast(list[CableReading], readings)  # the lengths are complete: every cable has a reading
+        speeds = [r.velocity for r in cables]
         speed = small_mean(speeds)
         self.payouts.add(sample.stamp, small_mean(lengths.tolist()), speed if math.isfinite(speed) else 0.0)
-        complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in readings], speeds)
+        complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in cables], speeds)
         if not self.fusing:
             return complete
         sensors, taken = self.measured(complete)
@@ -336,7 +348,7 @@ class MonitorPipeline:
             out.append(row._replace(model=view))
         return out
 
-    def _solved(self, solutions: list[Solution], estimates: list[Estimate | None],
+    def _solved(self, solutions: list[Solution], estimates: Sequence[Estimate | None],
                 conditions: Sequence[Conditions], model: PlantModel | None = None) -> list[Solved]:
         """Each solution with its clearance, estimate and what every channel reads there (None where not
         solved), computed together, under `model` (None: the plant file's)."""
@@ -413,12 +425,17 @@ class MonitorPipeline:
             self._reject(topic, "no solved pose within the staleness limit")
             return None
         self.stats.used[topic] += 1
+        assert self.last_predicted is not None  # kept with the stamp of the last solved sample (`note`)
         return residuals(self.noise, stamp, values, self.last_predicted)
 
     @staticmethod
     def read_channels(topic: str, message: Any) -> dict[str, float]:
         """What the channels read off a message of `topic` (NaN where a field holds no number)."""
-        return {c.name: c.read(message) for c in channels.on_topic(topic)}
+        values = {}
+        for c in channels.on_topic(topic):
+            assert c.read is not None  # `on_topic` gives the channels with a reader of their own
+            values[c.name] = c.read(message)
+        return values
 
     def on_input(self, spec: Input, stamp: float, message: Any) -> None:
         """An extra input's message (e.g. the shaft temperature): kept for the samples' conditions."""

@@ -127,6 +127,7 @@ class _Window:
         step = DERIVATIVE * max(abs(value), parameter.step)
         step = step if value + step <= parameter.bounds[1] else -step
         effect = self.model.get(parameter.effect)
+        assert effect is not None  # the window's model has every tracked effect on (`model_at(..., every=True)`)
         moved = self.model.with_effects([effect.replaced(**{parameter.name: value + step})])
         hooks = type(effect)
         if any(overrides(hooks, hook) for hook in WHOLE):
