@@ -108,7 +108,7 @@ def pose_stamped(stamp: Stamp, solution: Solution) -> Fields:
 def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | None = None) -> Fields:
     """Per-cable length, span, tension and taut flag, the tension state as a whole, and, for a fused
     `estimate`, the sensors it used and how far it moved the lengths (in sigma)."""
-    fused = estimate is not None and estimate.fused
+    fused = estimate if estimate is not None and estimate.fused else None
     taut = solution.taut_set
     cables = [{"name": name, "length": length, "span": span, "tension": tension, "taut": (i + 1) in taut}
               for i, (name, length, span, tension) in enumerate(zip(
@@ -117,8 +117,8 @@ def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | 
             "tension_state": solution.tension_state, "cables": cables,
             "equilibrium_residual": _larger(float(solution.force_residual), float(solution.moment_residual)),
             "solver": solution.method, "iterations": int(solution.iterations),
-            "sensors_used": sensors_used(estimate) if fused else [],
-            "length_corrections_sigma": _floats(estimate.corrections_sigma) if fused else []}
+            "sensors_used": sensors_used(fused) if fused is not None else [],
+            "length_corrections_sigma": _floats(fused.corrections_sigma) if fused is not None else []}
 
 
 def collision_alarm(stamp: Stamp, alarm: Alarm) -> Fields:
@@ -136,6 +136,7 @@ def model_error(stamp: Stamp, output: MonitorOutput) -> Fields:
     """The model's estimated error per cable at an estimated sample, what the model alone predicts of the
     clearance, what the alarm is based on and the sensors left out (needs `output.model`)."""
     view, estimate = output.model, output.estimate
+    assert view is not None  # the callers write it only at estimated samples (`records.output_records`)
     clearance = view.clearance
     return {"header": header(stamp), "cables": list(CABLE_NAMES), "length_error": _floats(view.length_error),
             "length_error_sigma": _floats(view.length_sigma),

@@ -57,14 +57,17 @@ class BagWriter:
         self._channels: dict[str, int] = {}  # topic -> channel id
         if self.path.exists():
             raise BagError(f"{self.path} exists already: give a new output path (a bag is never overwritten)")
-        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer: Writer | None = writer  # None once closed
         try:
-            self._writer.open()
+            writer.open()
         except (WriterError, OSError) as error:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
-        self._storage: McapWriter = self._writer.storage
-        self._written: dict[int, int] = self._writer.counts  # rosbags' count per channel, kept after close
-        self._storage.close_chunk = self._close_chunk  # rosbags' own close() ends the last chunk through it too
+        assert isinstance(writer.storage, McapWriter)  # open() made the storage of the plugin asked for
+        self._storage: McapWriter = writer.storage
+        self._written: dict[int, int] = writer.counts  # rosbags' count per channel, kept after close
+        # rosbags' own close() ends the last chunk through it too (mypy: rosbags has no hook, its method is replaced)
+        self._storage.close_chunk = self._close_chunk  # type: ignore[method-assign]
 
     def _close_chunk(self) -> None:
         """End the open chunk: what rosbags' McapWriter.close_chunk writes for an uncompressed chunk (the
@@ -97,7 +100,7 @@ class BagWriter:
         if chunk.msgs and (time - chunk.message_start_time > CHUNK_SPAN or chunk.message_end_time - time > CHUNK_SPAN):
             self._close_chunk()
 
-    def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes, latched: bool = False) -> None:
+    def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes | memoryview, latched: bool = False) -> None:
         """CDR bytes as they are, at `log_time` [ns]; a `latched` topic is recorded as offered transient-local
         (its first message decides)."""
         channel = self._channels.get(topic)
@@ -109,6 +112,7 @@ class BagWriter:
         """The channel id of a new connection for `topic` (a Jazzy type the store starts without is added
         first; rosbags refuses a type it cannot define)."""
         knows(self.store, msgtype)
+        assert self._writer is not None  # nothing is written after close
         connection = self._writer.add_connection(topic, msgtype, typestore=self.store,
                                                  offered_qos_profiles=[LATCHED] if latched else ())
         self._channels[topic] = connection.id
@@ -119,10 +123,11 @@ class BagWriter:
         """Messages written per topic."""
         return Counter({topic: self._written[channel] for topic, channel in self._channels.items()})
 
-    def _append(self, channel: int, time: int, data: bytes) -> None:
+    def _append(self, channel: int, time: int, data: bytes | memoryview) -> None:
         """rosbags' Writer.write and McapWriter.write (rosbags 0.11.9, no compression) in one step."""
         self.close_spanning_chunk(time)
         writer, storage = self._writer, self._storage
+        assert writer is not None  # nothing is written after close
         writer.counts[channel] += 1
         storage.channel_stats[channel] += 1
         if time < writer.min_timestamp:
