@@ -276,11 +276,15 @@ class PlantModel:
         except EffectError as error:  # an effect's hook failed on this sample (its lengths are numbers)
             return failed(SolveStatus.INVALID_INPUT, str(error), self.solver, np.asarray(reported, dtype=float))
         except (TypeError, ValueError) as error:
-            if np.shape(reported) == (4,):  # a reported length is not a number: the solver says which
-                lengths, load = reported, self.physical.wrench
-            else:
+            if np.shape(reported) != (4,):
                 return failed(SolveStatus.INVALID_INPUT, f"cannot apply the plant's effects: {error}",
                               self.solver, np.full(4, np.nan))
+            # a reported length is not a number: the solver says which (as given: an elastic rope's stretch is
+            # of numbers)
+            law = self.rope_law
+            if law.EA is None:
+                return solve(self.physical, reported, self.solver, warm_start=warm_start, load=self.physical.wrench)
+            return solve_elastic(self.physical, reported, law.EA, warm_start=warm_start, load=self.physical.wrench)
         solution = self._solve_once(self.physical, lengths, warm_start, load)
         for _ in range(REFINE_STEPS if self.refining else 0):
             if not solution.ok:

@@ -80,3 +80,8 @@ def test_pins_reading_the_rope_weight_are_predicted_by_the_model(plant):
 def test_bad_lengths_are_a_status(plant):
     got = estimate_sample(PlantModel(noisy_plant(plant)), ["a", 1.0, 2.0, 3.0], {})
     assert got.solution.status.value == "invalid_input" and "number" in got.solution.message
+
+
+def test_bad_lengths_are_a_status_under_elastic_ropes_too(plant):
+    got = PlantModel(plant, (RopeElasticity({"EA": 7.5e7}),)).solve(["a", 1.0, 2.0, 3.0])
+    assert got.status.value == "invalid_input" and "number" in got.message and got.method == "elastic"
