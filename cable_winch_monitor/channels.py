@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import cache, lru_cache
 from typing import Any
@@ -223,7 +223,7 @@ def predicted(solution: Solution, plant: Plant, conditions: Conditions) -> dict[
     return {name: channel.predict(solution, plant, conditions) for name, channel in _declared.items()}
 
 
-def predicted_states(states: States, conditions: Sequence[Conditions]) -> dict[str, np.ndarray]:
+def predicted_states(states: States, conditions: Iterable[Conditions]) -> dict[str, np.ndarray]:
     """`predicted` for stacked states (conditions[k] is state k's): arrays (n,), one per channel."""
     out: dict[str, np.ndarray] = {}
     alone = [c for c in _declared.values() if c.predict_states is None]

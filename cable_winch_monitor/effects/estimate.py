@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -33,7 +33,7 @@ from ..model.observations import Observation, States, forward_differences
 from ..model.result import Solution
 from .model import NO_CONDITIONS, REFINE_STEPS, REFINE_TOL, PlantModel
 
-BUILT_IN = {
+BUILT_IN: dict[str, Callable[[float | np.ndarray, float], Observation]] = {
     **{name: functools.partial(obs.load_pin, i) for i, name in enumerate(channels.TENSION_CHANNELS)},
     "roll": obs.roll, "pitch": obs.pitch,
     "x": lambda value, sigma: obs.position_component(0, value, sigma),

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .. import channels
 from ..channels import Input
@@ -265,9 +266,10 @@ class PlantModel:
     def _elastic_lengths(self, lengths: np.ndarray) -> np.ndarray:
         """What an elastic rope of these true lengths is as a weightless one: l + w l^2 / (2 EA)."""
         law = self.rope_law
+        assert law.EA is not None  # asked for elastic ropes only
         return lengths + law.weight * lengths ** 2 / (2.0 * law.EA)
 
-    def solve(self, reported: object, warm_start: Solution | None = None,
+    def solve(self, reported: ArrayLike, warm_start: Solution | None = None,
               conditions: Conditions = NO_CONDITIONS) -> Solution:
         """Equilibrium for the lengths the winches report at these conditions; never raises (model.result)."""
         try:
@@ -295,8 +297,10 @@ class PlantModel:
                 return failed(SolveStatus.INVALID_INPUT, str(error), self.solver, lengths)
             previous = solution
             solution = self._solve_once(self.physical.with_changes(anchors=anchors[0]), refined[0], solution, load)
-            if solution.ok and np.abs(solution.points_b - previous.points_b).max() < REFINE_TOL:
-                break
+            if solution.ok:
+                assert solution.points_b is not None and previous.points_b is not None  # both solved poses
+                if np.abs(solution.points_b - previous.points_b).max() < REFINE_TOL:
+                    break
         return solution
 
     def refine(self, lengths: np.ndarray, states: States) -> tuple[np.ndarray, np.ndarray]:
@@ -348,7 +352,7 @@ class PlantModel:
         hook failed (NaN lengths and gravity there: the batch leaves them to `solve`, which says why)."""
         reported = np.asarray(reported, dtype=float).reshape(-1, 4)
         lengths, loads = reported.copy(), np.tile(self.physical.wrench, (len(reported), 1))
-        hooked = []
+        hooked: list[int] = []
         if not (self._lengtheners or self._loaders):
             return lengths, loads, hooked
         for k, at in enumerate(conditions):
@@ -406,5 +410,6 @@ class PlantModel:
         for effect in self.effects:
             module = inspect.getmodule(type(effect))
             if module is not None and module.__name__.startswith(USER_MODULES):
+                assert module.__file__ is not None  # a user module is imported from its file (`load_module`)
                 files.append(str(Path(module.__file__).resolve()))
         return sorted(set(files))

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, NamedTuple, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .. import channels
 from ..channels import Input
@@ -293,7 +294,7 @@ class MonitorPipeline:
         """The extra inputs' values at `stamp` (interpolated where later values are known, else the latest)."""
         return {key: series.value_at(stamp) for key, series in self.inputs.items()}
 
-    def evaluate(self, lengths: object) -> tuple[Solution, Clearance | None, Alarm]:
+    def evaluate(self, lengths: ArrayLike) -> tuple[Solution, Clearance | None, Alarm]:
         """What proposed cable lengths would give at rest (for plant control), without touching the state."""
         conditions = Conditions(inputs=self.inputs_at(math.inf))
         solution = self.model.solve(lengths, self._warm_start(), conditions)
