@@ -17,7 +17,7 @@ from cable_winch_monitor.model.plant import PlantConfigError, load_plant
 from cable_winch_monitor.paths import default_plant_file
 
 BASE = yaml.safe_load(default_plant_file().read_text())
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def plant_file(tmp_path: Path, **keys) -> Path:
