@@ -122,6 +122,7 @@ class Problem:
     @cached_property
     def length_white(self) -> np.ndarray:
         """(N, 4, 4) whitening of the length corrections' deviation from the prior (needs a prior)."""
+        assert self.prior is not None  # asked only of a problem weighed by a prior
         return whitening(self.prior.length_covariance)[0]
 
     @cached_property
@@ -135,6 +136,7 @@ class Problem:
         """The ropes with a load pin, and each sample's whitening (N, k, k) of those pins' errors, their
         marginal sigmas (N, k) [N] and expected errors (N, k) [N], each pin not measured at a sample left
         out of the others' (needs a prior)."""
+        assert self.prior is not None  # asked only of a problem weighed by a prior
         ropes = np.flatnonzero(self.pin_observations >= 0)
         white, sigma = whitening(self.prior.pin_covariance, self._pins_measured)
         return ropes, white[:, ropes][:, :, ropes], sigma[:, ropes], self.prior.pins[:, ropes]

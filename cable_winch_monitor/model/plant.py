@@ -197,8 +197,9 @@ def _limits(section: Any) -> tuple[float, float]:
     """Maximum payout [m] and payout speed [m/s] from 'plant.limits' (defaults where not given)."""
     if not isinstance(section, Mapping):
         raise PlantConfigError("plant file: key 'plant.limits' must be a mapping")
-    return tuple(_number(section, key, "plant.limits.", positive=True) if key in section else default
-                 for key, default in (("max_payout", DEFAULT_MAX_PAYOUT), ("max_payout_speed", DEFAULT_MAX_PAYOUT_SPEED)))
+    payout, speed = (_number(section, key, "plant.limits.", positive=True) if key in section else default
+                     for key, default in (("max_payout", DEFAULT_MAX_PAYOUT), ("max_payout_speed", DEFAULT_MAX_PAYOUT_SPEED)))
+    return payout, speed
 
 
 def _numbers(section: Any, where: str, keys: tuple[str, ...] | None = None) -> dict[str, float]:
@@ -207,9 +208,10 @@ def _numbers(section: Any, where: str, keys: tuple[str, ...] | None = None) -> d
         return {}
     if not isinstance(section, Mapping):
         raise PlantConfigError(f"plant file: key '{where}' must be a mapping of names to numbers")
-    unknown = sorted(set(map(str, section)) - set(keys)) if keys is not None else []
-    if unknown:
-        raise PlantConfigError(f"plant file: unknown key '{where}.{unknown[0]}' (known: {', '.join(keys)})")
+    if keys is not None:
+        unknown = sorted(set(map(str, section)) - set(keys))
+        if unknown:
+            raise PlantConfigError(f"plant file: unknown key '{where}.{unknown[0]}' (known: {', '.join(keys)})")
     return {str(key): _number(section, key, where + ".") for key in section}
 
 
