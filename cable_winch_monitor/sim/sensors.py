@@ -94,7 +94,7 @@ class Sensors:
     def _time(self, stamp: Stamp) -> float:
         return stamp[0] + stamp[1] * 1e-9 - self.start_time
 
-    def _noisy(self, values: np.ndarray, sigma: float) -> np.ndarray:
+    def _noisy(self, values: float | np.ndarray, sigma: float) -> np.ndarray:
         return np.asarray(values, dtype=float) + self.rng.normal(0.0, sigma, np.shape(values))
 
     def joint_state(self, stamp: Stamp, stream: Stream, lengths: np.ndarray, speeds: np.ndarray,
@@ -102,7 +102,7 @@ class Sensors:
         joints = self.config["joint_states"]
         cables = list(stream.cables)
         tensions = np.array([channels.get(TENSION_CHANNELS[i], NAN) for i in cables])
-        effort = self._noisy(tensions, joints["tension_noise"]) if joints["effort"] else []
+        effort: np.ndarray | list[float] = self._noisy(tensions, joints["tension_noise"]) if joints["effort"] else []
         t = self._time(stamp)
         effort = [self.faults.pin(i, t, float(value)) for i, value in zip(cables, effort)]
         position = self._noisy(lengths[cables], joints["length_noise"])
