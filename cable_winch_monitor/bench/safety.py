@@ -17,6 +17,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -73,7 +74,7 @@ def _truth(bag: Path) -> dict[int, dict[str, str]]:
                 if row["stream"] == "joint_states" or row["stream"].startswith("winch_")}
 
 
-def _stamp(message: object) -> int:
+def _stamp(message: Any) -> int:
     stamp = message.header.stamp
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
@@ -89,7 +90,8 @@ def score(out: Path, bag: Path, policy: AlarmPolicy | None = None, start: float 
     samples stamped `start` [s] or later."""
     policy = policy or AlarmPolicy()
     truth = _truth(Path(bag))
-    alarms, tensions = {}, {}
+    alarms: dict[int, Any] = {}  # decoded messages by their stamp [ns]
+    tensions: dict[int, Any] = {}
     for item in BagReader(out, {ALARM: OUTPUT_TYPES[ALARM], TENSION: OUTPUT_TYPES[TENSION]}):
         (alarms if item.topic == ALARM else tensions)[_stamp(item.message)] = item.message
     result = SafetyScore()
