@@ -13,14 +13,14 @@ import functools
 import importlib
 import sys
 import threading
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable
+from typing import Any, cast
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.clock import JumpThreshold, TimeJump
+from rclpy.clock import JumpThreshold, ROSClock, TimeJump
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import ParameterException
@@ -168,8 +168,9 @@ class WinchMonitorNode(Node):
                                                            SENSOR_QOS), handler))
         self.winch_inputs = [WinchInput(topic) for topic in dict.fromkeys([MERGED_TOPIC, *value("winch_topics")])]
         for winch in self.winch_inputs:
-            winch.subscription = self.create_subscription(JointState, winch.topic, self._winch_callback(winch),
-                                                          SENSOR_QOS)
+            # rclpy passes the message info to a callback of two parameters (its annotation names one only)
+            winch.subscription = self.create_subscription(
+                JointState, winch.topic, self._winch_callback(winch), SENSOR_QOS)  # type: ignore[arg-type]
         self.create_service(CheckCableLengths, "~/check_cable_lengths", self._check_cable_lengths)
         self.create_service(WritePlantFile, "~/write_plant_file", self._write_plant_file)
         self.create_timer(value("diagnostics_period"), self._guarded("diagnostics", self._publish_diagnostics))
@@ -204,7 +205,7 @@ class WinchMonitorNode(Node):
     def _now(self) -> float:
         """The node clock [s]; NaN while it has not started (use_sim_time before the first /clock): the
         arrival of a message is then not known, and its stamp is not judged against it."""
-        clock = self.get_clock()
+        clock = cast(ROSClock, self.get_clock())  # a node's clock is a ROSClock (rclpy's Node.__init__)
         nanoseconds = clock.now().nanoseconds
         return nanoseconds * 1e-9 if nanoseconds or not clock.ros_time_is_active else float("nan")
 
@@ -320,18 +321,17 @@ class WinchMonitorNode(Node):
         """Write the plant file with the tracked values the model uses now (where the plant file tracks some)."""
         with self.pipeline.lock:
             estimator = self.pipeline.estimator
-        tracker = estimator.tracker if estimator is not None else None
         try:
-            if tracker is None:
+            if estimator is None or estimator.tracker is None:
                 raise ValueError("the plant file tracks no parameters (plant.track), or its lengths are taken as exact")
-            response.message = tracker.write(estimator.base, request.path, f"the {NODE_NAME} node's tracked values")
+            response.message = estimator.tracker.write(estimator.base, request.path, f"the {NODE_NAME} node's tracked values")
             response.success = True
         except (OSError, ValueError) as error:
             response.success, response.message = False, str(error)
         return response
 
 
-def main(args: Sequence[str] | None = None) -> int:
+def main(args: list[str] | None = None) -> int:
     """Entry point `winch_monitor`: ROS arguments (--ros-args -p ..., --params-file) are honoured."""
     sys.setswitchinterval(SWITCH_INTERVAL)
     rclpy.init(args=args)
