@@ -269,7 +269,9 @@ def _fit(args: argparse.Namespace) -> int:
     _check_writable(args.json, "--json")
     _check_writable(args.write_config, "--write-config")
     model, data = _analysis_inputs(args)
-    result = fit_command(model, data, _effect_names(args.effects, "--effects"))
+    names = _effect_names(args.effects, "--effects")
+    assert names is not None  # the fit command requires --effects
+    result = fit_command(model, data, names)
     print(report.fit_text(result))
     _write_json(args.json, report.fit_json(result, data.bag, len(data)))
     if args.write_config:
