@@ -427,6 +427,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as error:  # an output that could not be written after all (disk full, removed folder)
         print(f"error: {error.filename or ''}: {error.strerror or error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C in a command that has nothing to finish (replay finishes its bag itself)
+        print("interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -2,11 +2,15 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import signal
+import subprocess
+import time
 from pathlib import Path
 
 import pytest
-from simbags import assert_clean, run_cli, simulated
+from simbags import CLI, assert_clean, run_cli, simulated
 
 from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.writer import BagWriter
@@ -113,3 +117,17 @@ def test_a_bag_too_short_to_hold_data_out_is_refused(tmp_path, command):
     assert_clean(result, 2)
     assert "its measurements span 14.9 s, too short to hold data out" in one_error_line(result)
     assert "nan" not in result.stdout
+
+
+@pytest.mark.parametrize("command", ["diagnose", "compare"])
+def test_ctrl_c_ends_a_command_with_one_line(command):
+    """Ctrl-C in a command with nothing to finish: "interrupted" and exit 130, no traceback (replay finishes
+    its output bag itself: test_replay_signals.py)."""
+    process = subprocess.Popen([*CLI, command, str(demo_bag())], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"))
+    time.sleep(4.0)  # past the imports, into the work
+    assert process.poll() is None, "finished before it could be interrupted"
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert_clean(subprocess.CompletedProcess(process.args, process.returncode, out, err), 130)
+    assert err.strip().endswith("interrupted")

@@ -223,21 +223,29 @@ def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
             plant_file: Path | None = None) -> Latency:
     """Start the node, publish a lowering at `rate`, and time each pose coming back."""
     readings, warming = lowering(samples, rate, plant_file=plant_file), warm_up(plant_file)
+    with _node_and_probe(domain_id, solver, plant_file, sim_time=False) as (node, probe):
+        connect(probe, node, warming)
+        probe.received.clear()
+        cpu0, wall0 = cpu_seconds(node.pid), time.monotonic()
+        sent = publish_paced(probe, readings, rate)
+        time.sleep(0.5)
+        cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
+    return _latency(probe, sent, cpu, wall)
+
+
+@contextmanager
+def _node_and_probe(domain_id: int, solver: str, plant_file: Path | None,
+                    sim_time: bool) -> Iterator[tuple[subprocess.Popen, Probe]]:
+    """The node in its own process and a probe node talking to it; both stopped on the way out."""
     with tempfile.TemporaryDirectory() as scratch:
-        node = start_node(domain_id, solver, Path(scratch) / "node.log", plant_file)
+        node = start_node(domain_id, solver, Path(scratch) / "node.log", plant_file, sim_time=sim_time)
         probe = Probe(domain_id)
         try:
-            connect(probe, node, warming)
-            probe.received.clear()
-            cpu0, wall0 = cpu_seconds(node.pid), time.monotonic()
-            sent = publish_paced(probe, readings, rate)
-            time.sleep(0.5)
-            cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
+            yield node, probe
         finally:
             probe.close()
             node.send_signal(signal.SIGINT)
             node.wait(timeout=10)
-    return _latency(probe, sent, cpu, wall)
 
 
 def measure_recording(bag: Path, domain_id: int, plant_file: Path | None = None, seconds: float = math.inf,
@@ -251,33 +259,26 @@ def measure_recording(bag: Path, domain_id: int, plant_file: Path | None = None,
         if (item.log_time - items[0].log_time) * 1e-9 > seconds:
             break
     first = items[0].log_time
-    with tempfile.TemporaryDirectory() as scratch:
-        node = start_node(domain_id, "energy", Path(scratch) / "node.log", plant_file, sim_time=True)
-        probe = Probe(domain_id)
-        try:
-            for item in items[:1]:  # a publisher on each input topic before the wait for matching
-                probe.publish_raw(item.topic, item.msgtype, item.data)
-            connect(probe, node, np.empty((0, 8)))
-            sent: dict[tuple[int, int], int] = {}
-            started, counted = time.monotonic(), None
-            for item in items:
-                since = (item.log_time - first) * 1e-9
-                time.sleep(max(0.0, started + since - time.monotonic()))
-                if counted is None and since >= settle:
-                    counted, cpu0, wall0 = True, cpu_seconds(node.pid), time.monotonic()
-                sec, nanosec = divmod(item.log_time, 1_000_000_000)
-                probe.clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
-                at = time.perf_counter_ns()
-                probe.publish_raw(item.topic, item.msgtype, item.data)
-                if counted and item.msgtype == JOINT_STATE:
-                    stamp = item.message.header.stamp
-                    sent[(stamp.sec, stamp.nanosec)] = at
-            time.sleep(0.5)
-            cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
-        finally:
-            probe.close()
-            node.send_signal(signal.SIGINT)
-            node.wait(timeout=10)
+    with _node_and_probe(domain_id, "energy", plant_file, sim_time=True) as (node, probe):
+        for item in items[:1]:  # a publisher on each input topic before the wait for matching
+            probe.publish_raw(item.topic, item.msgtype, item.data)
+        connect(probe, node, np.empty((0, 8)))
+        sent: dict[tuple[int, int], int] = {}
+        started, counted = time.monotonic(), None
+        for item in items:
+            since = (item.log_time - first) * 1e-9
+            time.sleep(max(0.0, started + since - time.monotonic()))
+            if counted is None and since >= settle:
+                counted, cpu0, wall0 = True, cpu_seconds(node.pid), time.monotonic()
+            sec, nanosec = divmod(item.log_time, 1_000_000_000)
+            probe.clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+            at = time.perf_counter_ns()
+            probe.publish_raw(item.topic, item.msgtype, item.data)
+            if counted and item.msgtype == JOINT_STATE:
+                stamp = item.message.header.stamp
+                sent[(stamp.sec, stamp.nanosec)] = at
+        time.sleep(0.5)
+        cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
     return _latency(probe, sent, cpu, wall)
 
 
