@@ -1,7 +1,7 @@
 """What the plant was doing at each measurement, winch by winch: lowering, hoisting, shifting or standing.
 
-Each winch is paying out when its payout speed is at least STOPPED, hauling in when it
-is at most -STOPPED, still otherwise (or when it reports no speed). A row is lowering
+Each winch is paying out when its payout speed is above the conditions' DEADBAND, hauling in
+when it is below -DEADBAND, still otherwise (or when it reports no speed). A row is lowering
 when some winches pay out and none hauls in, hoisting when some haul in and none pays
 out, shifting when some pay out while others haul in (the platform moves sideways or
 tilts: its mean payout may stand still), standing when no winch moves. A stretch of time
@@ -11,16 +11,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.conditions import DEADBAND
+
 MOTIONS = ("lowering", "hoisting", "shifting", "standing")
 LOWERING, HOISTING, SHIFTING, STANDING = range(4)
-STOPPED = 0.02  # [m/s] a winch slower than this stands
 
 
 def motions(speeds: np.ndarray) -> np.ndarray:
     """Index into MOTIONS of each row of payout speeds (n, 4) [m/s]."""
     speeds = np.nan_to_num(np.asarray(speeds, dtype=float).reshape(-1, 4))
-    out_ = (speeds >= STOPPED).any(axis=1)
-    in_ = (speeds <= -STOPPED).any(axis=1)
+    out_ = (speeds > DEADBAND).any(axis=1)
+    in_ = (speeds < -DEADBAND).any(axis=1)
     return np.select([out_ & in_, out_, in_], [SHIFTING, LOWERING, HOISTING], STANDING)
 
 
