@@ -11,7 +11,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
 PYTEST_ARGS ?=
 
-.PHONY: all setup setup-test setup-docs demo docs test test-slow clean
+.PHONY: all setup setup-test setup-docs demo docs lint test test-slow clean
 
 all: test
 
@@ -39,8 +39,14 @@ demo: setup
 	rm -rf build/demo_out
 	$(VENV)/bin/cable-winch-monitor demo --out build/demo_out
 
-# The docs are built first: a broken link fails in seconds, not after the suite.
-test: setup-test docs
+# ruff and mypy with the settings in pyproject.toml.
+lint: setup-test
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
+
+# The docs are built and the code linted first: a broken link or a type error fails in seconds, not
+# after the suite.
+test: setup-test docs lint
 	$(VENV)/bin/python -m pytest -q test $(PYTEST_ARGS)
 
 # The full diagnose runs (every candidate effect against recordings at site noise): tens of minutes.

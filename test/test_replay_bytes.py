@@ -11,17 +11,16 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2.storage_mcap import McapWriter
+from simbags import tracking_plant
 
 from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.bagio.writer import BagWriter
-from cable_winch_monitor.model.plant import load_plant
-from cable_winch_monitor.paths import default_plant_file, demo_bag
+from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
 
 BAG = demo_bag()  # bags/all_channels
@@ -66,11 +65,7 @@ def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """bags/all_channels replayed by the generic path and by the fast path (as `out`, in two directories), the
     bundled plant tracking its encoders' offsets (so that /model/parameters is written too)."""
     generic, fast = (tmp_path_factory.mktemp(name) / "out" for name in ("generic", "fast"))
-    config = yaml.safe_load(default_plant_file().read_text())
-    config["plant"]["track"] = ["encoder_offset"]
-    plant_file = tmp_path_factory.mktemp("plant") / "tracking.yaml"
-    plant_file.write_text(yaml.safe_dump(config))
-    plant = load_plant(plant_file)
+    plant = tracking_plant(tmp_path_factory.mktemp("plant"))
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(records, "encoder", generic_encoder)
         patch.setattr(records, "sample_encoder", generic_encoder)

@@ -17,6 +17,7 @@ from rosbags.rosbag2 import Reader
 from scene_checks import check_outline, check_scene, check_static_tf
 from scene_picture import render
 from scipy.spatial.transform import Rotation
+from simbags import tracking_plant
 
 from cable_winch_monitor.bagio.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
 from cable_winch_monitor.bagio.typestore import typestore
@@ -50,12 +51,13 @@ def plain(value):
 
 @pytest.fixture(scope="module")
 def replayed(tmp_path_factory):
-    """The bundled all-channels recording (lowering, stop, hoist; winch 4 lagging) replayed, read by Foxglove's
-    readers and by rosbags."""
+    """The bundled all-channels recording (lowering, stop, hoist; winch 4 lagging) replayed on the bundled plant
+    tracking its encoders' offsets (so that every output topic is written), read by Foxglove's readers and by
+    rosbags."""
     node = shutil.which("node")
     assert node and (VIEWER / "node_modules").is_dir(), "make setup-test installs Node and test/viewer's packages"
     out = tmp_path_factory.mktemp("viewer") / "replayed"
-    summary = replay(demo_bag(), out, progress=False)
+    summary = replay(demo_bag(), out, tracking_plant(out.parent), progress=False)
     (mcap,) = out.glob("*.mcap")
     result = subprocess.run([node, str(VIEWER / "read_bag.mjs"), str(mcap), "all"], capture_output=True, text=True,
                             timeout=120, check=False)

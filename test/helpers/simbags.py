@@ -8,7 +8,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from cable_winch_monitor.bagio.reader import BagReader
+from cable_winch_monitor.model.plant import Plant, load_plant
+from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario, scenario_path
 from cable_winch_monitor.sim.simulate import TRUTH_FILE, simulate
 
@@ -43,3 +47,13 @@ def assert_clean(result: subprocess.CompletedProcess, code: int) -> None:
     output = result.stdout + result.stderr
     assert "Traceback" not in output, output
     assert result.returncode == code, output
+
+
+def tracking_plant(directory: Path) -> Plant:
+    """The bundled plant tracking its encoders' offsets live, written into `directory` and loaded: a replay on it
+    writes every output topic, /model/parameters too."""
+    config = yaml.safe_load(default_plant_file().read_text())
+    config["plant"]["track"] = ["encoder_offset"]
+    plant_file = directory / "tracking.yaml"
+    plant_file.write_text(yaml.safe_dump(config))
+    return load_plant(plant_file)
