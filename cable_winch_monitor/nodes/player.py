@@ -26,6 +26,7 @@ from rosgraph_msgs.msg import Clock
 from ..bagio.fields import input_topics
 from ..bagio.reader import BagError, BagReader
 from .conversions import message_class
+from .session import ros_session
 
 NODE_NAME = "cable_winch_monitor_player"
 QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=100)
@@ -72,24 +73,18 @@ def play(bag: str | Path, rate: float = 1.0, clock: bool = True, wait: float = 3
     except BagError as error:
         print(f"play: {error}", file=sys.stderr)
         return 2
-    rclpy.init()
-    node = None
+    types = {topic: msgtype for topic, msgtype in reader.listed_types().items() if topics is None or topic in topics}
     try:
-        node = Player({topic: msgtype for topic, msgtype in reader.listed_types().items()
-                       if topics is None or topic in topics})
-        deadline = time.monotonic() + wait
-        while not node.listened() and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.05)
-        _settle(node, min(deadline, time.monotonic() + SETTLE))
-        published = _publish(node, reader, rate, clock, until, topics)
-        print(f"played {published} messages of {bag}")
-        return 0
+        with ros_session(lambda: Player(types)) as node:
+            deadline = time.monotonic() + wait
+            while not node.listened() and time.monotonic() < deadline:
+                rclpy.spin_once(node, timeout_sec=0.05)
+            _settle(node, min(deadline, time.monotonic() + SETTLE))
+            published = _publish(node, reader, rate, clock, until, topics)
     except (KeyboardInterrupt, ExternalShutdownException):
         return 130
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    print(f"played {published} messages of {bag}")
+    return 0
 
 
 def _settle(node: Player, deadline: float) -> None:

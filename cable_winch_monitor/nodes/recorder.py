@@ -23,6 +23,7 @@ from ..bagio.reader import BagError
 from ..bagio.typestore import knows
 from ..bagio.writer import BagWriter
 from .conversions import message_class
+from .session import ros_session
 
 NODE_NAME = "cable_winch_monitor_recorder"
 GRAPH_PERIOD = 0.5  # [s] between looks for topics not yet subscribed
@@ -80,19 +81,15 @@ def record(out: str | Path, topics: Sequence[str] = ()) -> int:
     except BagError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    rclpy.init()
-    node = None
+    node: Recorder | None = None
     try:
-        node = Recorder(writer, topics)
-        print(f"recording into {out}: {', '.join(topics)} (Ctrl-C to stop)", file=sys.stderr)
-        rclpy.spin(node)
+        with ros_session(lambda: Recorder(writer, topics)) as node:
+            print(f"recording into {out}: {', '.join(topics)} (Ctrl-C to stop)", file=sys.stderr)
+            rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         writer.close()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
     counts: Counter[str] = writer.counts
     print(f"recorded {sum(counts.values())} messages into {out}: "
           + (", ".join(f"{t} {n}" for t, n in sorted(counts.items())) or "none"))
