@@ -119,12 +119,19 @@ def test_a_bag_too_short_to_hold_data_out_is_refused(tmp_path, command):
     assert "nan" not in result.stdout
 
 
+def _as_at_a_terminal() -> None:
+    """Ctrl-C's default disposition in the child: a suite started in the background (nohup, `&`) passes SIGINT on
+    ignored, and Python then installs no KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_ends_a_command_with_one_line(tmp_path):
     """Ctrl-C in a command other than replay (simulating a 20-minute run takes half a minute): "interrupted" and
     exit 130, no traceback (replay finishes its output bag and summary itself: test_replay_signals.py)."""
     process = subprocess.Popen([*CLI, "simulate", "sinking_run", "--out", str(tmp_path / "bag")],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"))
+                               text=True, env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+                               preexec_fn=_as_at_a_terminal)
     time.sleep(4.0)  # past the imports, into the work
     assert process.poll() is None, "finished before it could be interrupted"
     process.send_signal(signal.SIGINT)
