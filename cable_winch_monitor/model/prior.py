@@ -124,20 +124,23 @@ class ModelErrorSpec:
 
     def initial_covariance(self) -> np.ndarray:
         """(16, 16) the error's spread before any sample."""
-        ones, eye = np.ones((4, 4)), np.eye(4)
-        out = np.zeros((SIZE, SIZE))
-        out[0:4, 0:4] = eye * self.length_offset ** 2
-        out[4:8, 4:8] = eye * self.length_strain ** 2
-        out[8:12, 8:12] = ones * self.pin_common ** 2 + eye * self.pin_own ** 2
-        out[12:16, 12:16] = ones * self.pin_common_per_metre ** 2 + eye * (0.01 * self.pin_common_per_metre) ** 2
-        return out
+        return _covariance(self.length_offset, self.length_strain, self.pin_common, self.pin_own,
+                           self.pin_common_per_metre, 0.01 * self.pin_common_per_metre)
 
     def walk(self) -> np.ndarray:
         """(16, 16) the random walk's covariance per second."""
-        ones, eye = np.ones((4, 4)), np.eye(4)
-        out = np.zeros((SIZE, SIZE))
-        out[0:4, 0:4] = eye * self.length_offset_walk ** 2
-        out[4:8, 4:8] = eye * self.length_strain_walk ** 2
-        out[8:12, 8:12] = ones * self.pin_common_walk ** 2 + eye * self.pin_own_walk ** 2
-        out[12:16, 12:16] = eye * (1e-3 * self.pin_common_per_metre) ** 2
-        return out
+        return _covariance(self.length_offset_walk, self.length_strain_walk, self.pin_common_walk, self.pin_own_walk,
+                           0.0, 1e-3 * self.pin_common_per_metre)
+
+
+def _covariance(length_offset: float, length_strain: float, pin_common: float, pin_own: float,
+                pin_slope_common: float, pin_slope_own: float) -> np.ndarray:
+    """(16, 16) over the error's terms (length offsets, length strains, pin offsets, pin slopes; four each): the
+    length terms each rope's own, the pin terms a part common to the four pins and each pin's own [1-sigma each]."""
+    ones, eye = np.ones((4, 4)), np.eye(4)
+    out = np.zeros((SIZE, SIZE))
+    out[0:4, 0:4] = eye * length_offset ** 2
+    out[4:8, 4:8] = eye * length_strain ** 2
+    out[8:12, 8:12] = ones * pin_common ** 2 + eye * pin_own ** 2
+    out[12:16, 12:16] = ones * pin_slope_common ** 2 + eye * pin_slope_own ** 2
+    return out
