@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import pytest
-import ros_harness
 
 from cable_winch_monitor.model.plant import Plant, load_plant
 
@@ -16,6 +15,7 @@ def plant() -> Plant:
 def domain_id(monkeypatch: pytest.MonkeyPatch):
     """ROS domain ids 60-69 for the bag tests' DDS processes, leased as the live-node harness leases its own
     (its lock files), so that no other test run holds the same one."""
+    import ros_harness  # rclpy and the message packages, only for the tests that start DDS processes
     monkeypatch.setattr(ros_harness, "DOMAIN_POOL", list(range(60, 70)))
     lease = ros_harness.DomainLease()
     yield lease.domain_id

@@ -51,8 +51,7 @@ def _imported(path: Path) -> set[str]:
 
 
 def _sources() -> list[Path]:
-    return [p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts and p.name != "__init__.py"
-            or p.parent != PACKAGE and p.name == "__init__.py"]
+    return [p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts and p != PACKAGE / "__init__.py"]
 
 
 def test_every_module_has_a_layer():

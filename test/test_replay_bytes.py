@@ -14,7 +14,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2.storage_mcap import McapWriter
-from simbags import tracking_plant
+from simbags import encoder_tracking_plant
 
 from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
@@ -65,7 +65,7 @@ def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """bags/all_channels replayed by the generic path and by the fast path (as `out`, in two directories), the
     bundled plant tracking its encoders' offsets (so that /model/parameters is written too)."""
     generic, fast = (tmp_path_factory.mktemp(name) / "out" for name in ("generic", "fast"))
-    plant = tracking_plant(tmp_path_factory.mktemp("plant"))
+    plant = encoder_tracking_plant(tmp_path_factory.mktemp("plant"))
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(records, "encoder", generic_encoder)
         patch.setattr(records, "sample_encoder", generic_encoder)

@@ -30,7 +30,11 @@ class Basis:
 
     clearance: Clearance | None
     text: str
-    kind: str = ""  # the text without its numbers: what replay summaries and benchmarks count
+    kind: str = ""  # the text without its numbers, where it has numbers: what replay summaries count (`summary`)
+
+    @property
+    def summary(self) -> str:
+        return self.kind or self.text
 
 
 @lru_cache(maxsize=16)
@@ -58,17 +62,16 @@ def judged(measured: Clearance | None, model: Clearance | None, tilt_measured: b
     (a platform tilted otherwise would load them otherwise: its weight's moment), else the more
     dangerous of the two, since nothing tells which is wrong."""
     if measured is None:
-        text = "model only" if model is not None else "no clearance"
-        return Basis(model, text, text)
+        return Basis(model, "model only" if model is not None else "no clearance")
     if not tilt_measured:
-        return Basis(measured, "model only (no tilt measured)", "model only (no tilt measured)")
+        return Basis(measured, "model only (no tilt measured)")
     if model is None:
-        return Basis(measured, "tilt measured; the model has no pose", "tilt measured; the model has no pose")
+        return Basis(measured, "tilt measured; the model has no pose")
     lever = max(abs(float(measured.point_platform[2])), abs(float(model.point_platform[2])), 1.0)
     spread = SIGMAS * lever * math.hypot(measured_sigma, model_sigma)
     apart = model.value - measured.value
     if abs(apart) <= spread:
-        return Basis(measured, "tilt measured; the model agrees", "tilt measured; the model agrees")
+        return Basis(measured, "tilt measured; the model agrees")
     if apart < 0.0 and not corroborated:
         return Basis(model, f"the model's: {-apart:.3f} m closer at {model.point_name} than the measured tilt gives "
                             f"({measured.value:.3f} m), which no load pin confirms",

@@ -97,7 +97,7 @@ class MonitorOutput:
         return Outcome(self.stamp, self.solution.status, self.solution.tension_state, self.alarm.level.name,
                        dict(view.faults) if view is not None else {}, predicted, self.residuals,
                        "" if self.solution.ok else self.solution.failure,
-                       self.basis.kind if self.basis is not None else "",
+                       self.basis.summary if self.basis is not None else "",
                        None if view is None else (tuple(map(float, view.length_error)), tuple(map(float, view.pin_error))))
 
 

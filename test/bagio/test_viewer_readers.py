@@ -17,7 +17,7 @@ from rosbags.rosbag2 import Reader
 from scene_checks import check_outline, check_scene, check_static_tf
 from scene_picture import render
 from scipy.spatial.transform import Rotation
-from simbags import tracking_plant
+from simbags import encoder_tracking_plant
 
 from cable_winch_monitor.bagio.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
 from cable_winch_monitor.bagio.typestore import typestore
@@ -57,7 +57,7 @@ def replayed(tmp_path_factory):
     node = shutil.which("node")
     assert node and (VIEWER / "node_modules").is_dir(), "make setup-test installs Node and test/viewer's packages"
     out = tmp_path_factory.mktemp("viewer") / "replayed"
-    summary = replay(demo_bag(), out, tracking_plant(out.parent), progress=False)
+    summary = replay(demo_bag(), out, encoder_tracking_plant(out.parent), progress=False)
     (mcap,) = out.glob("*.mcap")
     result = subprocess.run([node, str(VIEWER / "read_bag.mjs"), str(mcap), "all"], capture_output=True, text=True,
                             timeout=120, check=False)

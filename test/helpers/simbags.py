@@ -49,7 +49,7 @@ def assert_clean(result: subprocess.CompletedProcess, code: int) -> None:
     assert result.returncode == code, output
 
 
-def tracking_plant(directory: Path) -> Plant:
+def encoder_tracking_plant(directory: Path) -> Plant:
     """The bundled plant tracking its encoders' offsets live, written into `directory` and loaded: a replay on it
     writes every output topic, /model/parameters too."""
     config = yaml.safe_load(default_plant_file().read_text())
