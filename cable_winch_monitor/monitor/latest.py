@@ -37,6 +37,7 @@ class LatestSamplePipeline(MonitorPipeline):
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
         self._pending: deque[tuple[Hashable, CompleteSample]] = deque()
+        self._solving = 0  # samples taken by the worker and not yet noted: still waiting for their outputs
         self.unseen = 0  # winch messages the transport dropped before they were offered (as far as known)
         self.complete = 0  # complete samples merged
         self.skipped = 0  # complete samples dropped unsolved: more than the backlog behind the newest
@@ -64,6 +65,7 @@ class LatestSamplePipeline(MonitorPipeline):
                 self._ready.wait(timeout)
             taken = list(self._pending)
             self._pending.clear()
+            self._solving = len(taken)
             return taken
 
     def solve_all(self, samples: list[CompleteSample]) -> list[MonitorOutput]:
@@ -71,25 +73,29 @@ class LatestSamplePipeline(MonitorPipeline):
         (none where the pipeline restarted meanwhile: the samples are from a future that will not come).
         The estimate, the long part, runs without the lock (its state is the worker's alone), so that the
         callbacks merge the messages as they come meanwhile."""
-        with self.lock:
-            conditions = [self.conditions(sample) for sample in samples]
-            estimator, generation = self.estimator, self.generation
-        solved = self.solve_samples(samples, conditions, estimator)
-        with self.lock:
-            if generation != self.generation:
-                return []
-            outputs = []
-            for sample, at, ahead in zip(samples, conditions, solved):
-                output, outcome = self.judge(sample, ahead, at)
-                self.note(outcome)
-                outputs.append(output)
-            return outputs
+        try:
+            with self.lock:
+                conditions = [self.conditions(sample) for sample in samples]
+                estimator, generation = self.estimator, self.generation
+            solved = self.solve_samples(samples, conditions, estimator)
+            with self.lock:
+                if generation != self.generation:
+                    return []
+                outputs = []
+                for sample, at, ahead in zip(samples, conditions, solved):
+                    output, outcome = self.judge(sample, ahead, at)
+                    self.note(outcome)
+                    outputs.append(output)
+                return outputs
+        finally:
+            with self.lock:
+                self._solving = 0
 
     def counters(self) -> dict[str, int]:
         """The node's own counts, for /diagnostics."""
         return {"complete samples": self.complete, "skipped (behind by more than the backlog)": self.skipped,
                 "winch messages": self.stats.winch, "winch messages lost before the node": self.unseen,
-                "waiting": self.waiting}
+                "waiting": self.waiting + self._solving}  # neither solved nor skipped yet: queued or being solved
 
     def restart(self) -> None:
         """Forget every stamp, keep the counts: the clock went back (a bag played again), so each reading kept,
@@ -101,10 +107,11 @@ class LatestSamplePipeline(MonitorPipeline):
             MonitorPipeline.__init__(self, self.plant, self.solver, self.staleness, self.merger.window,
                                      background=True)
             self.stats = counts
+            self.skipped += len(self._pending) + self._solving  # dropped unsolved: from the future that went
             self._pending.clear()
             self.generation += 1
 
     @property
     def waiting(self) -> int:
-        """Complete samples merged but neither solved nor skipped yet."""
+        """Complete samples merged and not yet taken by the worker."""
         return len(self._pending)
