@@ -12,15 +12,13 @@ import cable_winch_monitor
 
 PACKAGE = Path(cable_winch_monitor.__file__).parent
 LAYERS = (  # bottom first
-    {"paths", "progress", "seed002", "forked", "stopping"},  # no package imports (replay's worker, its signals)
+    {"paths", "progress", "seed002", "stopping"},  # no package imports (files, progress bars, stop signals)
     {"model"},                          # plant file, mechanics, solvers, estimation
     {"channels", "formatting", "demo"},  # what a sensor channel is; printing solutions; the paper's examples
     {"effects"},                        # physical effects and the plant model they make
     {"monitor"},                        # a sample's estimate, clearance, alarm, diagnostics
-    {"bagio"},                          # bag files and the monitor's messages in them
-    {"ahead", "sim"},                   # replay's second process; the plant simulator
-    {"lookahead", "nodes"},             # replay's read-ahead pipeline; the live ROS 2 nodes
-    {"replay", "analysis"},             # replay of a bag; model versus measurement
+    {"bagio", "live"},                  # bag files and the monitor's messages in them; the live scheduler
+    {"sim", "nodes", "replay", "analysis"},  # the simulator; the ROS 2 nodes; replay of a bag; model vs measurement
     {"fleet"},                          # many bags
     {"bench"},                          # benchmarks
     {"cli"},                            # the command line

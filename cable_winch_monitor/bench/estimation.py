@@ -12,7 +12,6 @@ from scipy.spatial.transform import Rotation
 
 from .. import channels
 from ..bagio import fields
-from ..lookahead import LookaheadPipeline
 from ..model import observations as obs
 from ..model.batched import solve_batch
 from ..model.estimation import estimate, estimate_batch
@@ -20,6 +19,7 @@ from ..model.geometry import roll_pitch_yaw
 from ..model.plant import CABLE_NAMES, load_plant
 from ..model.solve import solve
 from ..monitor.pipeline import MonitorPipeline
+from ..replay.windows import WindowScheduler
 from .solvers import lowering_samples
 
 ENCODER, PIN, TILT, DEPTH = 1e-3, 150.0, np.radians(0.01), 5e-3
@@ -74,10 +74,10 @@ def bag_items(lengths: np.ndarray, readings: list[obs.Observation]) -> list[Simp
 
 
 def pipeline_rates(plant, items: list[SimpleNamespace], count: int) -> tuple[float, float, float]:
-    """Samples/s of replay's read-ahead pipeline, of the live path one message at a time, and the live
+    """Samples/s of replay's window scheduler, of the live path one message at a time, and the live
     path's 99th percentile per winch message [ms]."""
     start = time.perf_counter()
-    for _ in LookaheadPipeline(plant).run(items):
+    for _ in WindowScheduler(plant).run(items):
         pass
     replay_rate = count / (time.perf_counter() - start)
     live, times = MonitorPipeline(plant), []

@@ -1,7 +1,7 @@
 """The winch_monitor node under overload: 1 kHz of winch samples for 10 s over loopback DDS.
 
 The node must never fall behind: it solves the complete samples waiting together and
-counts those more than its backlog behind the newest, dropped (monitor.latest). Prints the input rate, the solved rate,
+counts those more than its backlog behind the newest, dropped (live.scheduler). Prints the input rate, the solved rate,
 the skipped count, the pose latency p50/p99 (target: p99 < 50 ms) and whether every
 input was either solved or counted as skipped, from the node's own /diagnostics. Not a
 test: run

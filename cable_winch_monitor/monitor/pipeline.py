@@ -222,10 +222,10 @@ class MonitorPipeline:
 
     def on_joint_state(self, sample: JointSample) -> MonitorOutput | None:
         """A winch message; returns the solved sample when the four lengths are complete and fresh."""
-        complete = self._merge(sample)
+        complete = self.merge(sample)
         return None if complete is None else self.solve(complete)
 
-    def _merge(self, sample: JointSample) -> CompleteSample | None:
+    def merge(self, sample: JointSample) -> CompleteSample | None:
         """Merge a winch message; the complete sample it makes, if it makes one."""
         self.stats.messages[sample.topic] += 1
         self.stats.winch += 1

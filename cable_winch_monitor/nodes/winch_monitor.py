@@ -1,9 +1,9 @@
 """The live monitor node: winch joint states in; pose, /tf, tensions, alarm, residuals, the 3-D scene and
 diagnostics out.
 
-A thin adapter around the monitor pipeline: every callback converts a message and hands
-it to the pipeline; winch messages are merged in the callback and the newest complete
-sample is solved by a worker thread (monitor.latest), so that a burst never queues stale
+A thin adapter around the monitor (held by the live scheduler): every callback converts a message and hands
+it to the monitor; winch messages are merged in the callback and the newest complete
+sample is solved by a worker thread (live.scheduler), so that a burst never queues stale
 work. Outputs are stamped with the input's own stamp. Callbacks never raise: bad input
 is counted (diagnostics), logged with a throttle and skipped.
 """
@@ -40,11 +40,11 @@ from ..bagio import fields, frames, records
 from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
+from ..live.scheduler import BACKLOG, LiveScheduler
 from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
 from ..monitor.diagnostics import DiagnosticsReporter
 from ..monitor.inputs import StampWindow
-from ..monitor.latest import BACKLOG, LatestSamplePipeline
 from ..monitor.pipeline import CompleteSample, MonitorOutput
 from ..monitor.residuals import Residuals
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
@@ -126,7 +126,7 @@ class WinchMonitorNode(Node):
         value = self._parameter
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
         window = StampWindow(value("stamp_ahead"), value("stamp_behind"), value("stamp_skew"))
-        self.pipeline = LatestSamplePipeline(plant, value("solver"), value("staleness"), stamp_window=window,
+        self.live = LiveScheduler(plant, value("solver"), value("staleness"), stamp_window=window,
                                              backlog=value("backlog"))
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
@@ -162,7 +162,7 @@ class WinchMonitorNode(Node):
                 handler = self._guarded(topic, self._on_measurement, topic)
                 self._readers.append((self.create_subscription(message_class(msgtype), topic, handler, SENSOR_QOS),
                                       handler))
-        for spec in self.pipeline.model.inputs:  # what the plant's effects read (a shaft temperature)
+        for spec in self.live.monitor.model.inputs:  # what the plant's effects read (a shaft temperature)
             handler = self._guarded(spec.topic, self._on_input, spec)
             self._readers.append((self.create_subscription(message_class(spec.msgtype), spec.topic, handler,
                                                            SENSOR_QOS), handler))
@@ -180,7 +180,7 @@ class WinchMonitorNode(Node):
         self._stopping = threading.Event()
         self._worker = threading.Thread(target=self._work, name="winch_monitor solver", daemon=True)
         self._worker.start()
-        self.get_logger().info(f"monitoring plant '{plant.name}' with the {self.pipeline.solver} solver")
+        self.get_logger().info(f"monitoring plant '{plant.name}' with the {self.live.monitor.solver} solver")
 
     def destroy_node(self) -> None:
         self._stopping.set()
@@ -190,12 +190,12 @@ class WinchMonitorNode(Node):
     def _work(self) -> None:
         """Solve the complete samples waiting whenever there are some, until the node shuts down."""
         while not self._stopping.is_set():
-            taken = self.pipeline.take(WORKER_POLL)
+            taken = self.live.take(WORKER_POLL)
             if taken:
                 self._guarded("solver", self._solve, taken)()
 
     def _solve(self, taken: list[tuple[fields.Stamp, CompleteSample]]) -> None:
-        outputs = self.pipeline.solve_all([sample for _, sample in taken])
+        outputs = self.live.solve_all([sample for _, sample in taken])
         for (stamp, _), output in zip(taken, outputs):
             self._publish(stamp, output)
 
@@ -213,8 +213,8 @@ class WinchMonitorNode(Node):
         """The clock went back by more than the staleness limit (a bag played again): every stamp kept is from a
         future that will not come, and would refuse the new messages as not increasing. Forget them, say so."""
         back = -jump.delta.nanoseconds * 1e-9
-        with self.pipeline.lock:
-            self.pipeline.restart()
+        with self.live.lock:
+            self.live.restart()
             self.reporter.note_clock_jump(back, self._now())
         self.get_logger().warning(f"clock went back {back:.3f} s: stamp history reset")
 
@@ -230,11 +230,11 @@ class WinchMonitorNode(Node):
         return callback
 
     def _log_rejections(self) -> None:
-        with self.pipeline.lock:
-            total = sum(self.pipeline.stats.rejected.values())
+        with self.live.lock:
+            total = sum(self.live.monitor.stats.rejected.values())
         if total > self._rejections_logged:
             self._rejections_logged = total
-            self.get_logger().warning(f"input rejected ({total} so far): {self.pipeline.stats.last_rejection}",
+            self.get_logger().warning(f"input rejected ({total} so far): {self.live.monitor.stats.last_rejection}",
                                       throttle_duration_sec=LOG_THROTTLE)
 
     def _winch_callback(self, winch: WinchInput) -> Callable[[JointState, dict], None]:
@@ -249,13 +249,13 @@ class WinchMonitorNode(Node):
         messages = winch.drain(msg, info)
         self._read_waiting()
         now = self._now()
-        with self.pipeline.lock:
-            self.pipeline.unseen = sum(w.unseen for w in self.winch_inputs)
+        with self.live.lock:
+            self.live.unseen = sum(w.unseen for w in self.winch_inputs)
             for message in messages:
-                before = list(self.pipeline.merger.readings)
-                self.pipeline.offer(fields.joint_sample(message, winch.topic, now),
+                before = list(self.live.monitor.merger.readings)
+                self.live.offer(fields.joint_sample(message, winch.topic, now),
                                     fields.stamp_of(message))
-                accepted = [i for i, reading in enumerate(self.pipeline.merger.readings) if reading is not before[i]]
+                accepted = [i for i, reading in enumerate(self.live.monitor.merger.readings) if reading is not before[i]]
                 self.reporter.note_readings(accepted, now)
 
     def _read_waiting(self) -> None:
@@ -275,7 +275,7 @@ class WinchMonitorNode(Node):
 
     def _note_residuals(self, residuals: Residuals | None) -> None:
         if residuals is not None:
-            with self.pipeline.lock:
+            with self.live.lock:
                 self.reporter.note_residuals(residuals)
 
     def _send(self, outputs: list[records.Record]) -> None:
@@ -284,20 +284,20 @@ class WinchMonitorNode(Node):
 
     def _on_measurement(self, msg: Any, topic: str) -> None:
         now = self.get_clock().now().nanoseconds
-        with self.pipeline.lock:
-            residuals = self.pipeline.on_measurement(topic, fields.message_seconds(msg, now), msg)
+        with self.live.lock:
+            residuals = self.live.monitor.on_measurement(topic, fields.message_seconds(msg, now), msg)
         self._note_residuals(residuals)
         self._send(records.residual_records(fields.message_stamp(msg, now), residuals))
 
     def _on_input(self, msg: Any, spec: Input) -> None:
-        with self.pipeline.lock:
-            self.pipeline.on_input(spec, fields.message_seconds(msg, self.get_clock().now().nanoseconds), msg)
+        with self.live.lock:
+            self.live.monitor.on_input(spec, fields.message_seconds(msg, self.get_clock().now().nanoseconds), msg)
 
     def _publish_diagnostics(self) -> None:
         now = self.get_clock().now()
         stamp = divmod(now.nanoseconds, 1_000_000_000)
-        with self.pipeline.lock:
-            values = self.reporter.build(self.pipeline, now.nanoseconds * 1e-9, stamp, self.pipeline.counters())
+        with self.live.lock:
+            values = self.reporter.build(self.live.monitor, now.nanoseconds * 1e-9, stamp, self.live.counters())
         self.diagnostics_pub.publish(records.diagnostics_record(values)[2])
 
     def _check_cable_lengths(self, request: CheckCableLengths.Request,
@@ -306,8 +306,8 @@ class WinchMonitorNode(Node):
             lengths, error = requested_lengths(request.names, request.lengths)
             if lengths is None:
                 return rejected_response(f"invalid request: {error}")
-            with self.pipeline.lock:
-                solution, _, alarm = self.pipeline.evaluate(lengths)
+            with self.live.lock:
+                solution, _, alarm = self.live.monitor.evaluate(lengths)
             now = self.get_clock().now().to_msg()
             return check_response((now.sec, now.nanosec), solution, alarm)
         except Exception as error:
@@ -319,8 +319,8 @@ class WinchMonitorNode(Node):
     def _write_plant_file(self, request: WritePlantFile.Request,
                           response: WritePlantFile.Response) -> WritePlantFile.Response:
         """Write the plant file with the tracked values the model uses now (where the plant file tracks some)."""
-        with self.pipeline.lock:
-            estimator = self.pipeline.estimator
+        with self.live.lock:
+            estimator = self.live.monitor.estimator
         try:
             if estimator is None or estimator.tracker is None:
                 raise ValueError("the plant file tracks no parameters (plant.track), or its lengths are taken as exact")

@@ -2,7 +2,7 @@
 
 Same status and taut set, tensions within 1 N and poses within 1 mm, on a lowering with
 drifting winches (taut sets changing along it) and on random lengths of every state;
-replay through the lookahead pipeline writes the same messages as the per-sample
+replay through its window scheduler writes the same messages as the per-sample
 pipeline (numbers to 1e-6 relative, the fused estimate's convergence; only the iteration counts may
 differ).
 """

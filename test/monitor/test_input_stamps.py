@@ -91,7 +91,7 @@ def test_without_a_clock_a_kept_far_future_reading_does_not_block_its_cable(plan
 def test_the_same_in_replay_a_bad_stamp_costs_one_message(plant):
     """The replay feed gives the log time as the arrival time: the same window applies."""
     from cable_winch_monitor.bagio import fields
-    from cable_winch_monitor.lookahead import LookaheadPipeline
+    from cable_winch_monitor.replay.windows import WindowScheduler
 
     def item(stamp: float, log_time: float, lengths):
         header = SimpleNamespace(stamp=SimpleNamespace(sec=int(stamp), nanosec=int(round((stamp % 1) * 1e9))))
@@ -102,10 +102,10 @@ def test_the_same_in_replay_a_bad_stamp_costs_one_message(plant):
     items = [item(T0 + 0.1 * k, T0 + 0.1 * k + 0.01, [20.0 + 0.01 * k] * 4) for k in range(300)]
     items[50] = item(2 ** 31 - 1, T0 + 5.01, [20.5] * 4)
     for batched in (True, False):
-        pipeline = LookaheadPipeline(plant, batched=batched, window=64)
-        results = [result for _, result in pipeline.run(items)]
+        scheduler = WindowScheduler(plant, batched=batched, window=64)
+        results = [result for _, result in scheduler.run(items)]
         assert sum(r is not None and r.output.solution.ok for r in results) == 299
-        assert dict(pipeline.stats.rejected) == {"/winch/joint_states: stamp ahead of the clock": 1}
+        assert dict(scheduler.monitor.stats.rejected) == {"/winch/joint_states: stamp ahead of the clock": 1}
 
 
 @pytest.mark.parametrize("velocity", [50.0, 1e300, float("inf")])

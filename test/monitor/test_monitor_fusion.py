@@ -18,15 +18,16 @@ from fusionbags import NOISE, header, lowering_truths, noisy, sensed
 from root_truth import weak_mode_truth
 from scipy.special import chdtri
 
-from cable_winch_monitor import ahead, channels, forked
-from cable_winch_monitor.ahead import Published
+from cable_winch_monitor import channels
 from cable_winch_monitor.bagio import fields
-from cable_winch_monitor.lookahead import LookaheadPipeline
 from cable_winch_monitor.model.gate import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.result import check_physics
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 from cable_winch_monitor.monitor.sensors import sensors_used
+from cable_winch_monitor.replay import second_process, worker
+from cable_winch_monitor.replay.stages import Encoded
+from cable_winch_monitor.replay.windows import WindowScheduler
 
 
 def live(pipeline: MonitorPipeline, items) -> list[MonitorOutput]:
@@ -43,9 +44,9 @@ def live(pipeline: MonitorPipeline, items) -> list[MonitorOutput]:
     return out
 
 
-def replayed(pipeline: LookaheadPipeline, items) -> list[MonitorOutput]:
+def replayed(pipeline: WindowScheduler, items) -> list[MonitorOutput]:
     """What replay makes of the items in one process: each complete sample's outputs."""
-    return [r.output for _, r in pipeline.run(items) if isinstance(r, Published)]
+    return [r.output for _, r in pipeline.run(items) if isinstance(r, Encoded)]
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +69,7 @@ def assert_same(got: list[MonitorOutput], want: list[MonitorOutput]) -> None:
 def test_replay_publishes_the_fused_tensions_and_equals_the_live_node(plant, lowering):
     truths, items = lowering
     fused = noisy(plant)
-    outputs = replayed(LookaheadPipeline(fused, window=100), items)
+    outputs = replayed(WindowScheduler(fused, window=100), items)
     assert len(outputs) == len(truths)
     assert len({t.tensions.astype(bool).tobytes() for t in truths}) >= 3  # the lag events switch the taut set
     errors = np.array([np.abs(o.solution.tensions - t.tensions).max() for o, t in zip(outputs, truths)])
@@ -82,7 +83,7 @@ def test_replay_publishes_the_fused_tensions_and_equals_the_live_node(plant, low
     assert sum("/platform/position" in sensors_used(o.estimate) for o in outputs) > 0.15 * len(outputs)
     # once the model's error is learnt (its first update windows: a model error that grows with the payout
     # is learnt from a few metres of it), poses as good as the lengths taken as exact
-    exact = replayed(LookaheadPipeline(plant.with_changes(noise={**NOISE, "length": float("nan")})), items)
+    exact = replayed(WindowScheduler(plant.with_changes(noise={**NOISE, "length": float("nan")})), items)
     learnt = slice(500, None)
     pose_error = [np.abs(o.solution.position - t.position).max() for o, t in zip(outputs[learnt], truths[learnt])]
     exact_error = [np.abs(o.solution.position - t.position).max() for o, t in zip(exact[learnt], truths[learnt])]
@@ -108,24 +109,24 @@ def test_a_pin_that_goes_wrong_is_left_out_from_its_first_wrong_reading(plant, l
         assert output.model.faults["tension_cable_2"] == "contradicts the other sensors"
         assert np.abs(output.solution.tensions - truth.tensions).max() <= 4.0 * NOISE["tension"]
     assert any(o.model.left_out == ("tension_cable_2",) for o in node)  # left out of a later window
-    assert_same(replayed(LookaheadPipeline(noisy(plant), window=64), items), node)
+    assert_same(replayed(WindowScheduler(noisy(plant), window=64), items), node)
 
 
 def test_a_second_process_publishing_ahead_gives_the_same_outputs(plant, lowering, monkeypatch, tmp_path):
     """Replay's second process estimates, judges and encodes each window while the next ones are merged:
     every record is the one-process replay's, to the bit, and the files it handed its results over in
     are gone when it stops."""
-    monkeypatch.setattr(forked, "SPOOL", str(tmp_path))
+    monkeypatch.setattr(worker, "SPOOL", str(tmp_path))
     truths, _ = lowering
     items = sensed(truths[:160], seed=7, pin_fault=(1, 50, 5e3))
-    one = [r for _, r in LookaheadPipeline(noisy(plant), window=64).run(items)]
-    two = [r for _, r in LookaheadPipeline(noisy(plant), window=64, second_process=True).run(items)]
+    one = [r for _, r in WindowScheduler(noisy(plant), window=64).run(items)]
+    two = [r for _, r in WindowScheduler(noisy(plant), window=64, second_process=True).run(items)]
     assert not any(tmp_path.iterdir())  # the worker stopped with the replay, its spool removed
-    published = [(a, b) for a, b in zip(one, two) if isinstance(a, Published)]
+    published = [(a, b) for a, b in zip(one, two) if isinstance(a, Encoded)]
     assert len(published) == len(truths[:160]) and all(b.output is None for _, b in published)  # from there
     for a, b in published:
         assert a.records == b.records and a.outcome == b.outcome and a.view == b.view
-    assert [a for a in one if not isinstance(a, Published)] == [b for b in two if not isinstance(b, Published)]
+    assert [a for a in one if not isinstance(a, Encoded)] == [b for b in two if not isinstance(b, Encoded)]
 
 
 def test_a_second_process_that_is_lost_leaves_the_rest_to_the_replay(plant, lowering, monkeypatch, tmp_path):
@@ -133,8 +134,8 @@ def test_a_second_process_that_is_lost_leaves_the_rest_to_the_replay(plant, lowe
     missing /dev/shm), or is killed, the replay publishes the rest itself from the worker's last state:
     the same records."""
     items = sensed(lowering[0][:200], seed=11)
-    one = [r for _, r in LookaheadPipeline(noisy(plant), window=64).run(items)]
-    spooled = forked.ForkedWorker.__init__
+    one = [r for _, r in WindowScheduler(noisy(plant), window=64).run(items)]
+    spooled = worker.ForkedWorker.__init__
 
     def unwritable(self, *args):
         spooled(self, *args)
@@ -143,9 +144,9 @@ def test_a_second_process_that_is_lost_leaves_the_rest_to_the_replay(plant, lowe
         open(self.spool, "w").close()
 
     with monkeypatch.context() as patch:
-        patch.setattr(forked.ForkedWorker, "__init__", unwritable)
-        two = [r for _, r in LookaheadPipeline(noisy(plant), window=64, second_process=True).run(items)]
-    taken = ahead.AheadPublisher.take
+        patch.setattr(worker.ForkedWorker, "__init__", unwritable)
+        two = [r for _, r in WindowScheduler(noisy(plant), window=64, second_process=True).run(items)]
+    taken = second_process.SecondProcess.take
     killed = []
 
     def kill_after_two(self):
@@ -155,12 +156,12 @@ def test_a_second_process_that_is_lost_leaves_the_rest_to_the_replay(plant, lowe
         killed.append(True)
         return taken(self)
 
-    monkeypatch.setattr(ahead.AheadPublisher, "take", kill_after_two)
-    three = [r for _, r in LookaheadPipeline(noisy(plant), window=64, second_process=True).run(items)]
+    monkeypatch.setattr(second_process.SecondProcess, "take", kill_after_two)
+    three = [r for _, r in WindowScheduler(noisy(plant), window=64, second_process=True).run(items)]
     for other in (two, three):
-        pairs = [(a, b) for a, b in zip(one, other) if isinstance(a, Published)]
+        pairs = [(a, b) for a, b in zip(one, other) if isinstance(a, Encoded)]
         assert len(pairs) == 200 and all(a.records == b.records and a.outcome == b.outcome for a, b in pairs)
-    assert any(r.output is None for r in three if isinstance(r, Published))  # the first windows from there
+    assert any(r.output is None for r in three if isinstance(r, Encoded))  # the first windows from there
 
 
 def test_equal_lengths_with_pins_give_tensions_independent_of_history(plant):

@@ -1,26 +1,28 @@
-"""Replay's feed: bag messages through the pipeline a window at a time, each window's samples solved at once.
+"""The replay scheduler: bag messages through the monitor a window at a time, each window's samples solved at once.
 
 The live node must merge and solve each winch message as it arrives; a replay can read
 ahead. For each window of messages:
 
-1. every winch message is merged, in log order, by the pipeline's own merger (as the
+1. every winch message is merged, in log order, by the monitor's own merger (as the
    node would merge it, its log time standing for the node clock in the stamp window), and
    every sensor reading kept as the node keeps it; each complete sample keeps what the
    merger knew at its message, what the sensors read then, and its conditions;
-2. the window's complete samples are estimated (or solved) together by the pipeline's own
+2. the window's complete samples are estimated (or solved) together by the monitor's own
    `solve_samples`, with their wall clearances: the estimator is a function of the samples
    in order, so a window at once gives what the node gives one sample at a time;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
-   solved pose -- the per-sample pipeline's own code, so the outputs are the node's.
+   solved pose -- the per-sample monitor's own code, so the outputs are the node's.
 
 Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
 a sample's value is interpolated between the readings around its stamp. Where the effects
 make the geometry depend on the pose, or with another solver, each sample is solved in
 step 3 instead, as the node solves it.
 
-Each message comes out with its result: the solved sample (MonitorOutput), residuals,
-None, or the exception the pipeline raised on it (counted like the node's callback errors).
+Each message comes out with its result: the encoded sample (`Encoded`), residuals, None,
+or the exception the monitor raised on it (counted like the node's callback errors). The
+scheduler holds the monitor and decides when and where its stages run (steps 2 and 3 in a
+second process where there is one: second_process.py); what they do is the monitor's.
 """
 from __future__ import annotations
 
@@ -29,25 +31,26 @@ from collections import Counter, deque
 from collections.abc import Generator, Iterable, Iterator
 from typing import Any, NamedTuple
 
-from . import channels
-from .ahead import AheadPublisher, Published, SamplePublisher
-from .bagio import fields
-from .bagio.records import Record, diagnostics_record
-from .bagio.scene import REPLAY_RATE
-from .model.conditions import Conditions
-from .model.plant import CABLE_NAMES, Plant
-from .monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view
-from .monitor.inputs import StampWindow
-from .monitor.pipeline import CompleteSample, MonitorPipeline, MonitorStats
-from .monitor.residuals import Residuals
-from .stopping import interruptible
+from .. import channels
+from ..bagio import fields
+from ..bagio.records import Record, diagnostics_record
+from ..bagio.scene import REPLAY_RATE
+from ..model.conditions import Conditions
+from ..model.plant import CABLE_NAMES, Plant
+from ..monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view
+from ..monitor.inputs import StampWindow
+from ..monitor.pipeline import CompleteSample, MonitorPipeline, MonitorStats
+from ..monitor.residuals import Residuals
+from ..stopping import interruptible
+from .second_process import SecondProcess
+from .stages import Encoded, WindowStages
 
 WINDOW = 2000  # messages read ahead
 MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a second process
 DIAGNOSTICS_PERIOD = 1.0  # [s] of log time between /diagnostics, as the node's default
 COUNTED = ("messages", "used", "rejected", "ignored_names")  # the stats merging counts, ahead of the messages taken
 
-Result = Published | Residuals | Exception | None
+Result = Encoded | Residuals | Exception | None
 
 
 class Merged(NamedTuple):
@@ -59,7 +62,7 @@ class Merged(NamedTuple):
 
 
 class Prepared(NamedTuple):
-    """A window merged and handed to the publisher (step 1): its messages, what merging made of each, the
+    """A window merged and handed to the stages (step 1): its messages, what merging made of each, the
     diagnostics due at each, and what merging it added to the stats (COUNTED)."""
 
     window: list[Any]
@@ -78,33 +81,34 @@ def _since(before: list[Counter[str]], stats: MonitorStats) -> list[Counter[str]
     return [getattr(stats, name) - counter for name, counter in zip(COUNTED, before)]
 
 
-class LookaheadPipeline(MonitorPipeline):
-    """The monitor pipeline fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time.
+class WindowScheduler:
+    """A monitor fed a stream of bag messages (with .msgtype, .topic, .message), a window at a time.
 
-    Each window is merged here (step 1) and its complete samples published (steps 2 and 3 of a sample:
-    estimated, judged, encoded) by a `SamplePublisher`: in a second process where `second_process`
+    Each window is merged here (step 1) and its complete samples run through the `WindowStages` (steps 2
+    and 3 of a sample: estimated, judged, encoded): in a second process where `second_process`
     (MERGED_AHEAD windows ahead of the one taken in order), else here. The messages then come out in
     log order with what became of them."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
                  window: int = WINDOW, stamp_window: StampWindow | None = None, second_process: bool = False,
                  scene_rate: float = REPLAY_RATE):
-        super().__init__(plant, solver, staleness, stamp_window)
+        self.monitor = monitor = MonitorPipeline(plant, solver, staleness, stamp_window)
         self.window = window
-        self.batched = batched and (self.fusing or self.model.batchable)  # else solved one by one, as the node does
-        self.input_specs = {spec.topic: spec for spec in self.model.inputs}
-        self.publisher = SamplePublisher(self, scene_rate)
-        self.second_process = second_process and AheadPublisher.available()
+        self.batched = batched and (monitor.fusing or monitor.model.batchable)  # else one by one, as the node does
+        self.input_specs = {spec.topic: spec for spec in monitor.model.inputs}
+        self.stages = WindowStages(monitor, scene_rate)
+        self.second_process = second_process and SecondProcess.available()
         self.last_view: SampleView | None = None  # what /diagnostics says of the latest sample taken
         self.reporter = DiagnosticsReporter(plant.name)
         self.diagnostics_due = -math.inf  # [s] of log time: the next /diagnostics
         self._merging: list[Counter[str]] | None = None  # the stats COUNTED before the window being merged
+        self._encoded: list[Encoded] = []  # the window's samples, where the stages run in this process
         self.not_taken: Counter[str] = Counter()  # after a stop: messages read but not taken, by topic
         self.worker_lost = ""  # why the second process was given up (the rest published here), where it was
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
         """Every item in order, with what became of it: a winch message that made a complete sample with its
-        `Published`, a sensor message with its residuals (or None), a message the pipeline could not
+        `Encoded`, a sensor message with its residuals (or None), a message the monitor could not
         take with the exception it raised (counted as the node counts its callback errors)."""
         for item, result, _ in self.run_diagnosed(items):
             yield item, result
@@ -116,7 +120,7 @@ class LookaheadPipeline(MonitorPipeline):
         A stop signal (stopping.py) breaks it off only while a window is merged or its samples are awaited,
         never between the messages of a window taken; the counts of the messages read or merged but not
         taken are then taken back (`not_taken`: the reader's)."""
-        ahead = AheadPublisher(self.publisher) if self.second_process else None
+        ahead = SecondProcess(self.stages) if self.second_process else None
         depth = MERGED_AHEAD if ahead is not None else 0
         prepared: deque[Prepared] = deque()
         window: list[Any] = []
@@ -147,23 +151,23 @@ class LookaheadPipeline(MonitorPipeline):
         stats, and those messages counted by topic in `not_taken`."""
         counted = [p.counted for p in prepared]
         if self._merging is not None:  # stopped while merging
-            counted.append(_since(self._merging, self.stats))
+            counted.append(_since(self._merging, self.monitor.stats))
         for counters in counted:
             for name, counter in zip(COUNTED, counters):
-                total = getattr(self.stats, name)
+                total = getattr(self.monitor.stats, name)
                 total -= counter
         self.not_taken = Counter(item.topic for p in prepared for item in p.window)
         self.not_taken.update(item.topic for item in unmerged)
 
-    def _prepare(self, window: list[Any], ahead: AheadPublisher | None) -> Prepared:
+    def _prepare(self, window: list[Any], ahead: SecondProcess | None) -> Prepared:
         """Step 1 for a window: extra inputs taken in first (a sample's is interpolated between the readings
-        around it), every message merged; its complete samples handed to the publisher."""
+        around it), every message merged; its complete samples handed to the stages."""
         with interruptible():
-            self._merging = _counters(self.stats)
+            self._merging = _counters(self.monitor.stats)
             for item in window:
                 spec = self.input_specs.get(item.topic)
                 if spec is not None:
-                    self.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
+                    self.monitor.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
             merged, inputs = [], []
             for item in window:
                 merged.append(self._merge_item(item))
@@ -174,8 +178,8 @@ class LookaheadPipeline(MonitorPipeline):
             if ahead is not None:
                 ahead.submit(*job)
             else:
-                self._published = self.publisher.publish(*job)
-            counted, self._merging = _since(self._merging, self.stats), None
+                self._encoded = self.stages.run(*job)
+            counted, self._merging = _since(self._merging, self.monitor.stats), None
             return Prepared(window, merged, inputs, counted)
 
     def _inputs_due(self, item: Any) -> tuple[float, Any] | None:
@@ -188,25 +192,25 @@ class LookaheadPipeline(MonitorPipeline):
         if now < self.diagnostics_due:
             return None
         self.diagnostics_due = now + DIAGNOSTICS_PERIOD
-        return now, winch_view(self, self.reporter.rates(now))
+        return now, winch_view(self.monitor, self.reporter.rates(now))
 
-    def _take(self, prepared: Prepared, ahead: AheadPublisher | None) -> Iterator[tuple[Any, Result, list[Record]]]:
+    def _take(self, prepared: Prepared, ahead: SecondProcess | None) -> Iterator[tuple[Any, Result, list[Record]]]:
         """The window's messages in log order with what became of them, and the diagnostics due there."""
         with interruptible():
-            published = iter(ahead.take() if ahead is not None else self._published)
+            encoded = iter(ahead.take() if ahead is not None else self._encoded)
         for item, outcome, due in zip(prepared.window, prepared.merged, prepared.inputs):
             try:
-                result = self._result(item, outcome, published)
+                result = self._result(item, outcome, encoded)
             except Exception as error:
                 result = error
-            residuals = result.outcome.residuals if isinstance(result, Published) else result
+            residuals = result.outcome.residuals if isinstance(result, Encoded) else result
             if isinstance(residuals, Residuals):
                 self.reporter.note_residuals(residuals)
             yield item, result, [] if due is None else [self._diagnostics(item, *due)]
 
     def _diagnostics(self, item: Any, now: float, winch: WinchView) -> Record:
-        last = self.last_view or sample_view(None, self.fusing)
-        values = self.reporter.build(self, now, divmod(item.log_time, 1_000_000_000), last=last, winch=winch)
+        last = self.last_view or sample_view(None, self.monitor.fusing)
+        values = self.reporter.build(self.monitor, now, divmod(item.log_time, 1_000_000_000), last=last, winch=winch)
         return diagnostics_record(values)
 
     def _merge_item(self, item: Any) -> Merged | dict[str, float] | Exception | None:
@@ -218,30 +222,30 @@ class LookaheadPipeline(MonitorPipeline):
                     stamp = fields.message_seconds(item.message, item.log_time)
                 except Exception:
                     return None
-                values = self.read_channels(item.topic, item.message)
-                self.keep_reading(stamp, values)
+                values = self.monitor.read_channels(item.topic, item.message)
+                self.monitor.keep_reading(stamp, values)
                 return values
             return None
         try:
-            sample = self._merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival: log time
+            sample = self.monitor.merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival
         except Exception as error:
             return error
-        return None if sample is None else Merged(sample, self.conditions(sample), fields.stamp_of(item.message))
+        return None if sample is None else Merged(sample, self.monitor.conditions(sample), fields.stamp_of(item.message))
 
     def _result(self, item: Any, outcome: Merged | dict[str, float] | Exception | None,
-                published: Iterator[Published]) -> Result:
+                encoded: Iterator[Encoded]) -> Result:
         msg = item.message
         if item.msgtype == fields.JOINT_STATE:
             if isinstance(outcome, Exception):
                 raise outcome
             if outcome is None:
                 return None
-            done = next(published)
-            self.note(done.outcome)
+            done = next(encoded)
+            self.monitor.note(done.outcome)
             self.last_view = done.view or self.last_view
             return done
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
         values = outcome if isinstance(outcome, dict) else None
-        return self.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg, keep=False,
+        return self.monitor.on_measurement(item.topic, fields.message_seconds(msg, item.log_time), msg, keep=False,
                                    values=values)

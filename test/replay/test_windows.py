@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from cable_winch_monitor import channels
-from cable_winch_monitor.ahead import Published
 from cable_winch_monitor.bagio import fields
 from cable_winch_monitor.bench.plants import realistic
-from cable_winch_monitor.lookahead import LookaheadPipeline
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
+from cable_winch_monitor.replay.stages import Encoded
+from cable_winch_monitor.replay.windows import WindowScheduler
 
 
 def header(t: float) -> SimpleNamespace:
@@ -73,9 +73,9 @@ def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batch
             expected.append(one_at_a_time(reference, item))
         except Exception as error:
             expected.append(error)
-    lookahead = LookaheadPipeline(plant, batched=batched, window=64)  # windows end between a sample's messages
-    assert lookahead.batched == batched
-    results = [(item, got.output if isinstance(got, Published) else got) for item, got in lookahead.run(items)]
+    scheduler = WindowScheduler(plant, batched=batched, window=64)  # windows end between a sample's messages
+    assert scheduler.batched == batched
+    results = [(item, got.output if isinstance(got, Encoded) else got) for item, got in scheduler.run(items)]
     assert [item for item, _ in results] == items
     solved = 0
     for (_, got), want in zip(results, expected):
@@ -92,6 +92,7 @@ def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batch
             assert got.channels == want.channels
             np.testing.assert_allclose(got.values, want.values, atol=1e-9)
     assert solved > 250 and sum(isinstance(w, AttributeError) for w in expected) == 1  # the unreadable message
-    assert lookahead.stats.messages == reference.stats.messages and lookahead.stats.used == reference.stats.used
-    assert lookahead.stats.rejected == reference.stats.rejected and lookahead.stats.states == reference.stats.states
-    assert sum(lookahead.stats.rejected.values()) >= 1  # the stamp that went backwards
+    stats = scheduler.monitor.stats
+    assert stats.messages == reference.stats.messages and stats.used == reference.stats.used
+    assert stats.rejected == reference.stats.rejected and stats.states == reference.stats.states
+    assert sum(stats.rejected.values()) >= 1  # the stamp that went backwards

@@ -1,6 +1,6 @@
 """`replay` stopped by a signal, or its second process stopped: real processes, real signals, real MCAP files.
 
-A replay forks a worker and spools windows through /dev/shm (ahead.py, forked.py). Whatever stops
+A replay forks a worker and spools windows through /dev/shm (replay/second_process.py, replay/worker.py). Whatever stops
 either process, nothing may be left: no worker, no spool folder, and (SIGINT, SIGTERM, SIGHUP) an output
 bag with its footer and metadata that mcap and rosbags read, holding exactly what the summary counts.
 A worker that stops answering is given up after a bounded wait and the replay finishes by itself; a slow
@@ -24,9 +24,9 @@ from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
 from simbags import CLI, simulated
 
-from cable_winch_monitor import forked
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.replay import replay
+from cable_winch_monitor.replay import worker as forked
 
 SPOOL_PREFIX = "cable-winch-monitor-"
 STOPPED_WITHIN = 5.0  # [s] from the signal to the replay's exit

@@ -1,4 +1,4 @@
-"""The live monitor under load: merge every winch message, solve the waiting samples together, newest last.
+"""The live scheduler: a callback thread merges every winch message, a worker solves the waiting samples together.
 
 Merging a message costs microseconds, solving a sample milliseconds. A node that solved
 every sample in its callback fell seconds behind at 500 Hz while its DDS queue grew, and
@@ -9,30 +9,35 @@ a stall of the machine costs no sample and leaves the node's state the replay's.
 sample more than `backlog` seconds (of stamps) older than the newest is dropped unsolved,
 and counted as skipped: the work waiting never outgrows the backlog, and the outputs are
 never more than that behind the winches.
+
+It holds a monitor (`monitor`) and decides when its stages run; what they do is the
+monitor's.
 """
 from __future__ import annotations
 
 import threading
 from collections import deque
 from collections.abc import Hashable
-from typing import Any
 
-from .inputs import JointSample
-from .pipeline import CompleteSample, MonitorOutput, MonitorPipeline
+from ..model.plant import Plant
+from ..monitor.inputs import JointSample, StampWindow
+from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 
 BACKLOG = 0.3  # [s] of sample stamps the worker may be behind the newest sample before the oldest are skipped
 
 
-class LatestSamplePipeline(MonitorPipeline):
-    """MonitorPipeline for a callback thread (`offer`, `on_measurement`, `on_input`) and a worker (`take`,
-    `solve_all`).
+class LiveScheduler:
+    """A monitor fed by a callback thread (`offer`, and the monitor's `on_measurement`, `on_input` under
+    `lock`) and solved by a worker (`take`, `solve_all`).
 
-    `lock` guards every piece of state; hold it to read the counters from a third thread.
+    `lock` guards every piece of state, the monitor's included; hold it to read the counters from a third
+    thread. `monitor` is replaced when the scheduler restarts: read it under the lock each time.
     """
 
-    def __init__(self, *args: Any, backlog: float = BACKLOG, **kwargs: Any):
-        # the model error's updates beside the samples (`args` are the pipeline's first four, never `background`)
-        super().__init__(*args, background=True, **kwargs)  # type: ignore[misc]
+    def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
+                 stamp_window: StampWindow | None = None, backlog: float = BACKLOG):
+        # the model error's updates are worked out beside the samples (`background`), in a thread of their own
+        self.monitor = MonitorPipeline(plant, solver, staleness, stamp_window, background=True)
         self.backlog = backlog
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
@@ -46,7 +51,7 @@ class LatestSamplePipeline(MonitorPipeline):
     def offer(self, sample: JointSample, tag: Hashable = None) -> bool:
         """Merge a winch message; True if it made a complete sample (kept with `tag` for the worker)."""
         with self.lock:
-            complete = self._merge(sample)
+            complete = self.monitor.merge(sample)
             if complete is None:
                 return False
             self.complete += 1
@@ -70,21 +75,22 @@ class LatestSamplePipeline(MonitorPipeline):
 
     def solve_all(self, samples: list[CompleteSample]) -> list[MonitorOutput]:
         """Solve samples from `take` together, in order: equilibrium, alarm and load-pin residuals of each
-        (none where the pipeline restarted meanwhile: the samples are from a future that will not come).
+        (none where the scheduler restarted meanwhile: the samples are from a future that will not come).
         The estimate, the long part, runs without the lock (its state is the worker's alone), so that the
         callbacks merge the messages as they come meanwhile."""
         try:
             with self.lock:
-                conditions = [self.conditions(sample) for sample in samples]
-                estimator, generation = self.estimator, self.generation
-            solved = self.solve_samples(samples, conditions, estimator)
+                monitor, generation = self.monitor, self.generation
+                conditions = [monitor.conditions(sample) for sample in samples]
+                estimator = monitor.estimator
+            solved = monitor.solve_samples(samples, conditions, estimator)
             with self.lock:
                 if generation != self.generation:
                     return []
                 outputs = []
                 for sample, at, ahead in zip(samples, conditions, solved):
-                    output, outcome = self.judge(sample, ahead, at)
-                    self.note(outcome)
+                    output, outcome = monitor.judge(sample, ahead, at)
+                    monitor.note(outcome)
                     outputs.append(output)
                 return outputs
         finally:
@@ -94,19 +100,18 @@ class LatestSamplePipeline(MonitorPipeline):
     def counters(self) -> dict[str, int]:
         """The node's own counts, for /diagnostics."""
         return {"complete samples": self.complete, "skipped (behind by more than the backlog)": self.skipped,
-                "winch messages": self.stats.winch, "winch messages lost before the node": self.unseen,
+                "winch messages": self.monitor.stats.winch, "winch messages lost before the node": self.unseen,
                 "waiting": self.waiting + self._solving}  # neither solved nor skipped yet: queued or being solved
 
     def restart(self) -> None:
         """Forget every stamp, keep the counts: the clock went back (a bag played again), so each reading kept,
         the estimator's windows and the model's error learnt since, the conditions' history, the last sample
-        and the alarm's level are from a future that will not come. The pipeline starts again as it was made
-        (its own constructor says how)."""
+        and the alarm's level are from a future that will not come. A new monitor, made as the first was,
+        carries the counts on."""
         with self.lock:
-            counts = self.stats
-            MonitorPipeline.__init__(self, self.plant, self.solver, self.staleness, self.merger.window,
-                                     background=True)
-            self.stats = counts
+            old = self.monitor
+            self.monitor = MonitorPipeline(old.plant, old.solver, old.staleness, old.merger.window, background=True)
+            self.monitor.stats = old.stats
             self.skipped += len(self._pending) + self._solving  # dropped unsolved: from the future that went
             self._pending.clear()
             self.generation += 1

@@ -11,7 +11,6 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 from simbags import assert_clean, messages, run_cli, simulated, truth
 
-from cable_winch_monitor import forked
 from cable_winch_monitor.bagio.fields import input_topics
 from cable_winch_monitor.bagio.records import (
     ALARM,
@@ -29,6 +28,7 @@ from cable_winch_monitor.bagio.records import (
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
 from cable_winch_monitor.replay import replay
+from cable_winch_monitor.replay import worker as forked
 
 SLACK_TOLERANCE = AlarmPolicy().slack_tolerance
 
@@ -178,7 +178,7 @@ def test_nominal_lowering_stays_ok(tmp_path):
 
 
 def test_a_second_process_writes_the_bag_one_process_writes(tmp_path, monkeypatch):
-    """The second process estimates, judges and encodes the samples (ahead.SamplePublisher) while the
+    """The second process estimates, judges and encodes the samples (replay.stages.WindowStages) while the
     replay merges and writes; the bag is the one a single process writes, byte for byte, /diagnostics
     included, here with an inclinometer knocked 2 deg off its mounting halfway through."""
     monkeypatch.setattr(forked, "SPOOL", str(tmp_path / "spool"))

@@ -1,6 +1,6 @@
 """A forked worker process: jobs run in order, each handed over and back as a file in a spool folder.
 
-Replay's second process (ahead.py) is one. A worker must never keep its parent waiting on it,
+Replay's second process (second_process.py) is one. A worker must never keep its parent waiting on it,
 outlive it, or leave files behind, whatever stops either of them:
 
 - the spool is a new folder in SPOOL (/dev/shm: memory, not a disk), or in tempfile's folder

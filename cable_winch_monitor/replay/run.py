@@ -1,7 +1,7 @@
 """`replay`: a recorded bag through the monitor, every output into a new bag beside the inputs.
 
-The pipeline code and the field mapping are the live node's own (MonitorPipeline,
-bagio.fields); messages are fed in the bag's log order (lookahead.py merges and
+The monitor's code and the field mapping are the live node's own (MonitorPipeline,
+bagio.fields); messages are fed in the bag's log order (windows.py merges and
 solves a window ahead, then takes them one at a time), so a replay gives what the node
 gave. No ROS runtime is needed. Memory stays at about one chunk of
 the input whatever the length of the bag. Outputs carry their input's header stamp, and
@@ -19,23 +19,23 @@ from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .ahead import Published
-from .bagio import fields, records
-from .bagio.clock import clock_offset
-from .bagio.reader import BagMessage, BagReader, ReadReport
-from .bagio.scene import REPLAY_RATE
-from .bagio.topics import require_inputs
-from .bagio.writer import new_bag
-from .effects import PlantModel
-from .lookahead import LookaheadPipeline
-from .model.plant import CABLE_NAMES, Plant, load_plant
-from .model.result import SolveStatus
-from .monitor.alarm import AlarmLevel
-from .monitor.inputs import StampWindow
-from .monitor.pipeline import MonitorStats
-from .monitor.residuals import Residuals
-from .progress import Progress
-from .stopping import Stopped, stop_signals
+from ..bagio import fields, records
+from ..bagio.clock import clock_offset
+from ..bagio.reader import BagMessage, BagReader, ReadReport
+from ..bagio.scene import REPLAY_RATE
+from ..bagio.topics import require_inputs
+from ..bagio.writer import new_bag
+from ..effects import PlantModel
+from ..model.plant import CABLE_NAMES, Plant, load_plant
+from ..model.result import SolveStatus
+from ..monitor.alarm import AlarmLevel
+from ..monitor.inputs import StampWindow
+from ..monitor.pipeline import MonitorStats
+from ..monitor.residuals import Residuals
+from ..progress import Progress
+from ..stopping import Stopped, stop_signals
+from .stages import Encoded
+from .windows import WindowScheduler
 
 INVALID = "invalid input"  # the tension state of a sample whose input could not be used
 
@@ -63,7 +63,7 @@ class ReplaySummary:
     report: ReadReport
     stats: MonitorStats
     written: Counter[str] = field(default_factory=Counter)
-    errors: Counter[str] = field(default_factory=Counter)  # pipeline exceptions (as the node's callback errors)
+    errors: Counter[str] = field(default_factory=Counter)  # the monitor's exceptions (as the node's callback errors)
     wall: float = 0.0
     stopped: str = ""  # the signal that stopped it (SIGINT: Ctrl-C): the output bag holds what was replayed until then
     unsolved: dict[str, str] = field(default_factory=dict)  # tension state without a pose -> why, its first sample
@@ -135,9 +135,9 @@ class ReplaySummary:
         return "\n".join(lines)
 
 
-def _records(item: BagMessage, stamp: fields.Stamp, result: Published | Residuals | None) -> list[records.Record]:
+def _records(item: BagMessage, stamp: fields.Stamp, result: Encoded | Residuals | None) -> list[records.Record]:
     """What the node publishes for one input message (header `stamp`) and what became of it."""
-    if isinstance(result, Published):
+    if isinstance(result, Encoded):
         return result.records
     return records.residual_records(stamp, result)
 
@@ -169,8 +169,8 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
-    solved at once (lookahead.py); the outputs are the per-sample pipeline's. `second_process`
-    publishes the windows' samples in a second process (ahead.py) meanwhile: the same outputs, on
+    solved at once (windows.py); the outputs are the per-sample monitor's. `second_process`
+    runs the windows' stages in a second process (second_process.py) meanwhile: the same outputs, on
     two cores (a fleet of bags keeps each replay to one).
 
     Raises BagError (nothing written) when `bag` holds no bag, lacks a topic the plant's effects read, or
@@ -182,20 +182,20 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     plant = plant or load_plant()
     require_inputs(bag, PlantModel.from_plant(plant, solver).inputs)  # a topic the effects read: before any work
     stamp_window, clock_note = clock_offset(bag, stamp_window or StampWindow())
-    pipeline = LookaheadPipeline(plant, solver, staleness, batched, stamp_window=stamp_window,
-                                 second_process=second_process, scene_rate=scene_rate)
-    inputs = fields.input_topics(pipeline.model.inputs)
+    scheduler = WindowScheduler(plant, solver, staleness, batched, stamp_window=stamp_window,
+                                second_process=second_process, scene_rate=scene_rate)
+    inputs = fields.input_topics(scheduler.monitor.model.inputs)
     reader = BagReader(bag, inputs)
     reader.report.notes += [clock_note] if clock_note else []
-    summary = ReplaySummary(Path(bag), Path(out), reader.report, pipeline.stats)
+    summary = ReplaySummary(Path(bag), Path(out), reader.report, scheduler.monitor.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with stop_signals(), new_bag(out) as writer, _fewer_collections(), \
-            closing(pipeline.run_diagnosed(reader)) as taken:
+            closing(scheduler.run_diagnosed(reader)) as taken:
         try:
             for count, (item, result, diagnostics) in enumerate(taken, 1):
                 if count == 1:
                     first = divmod(item.log_time, 1_000_000_000)
-                    for topic, msgtype, data in records.static_records(first, pipeline.publisher.builder):
+                    for topic, msgtype, data in records.static_records(first, scheduler.stages.builder):
                         writer.write_raw(topic, msgtype, item.log_time, data, latched=True)
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
                 try:
@@ -203,7 +203,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                         raise result
                     stamp = fields.message_stamp(item.message, item.log_time)
                     outputs = _records(item, stamp, result)
-                    if isinstance(result, Published) and result.outcome.status is not SolveStatus.SOLVED:
+                    if isinstance(result, Encoded) and result.outcome.status is not SolveStatus.SOLVED:
                         summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
                 except Exception as error:
                     summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
@@ -216,11 +216,11 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 bar.update(count)
         except KeyboardInterrupt as stop:
             summary.stopped = stop.signal if isinstance(stop, Stopped) else "SIGINT"
-            reader.report.read -= pipeline.not_taken
+            reader.report.read -= scheduler.not_taken
         finally:
             bar.finish()
-            if pipeline.worker_lost:
-                reader.report.notes.append(f"second process given up ({pipeline.worker_lost}): the rest was "
+            if scheduler.worker_lost:
+                reader.report.notes.append(f"second process given up ({scheduler.worker_lost}): the rest was "
                                            "replayed in this process")
             summary.written = Counter({t: n for t, n in writer.counts.items() if t not in inputs})
     summary.wall = time.perf_counter() - started

@@ -1,0 +1,91 @@
+"""Replay's second process: it runs the window stages while the replay reads, merges and writes.
+
+Replay merges each window of messages (cheap, in log order) and hands its complete samples
+to a forked process that runs the stages on them (stages.py), window after window, while
+it reads and merges the next ones; it then writes the records the worker encoded, in log
+order, with the sensor messages' residuals between them. What comes back is bytes and small
+outcomes, not objects per sample, whose pickling would cost as much as the work.
+
+A window's job and its results (about 1 kB a sample) go through files in the worker's spool
+(worker.py: /dev/shm, or TMPDIR where that cannot be written), not a pipe, which would make
+either process wait for the other to read. With each window comes the stages' state after
+it, so that where the worker is lost -- it died, failed on a window, or stopped answering --
+the replay runs the rest itself from there. Only a fork can start it (the process inherits
+the plant model as it is, a user's effects included); where there is none, or no spool or
+process can be had, the replay runs the stages itself.
+"""
+from __future__ import annotations
+
+import functools
+import os
+from typing import Any
+
+from ..bagio.fields import Stamp
+from ..model.conditions import Conditions
+from ..monitor.pipeline import CompleteSample
+from .stages import Encoded, WindowStages
+from .worker import ForkedWorker, WorkerLost
+
+
+def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[list[Encoded], bytes]:
+    """The worker's job: a window's samples encoded (without the outputs themselves) and the stages' state
+    after them."""
+    return [e._replace(output=None) for e in stages.run(*job)], stages.state()
+
+
+class SecondProcess:
+    """A worker process running the window stages in order for a replay (forked before it merges); where it
+    cannot be started, or is lost, the windows are run here."""
+
+    def __init__(self, stages: WindowStages):
+        self.local = stages
+        try:
+            self.worker: ForkedWorker | None = ForkedWorker(functools.partial(_job, stages),
+                                                            f"cable-winch-monitor-{os.getpid()}-")
+        except OSError:
+            self.worker = None  # no spool folder or no process to be had: run here
+        self.pending: list[tuple[bool, tuple[Any, ...]]] = []  # (handed to the worker, job) in order
+        self.state: bytes | None = None  # the worker's state after the last window taken from it
+        self.lost = ""  # why the worker was given up, where it was
+
+    @staticmethod
+    def available() -> bool:
+        return ForkedWorker.available()
+
+    def submit(self, samples: list[CompleteSample], conditions: list[Conditions], headers: list[Stamp],
+               batched: bool) -> None:
+        """Start a window's samples through the stages in the worker (in order after the windows before it)."""
+        job = (samples, conditions, headers, batched)
+        if self.worker is not None:
+            try:
+                self.worker.submit(job)
+            except WorkerLost as lost:
+                self._lost(str(lost))
+        self.pending.append((self.worker is not None, job))
+
+    def take(self) -> list[Encoded]:
+        """The oldest submitted window's samples encoded: the worker's, or run here from the worker's last
+        state where it was lost, failed on the window, or stopped answering."""
+        handed, job = self.pending.pop(0)
+        if handed and self.worker is not None:
+            try:
+                result, self.state = self.worker.result()
+                return result
+            except WorkerLost as lost:
+                self._lost(str(lost))
+        if self.state is not None:
+            self.local.restore(self.state)
+            self.state = None
+        return self.local.run(*job)
+
+    def _lost(self, why: str) -> None:
+        """The worker is gone (or could not hand a window over): it is ended, the rest run here."""
+        self.lost = why
+        self.close()
+        self.pending = [(False, job) for _, job in self.pending]
+
+    def close(self) -> None:
+        """End the worker, if there is one (killed where it still has work)."""
+        if self.worker is not None:
+            self.worker.close()
+            self.worker = None
