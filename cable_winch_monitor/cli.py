@@ -10,13 +10,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .bagio.reader import BagError
-from .bagio.scene import LIVE_RATE, REPLAY_RATE
 from .effects.base import EffectError
 from .formatting import format_solution
+from .messages.scene import LIVE_RATE, REPLAY_RATE
 from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
 from .model.solve import METHODS
 from .paths import config_dir
-from .sim.scenario import ScenarioError
+from .sim.keys import ScenarioError
 
 DIAGNOSE_BUDGET = 180.0  # [s] default wall time of `diagnose`: a 20-minute recording in three minutes
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from .bagio.reader import BagError
-from .bagio.scene import REPLAY_RATE
+from .messages.scene import REPLAY_RATE
 from .model.plant import Plant
 from .monitor.alarm import AlarmLevel
 

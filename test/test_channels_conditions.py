@@ -16,11 +16,11 @@ import pytest
 from cable_winch_monitor import channels
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
-from cable_winch_monitor.bagio.fields import header
 from cable_winch_monitor.bagio.reader import BagError
-from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.effects import EffectError, PlantModel, effect_class, load_module
+from cable_winch_monitor.messages.fields import header
+from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.model.conditions import Conditions, ConditionsTracker, derivatives
 from cable_winch_monitor.model.plant import CABLE_NAMES, load_plant, plant_from_mapping
 from cable_winch_monitor.monitor.clearance import solution_clearance

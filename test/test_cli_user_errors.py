@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from simbags import CLI, assert_clean, run_cli, simulated
 
-from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.messages import records
 from cable_winch_monitor.paths import demo_bag
 
 MISSING_FOLDER = Path("/nonexistent-folder/out")

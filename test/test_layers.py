@@ -12,12 +12,14 @@ import cable_winch_monitor
 
 PACKAGE = Path(cable_winch_monitor.__file__).parent
 LAYERS = (  # bottom first
-    {"paths", "progress", "seed002", "stopping"},  # no package imports (files, progress bars, stop signals)
+    {"paths", "progress", "seed002", "stopping", "safe_yaml"},  # no package imports (files, progress bars, stop
+                                        # signals, YAML read within bounds)
+    {"bagio"},                          # bag files: MCAP/rosbag2, CDR, type store, salvage (a bag's YAML bounded)
     {"model"},                          # plant file, mechanics, solvers, estimation
     {"channels", "formatting", "demo"},  # what a sensor channel is; printing solutions; the paper's examples
     {"effects"},                        # physical effects and the plant model they make
     {"monitor"},                        # a sample's estimate, clearance, alarm, diagnostics
-    {"bagio", "live"},                  # bag files and the monitor's messages in them; the live scheduler
+    {"messages", "live"},               # the monitor's messages and records; the live scheduler
     {"sim", "nodes", "replay", "analysis"},  # the simulator; the ROS 2 nodes; replay of a bag; model vs measurement
     {"fleet"},                          # many bags
     {"bench"},                          # benchmarks

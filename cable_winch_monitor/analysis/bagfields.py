@@ -25,10 +25,10 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from ..bagio.fields import input_topics, seconds
 from ..bagio.mcapfile import McapError, McapFile
 from ..bagio.reader import BagReader
-from ..bagio.records import OUTPUT_TYPES
+from ..messages.fields import input_topics, seconds
+from ..messages.records import OUTPUT_TYPES
 
 MAX_SERIES = 256
 MAX_SAMPLES = 4000   # per series

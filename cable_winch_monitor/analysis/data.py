@@ -21,10 +21,10 @@ from typing import cast
 import numpy as np
 
 from .. import channels
-from ..bagio import fields
 from ..bagio.reader import BagError, BagReader
-from ..bagio.topics import missing_input, require_inputs
 from ..channels import JOINT_STATE, Input
+from ..messages import fields
+from ..messages.topics import missing_input, require_inputs
 from ..model.conditions import Conditions, derivatives, directions
 from ..monitor.inputs import CableLengthMerger, CableReading
 

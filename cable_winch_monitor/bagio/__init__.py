@@ -1,1 +1,2 @@
-"""Bags without a ROS runtime: the message type store, robust MCAP reading, rosbag2 writing."""
+"""Bag files without a ROS runtime: the message type store, CDR, robust MCAP reading and salvage, rosbag2
+writing. Nothing of the monitor: its messages are `messages/`."""

@@ -15,7 +15,7 @@ from typing import Any
 
 from rosbags.typesys.store import Typestore
 
-from ..model.safe_yaml import YamlLimitError, load_yaml_file
+from ..safe_yaml import YamlLimitError, load_yaml_file
 from .decode import decode, decodes_as
 from .mcapfile import McapError, McapFile
 from .typestore import knows, typestore

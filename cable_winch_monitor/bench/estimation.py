@@ -11,7 +11,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .. import channels
-from ..bagio import fields
+from ..messages import fields
 from ..model import observations as obs
 from ..model.batched import solve_batch
 from ..model.estimation import estimate, estimate_batch

@@ -42,10 +42,10 @@ from sensor_msgs.msg import JointState
 
 from cable_winch_monitor_msgs.msg import TensionDistribution
 
-from ..bagio.fields import JOINT_STATE, input_topics
 from ..bagio.reader import BagReader
 from ..channels import TENSION_CHANNELS
 from ..effects import PlantModel
+from ..messages.fields import JOINT_STATE, input_topics
 from ..model.conditions import ConditionsTracker
 from ..model.plant import CABLE_NAMES, load_plant
 from ..nodes.conversions import message_class

@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from ..bagio.fields import input_topics
 from ..bagio.reader import BagReader
 from ..bagio.writer import BagWriter
 from ..effects import PlantModel
 from ..fleet import find_bags, replay_job, run_fleet
+from ..messages.fields import input_topics
 from ..model.plant import Plant, load_plant
 from ..model.solve import solve
 from ..sim.scenario import load_scenario, scenario_path

@@ -36,7 +36,7 @@ from ..model.solve import METHODS, solve
 from .base import Effect, EffectError, RopeLaw
 from .pulley import wrap
 from .registry import USER_MODULES, effect_class, load_module
-from .tracked import tracked_parameters
+from .tracked import TrackedParameter, file_effect, tracked_parameters
 
 REFINE_STEPS = 6
 REFINE_TOL = 1e-7  # [m] pose change at which the pose-dependent geometry has settled
@@ -166,6 +166,22 @@ class PlantModel:
         replaced = {e.name: e for e in effects}
         kept = [replaced.pop(e.name, e) for e in self.effects]
         return PlantModel(self.plant, tuple(kept + list(replaced.values())), self.solver)
+
+    def with_tracked(self, tracked: Sequence[TrackedParameter], values: np.ndarray, every: bool = False) -> PlantModel:
+        """This model (the plant file's) with the tracked parameters at `values`: an effect that is off in the
+        file switched on where one of its values differs from its start (`every`: all of them, as the tracker's
+        derivatives need: an effect off is not the effect at its default)."""
+        changed: dict[str, dict[str, float]] = {}
+        for parameter, value in zip(tracked, np.asarray(values, dtype=float).tolist()):
+            if every or parameter.enabled or value != parameter.start:
+                changed.setdefault(parameter.effect, {})[parameter.name] = value
+        if not changed:
+            return self
+        effects = []
+        for name, values_of in changed.items():
+            effect = self.get(name) or file_effect(effect_class(name), self.plant)
+            effects.append(effect.replaced(**values_of))
+        return self.with_effects(effects)
 
     @cached_property
     def physical(self) -> Plant:

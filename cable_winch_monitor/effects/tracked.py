@@ -1,28 +1,21 @@
-"""The plant parameters tracked live (`plant.track`), resolved against the effects, and the model at given values.
+"""The plant parameters tracked live (`plant.track`), resolved against the effects.
 
 A name in `plant.track` is `effect.param`, or an effect alone for all its fitted
 parameters; the effect need not be switched on in the plant file (its file value, or its
 default, is where tracking starts). Each tracked parameter gets the tolerance its drift
 warning uses: `plant.track_tolerance`'s (by parameter, else by effect), else 5 % of the
-file's value, or twice the parameter's fit step where that value is zero. `model_at` gives the plant model with
-tracked parameters at other values; an effect off in the file is switched on in the model
+file's value, or twice the parameter's fit step where that value is zero. `PlantModel.with_tracked` gives the
+plant model with tracked parameters at other values; an effect off in the file is switched on in the model
 the monitor uses only where one of its values has left its start, so that tracking alone
 costs that model nothing.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
-import numpy as np
 
 from ..model.plant import Plant
 from .base import Effect, EffectError
 from .registry import effect_class
-
-if TYPE_CHECKING:
-    from .model import PlantModel
 
 DEFAULT_RELATIVE = 0.05  # tolerance: this share of the file's value where that is not zero
 DEFAULT_STEPS = 2.0      # else this many of the parameter's fit steps
@@ -58,7 +51,7 @@ def tracked_parameters(plant: Plant) -> tuple[TrackedParameter, ...]:
             cls = effect_class(effect_name)
         except EffectError as error:
             raise EffectError(f"key 'plant.track': {error}") from None
-        effect = _effect(cls, plant)
+        effect = file_effect(cls, plant)
         fitted = [p.name for p in effect.fitted()]
         if param and param not in {p.name for p in effect.specs}:
             raise EffectError(f"key 'plant.track': effect '{effect_name}' has no parameter '{param}' "
@@ -87,7 +80,7 @@ def _enabled(plant: Plant) -> set[str]:
     return {name for name, spec in plant.effects.items() if spec.get("enabled", True) is True}
 
 
-def _effect(cls: type[Effect], plant: Plant) -> Effect:
+def file_effect(cls: type[Effect], plant: Plant) -> Effect:
     """The effect as the plant file gives it (its values whether it is switched on or not)."""
     values = {k: v for k, v in plant.effects.get(cls.name, {}).items() if k != "enabled"}
     try:
@@ -107,22 +100,3 @@ def _tolerance(plant: Plant, key: str, effect: str, start: float, step: float) -
         raise EffectError(f"key 'plant.track_tolerance.{key}': relative to a file value of 0; give it as "
                           "{absolute: value}")
     return value * abs(start)
-
-
-def model_at(base: PlantModel, tracked: Sequence[TrackedParameter], values: np.ndarray,
-             every: bool = False) -> PlantModel:
-    """`base` (the plant file's model) with the tracked parameters at `values`: an effect that is off in the
-    file switched on where one of its values differs from its start (`every`: all of them, as the tracker's
-    derivatives need: an effect off is not the effect at its default)."""
-    changed: dict[str, dict[str, float]] = {}
-    for parameter, value in zip(tracked, np.asarray(values, dtype=float).tolist()):
-        if every or parameter.enabled or value != parameter.start:
-            changed.setdefault(parameter.effect, {})[parameter.name] = value
-    if not changed:
-        return base
-    effects = []
-    for name, values_of in changed.items():
-        effect = base.get(name) or _effect(effect_class(name), base.plant)
-        effects.append(effect.replaced(**values_of))
-    return base.with_effects(effects)
-

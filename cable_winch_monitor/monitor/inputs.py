@@ -47,7 +47,7 @@ class StampWindow:
     message, not the cable. Without an arrival time (offline use) only the order of the
     stamps is checked: nothing else tells a pause from a bad stamp. `offset` is how far the
     arrival clock runs ahead of the stamps' clock throughout (a recording whose recorder and
-    winches kept different clocks: bagio.clock); arrivals are judged less it.
+    winches kept different clocks: messages.clock); arrivals are judged less it.
     """
 
     ahead: float = 2.0

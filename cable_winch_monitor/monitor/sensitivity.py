@@ -30,7 +30,7 @@ from ..channels import TENSION_CHANNELS
 from ..effects import PlantModel
 from ..effects.estimate import observations_for
 from ..effects.model import overrides
-from ..effects.tracked import TrackedParameter, model_at
+from ..effects.tracked import TrackedParameter
 from ..model.conditions import Conditions, StackedConditions
 from ..model.fusion import Problem, Rows, implied_lengths, prior_jacobian, reduced_normal, residuals_and_balance
 from ..model.model_error import chain
@@ -71,7 +71,7 @@ def window_information(base: PlantModel, parameters: Sequence[TrackedParameter],
                        samples: WindowSamples, nuisance: np.ndarray) -> Information:
     """The window's information on `parameters` at `values`, under the plant file's model `base`, the model's
     error marginalised with the information `nuisance` (16, 16) of its spread within a window."""
-    window = _Window(_thinned(samples), model_at(base, parameters, values, every=True))
+    window = _Window(_thinned(samples), base.with_tracked(parameters, values, every=True))
     columns, balances = zip(*(window.sensitivity(parameter, value) for parameter, value in zip(parameters, values)))
     errors = window.prior @ chain(window.nominal.lengths[window.rows.sample])
     jacobian = np.concatenate([errors, np.stack(columns, axis=2)], axis=2)
@@ -127,7 +127,7 @@ class _Window:
         step = DERIVATIVE * max(abs(value), parameter.step)
         step = step if value + step <= parameter.bounds[1] else -step
         effect = self.model.get(parameter.effect)
-        assert effect is not None  # the window's model has every tracked effect on (`model_at(..., every=True)`)
+        assert effect is not None  # the window's model has every tracked effect on (`with_tracked(..., every=True)`)
         moved = self.model.with_effects([effect.replaced(**{parameter.name: value + step})])
         hooks = type(effect)
         if any(overrides(hooks, hook) for hook in WHOLE):

@@ -43,7 +43,7 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..effects.plantfile import write_plant
-from ..effects.tracked import TrackedParameter, model_at, tracked_parameters
+from ..effects.tracked import TrackedParameter, tracked_parameters
 from ..model.prior import SIZE
 from ..model.track import TrackSpec
 from .sensitivity import WindowSamples, window_information
@@ -123,7 +123,7 @@ class ParameterTracker:
 
     def model(self, base: PlantModel) -> PlantModel:
         """The plant file's model `base` with the values in use."""
-        return model_at(base, self.parameters, self.used)
+        return base.with_tracked(self.parameters, self.used)
 
     def write(self, base: PlantModel, path: str | Path, by: str) -> str:
         """Write the plant file of `base` with the values in use to `path` (its folder must exist; ValueError

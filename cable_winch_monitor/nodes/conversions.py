@@ -1,6 +1,6 @@
 """rclpy messages from the monitor's plain field values, and the service's request and answer.
 
-What goes into which field is decided once, in bagio/fields.py (shared with bag
+What goes into which field is decided once, in messages/fields.py (shared with bag
 replay); this module only turns those nested values into rclpy message objects.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ from rosidl_parser.definition import AbstractNestedType, NamespacedType
 
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
-from ..bagio import fields
+from ..messages import fields
 from ..model.plant import CABLE_NAMES
 from ..model.result import Solution
 from ..monitor.alarm import Alarm
@@ -34,7 +34,7 @@ def _message_fields(kind: type) -> dict[str, tuple[type, bool]]:
 
 
 def build(kind: type, values: Mapping[str, Any]) -> Any:
-    """A message of type `kind` from nested field values (bagio.fields layout)."""
+    """A message of type `kind` from nested field values (messages.fields layout)."""
     nested = _message_fields(kind)
     arguments = {}
     for name, value in values.items():

@@ -23,8 +23,8 @@ from rclpy.publisher import Publisher
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from ..bagio.fields import input_topics
 from ..bagio.reader import BagError, BagReader
+from ..messages.fields import input_topics
 from .conversions import message_class
 from .session import ros_session
 

@@ -18,10 +18,10 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..bagio.fields import input_topics
 from ..bagio.reader import BagError
 from ..bagio.typestore import knows
 from ..bagio.writer import BagWriter
+from ..messages.fields import input_topics
 from .conversions import message_class
 from .session import ros_session
 

@@ -36,11 +36,11 @@ from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelError, ModelParame
 from cable_winch_monitor_msgs.srv import CheckCableLengths, WritePlantFile
 
 from .. import channels
-from ..bagio import fields, frames, records
-from ..bagio.scene import LIVE_RATE, SceneBuilder, SceneThrottle
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..live.scheduler import BACKLOG, LiveScheduler
+from ..messages import fields, frames, records
+from ..messages.scene import LIVE_RATE, SceneBuilder, SceneThrottle
 from ..model.plant import PlantConfigError, load_plant
 from ..model.solve import METHODS
 from ..monitor.diagnostics import DiagnosticsReporter
@@ -266,7 +266,7 @@ class WinchMonitorNode(Node):
                 handler(message)
 
     def _publish(self, stamp: fields.Stamp, output: MonitorOutput) -> None:
-        """The sample's outputs as replay records them (bagio.records: pose and /tf only if solved), sent as
+        """The sample's outputs as replay records them (messages.records: pose and /tf only if solved), sent as
         their CDR bytes: building rclpy messages instead took four times as long."""
         self._note_residuals(output.residuals)
         self._send(records.output_records(stamp, output))

@@ -1,7 +1,7 @@
 """`replay`: a recorded bag through the monitor, every output into a new bag beside the inputs.
 
 The monitor's code and the field mapping are the live node's own (MonitorPipeline,
-bagio.fields); messages are fed in the bag's log order (windows.py merges and
+messages.fields); messages are fed in the bag's log order (windows.py merges and
 solves a window ahead, then takes them one at a time), so a replay gives what the node
 gave. No ROS runtime is needed. Memory stays at about one chunk of
 the input whatever the length of the bag. Outputs carry their input's header stamp, and
@@ -19,13 +19,13 @@ from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..bagio import fields, records
-from ..bagio.clock import clock_offset
 from ..bagio.reader import BagMessage, BagReader, ReadReport
-from ..bagio.scene import REPLAY_RATE
-from ..bagio.topics import require_inputs
 from ..bagio.writer import new_bag
 from ..effects import PlantModel
+from ..messages import fields, records
+from ..messages.clock import clock_offset
+from ..messages.scene import REPLAY_RATE
+from ..messages.topics import require_inputs
 from ..model.plant import CABLE_NAMES, Plant, load_plant
 from ..model.result import SolveStatus
 from ..monitor.alarm import AlarmLevel

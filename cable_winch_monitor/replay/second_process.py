@@ -20,7 +20,7 @@ import functools
 import os
 from typing import Any
 
-from ..bagio.fields import Stamp
+from ..messages.fields import Stamp
 from ..model.conditions import Conditions
 from ..monitor.pipeline import CompleteSample
 from .stages import Encoded, WindowStages

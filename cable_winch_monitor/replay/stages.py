@@ -13,10 +13,10 @@ import pickle
 from collections.abc import Sequence
 from typing import NamedTuple
 
-from ..bagio import records
-from ..bagio.fields import Stamp
-from ..bagio.records import Record
-from ..bagio.scene import SceneBuilder, SceneThrottle
+from ..messages import records
+from ..messages.fields import Stamp
+from ..messages.records import Record
+from ..messages.scene import SceneBuilder, SceneThrottle
 from ..model.conditions import Conditions
 from ..monitor.diagnostics import SampleView, sample_view
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome

@@ -32,9 +32,9 @@ from collections.abc import Generator, Iterable, Iterator
 from typing import Any, NamedTuple
 
 from .. import channels
-from ..bagio import fields
-from ..bagio.records import Record, diagnostics_record
-from ..bagio.scene import REPLAY_RATE
+from ..messages import fields
+from ..messages.records import Record, diagnostics_record
+from ..messages.scene import REPLAY_RATE
 from ..model.conditions import Conditions
 from ..model.plant import CABLE_NAMES, Plant
 from ..monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view

@@ -25,6 +25,8 @@ import numpy as np
 
 from ..channels import TENSION_CHANNELS
 from ..model.plant import CABLE_NAMES
+from .attitude import quaternion_from_roll_pitch
+from .keys import ScenarioError, check_item
 
 ENCODERS = tuple(f"encoder_{name}" for name in CABLE_NAMES)
 SENSORS = (*TENSION_CHANNELS, *ENCODERS, "imu", "position")
@@ -91,8 +93,6 @@ class SensorFaults:
 
 def _tilted(fields: dict[str, Any], roll: float, pitch: float) -> dict[str, Any]:
     """An inclinometer message reading `roll` and `pitch` [rad] more than `fields` does."""
-    from .sensors import quaternion_from_roll_pitch  # the inverse of what sensors.imu wrote
-
     q = fields["orientation"]
     x, y, z, w = q["x"], q["y"], q["z"], q["w"]
     read_roll = float(np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)))
@@ -103,11 +103,9 @@ def _tilted(fields: dict[str, Any], roll: float, pitch: float) -> dict[str, Any]
 
 def check_fault(item: Any, where: str) -> dict[str, Any]:
     """A scenario's `sensors.faults` item, checked (ValueError naming the key)."""
-    from .scenario import ScenarioError, _check_item
-
     spec = {"sensor": str, "kind": str, "start": float, "duration": float, "value": float, "roll": float,
             "pitch": float}
-    fault = _check_item(item, spec, where, {"duration", "value", "roll", "pitch"})
+    fault = check_item(item, spec, where, {"duration", "value", "roll", "pitch"})
     if fault["sensor"] not in SENSORS:
         raise ScenarioError(f"key '{where}.sensor' must be one of {', '.join(SENSORS)}, got {fault['sensor']!r}")
     if fault["kind"] not in KINDS:

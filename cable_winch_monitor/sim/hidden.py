@@ -12,7 +12,7 @@ from typing import Any
 from ..effects import Effect, EffectError, available, load_module
 from ..model.plant import Plant
 from . import physics
-from .scenario import ScenarioError
+from .keys import ScenarioError
 
 Hidden = tuple[dict[str, dict[str, float]], dict[str, Effect]]
 

@@ -6,12 +6,13 @@ is not known, or a value of the wrong kind, is an error that names the dotted ke
 from __future__ import annotations
 
 import copy
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..model.safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
 from ..paths import config_dir
+from ..safe_yaml import YamlLimitError, load_yaml_file, parse_yaml
+from .keys import ScenarioError, check_item, check_value
 
 # None marks an optional value; its kind is in OPTIONAL.
 DEFAULTS: dict[str, Any] = {
@@ -78,46 +79,10 @@ ROPE_MODELS = ("rigid", "elastic")
 DRIVES = ("encoders", "ropes")
 
 
-class ScenarioError(ValueError):
-    """A scenario file or override is wrong; the message names the key."""
-
-
-def _kind_ok(value: Any, kind: type) -> bool:
-    if kind is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    if kind is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    return isinstance(value, kind)
-
-
-def _check_value(value: Any, kind: type, where: str) -> Any:
-    if kind is float and isinstance(value, str):  # YAML 1.1 reads 7.5e7 (no dot) as a string
-        try:
-            value = float(value)
-        except ValueError:
-            pass
-    if not _kind_ok(value, kind):
-        name = "a number" if kind is float else kind.__name__
-        raise ScenarioError(f"key '{where}' must be {name}, got {value!r}")
-    return float(value) if kind is float else value
-
-
-def _check_item(item: Any, spec: Mapping[str, type], where: str, optional: Collection[str] = frozenset()) -> dict:
-    if not isinstance(item, Mapping):
-        raise ScenarioError(f"key '{where}' must be a mapping with keys {', '.join(spec)}, got {item!r}")
-    unknown = [k for k in item if k not in spec]
-    if unknown:
-        raise ScenarioError(f"unknown key '{where}.{unknown[0]}' (known: {', '.join(spec)})")
-    missing = [k for k in spec if k not in item and k not in optional]
-    if missing:
-        raise ScenarioError(f"key '{where}' needs '{missing[0]}'")
-    return {k: _check_value(v, spec[k], f"{where}.{k}") for k, v in item.items()}
-
-
 def _segment(item: Any, where: str) -> dict:
     if isinstance(item, Mapping) and "stop" in item:
-        return _check_item(item, STOP, where)
-    return _check_item(item, MOVE, where)
+        return check_item(item, STOP, where)
+    return check_item(item, MOVE, where)
 
 
 def _fault(item: Any, where: str) -> dict:
@@ -127,7 +92,7 @@ def _fault(item: Any, where: str) -> dict:
 
 
 LIST_ITEMS = {"profile.segments": _segment,
-              "sync.events": lambda item, where: _check_item(item, EVENT, where, EVENT_OPTIONAL),
+              "sync.events": lambda item, where: check_item(item, EVENT, where, EVENT_OPTIONAL),
               "sensors.faults": _fault}
 
 
@@ -152,9 +117,9 @@ def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any
                 raise ScenarioError(f"key '{path}' must be a list, got {value!r}")
             merged[key] = [LIST_ITEMS[path](item, f"{path}[{i}]") for i, item in enumerate(value)]
         elif default is None:
-            merged[key] = None if value is None else _check_value(value, OPTIONAL[key], path)
+            merged[key] = None if value is None else check_value(value, OPTIONAL[key], path)
         else:
-            merged[key] = _check_value(value, type(default), path)
+            merged[key] = check_value(value, type(default), path)
     return merged
 
 

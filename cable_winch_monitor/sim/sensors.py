@@ -18,9 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from ..bagio.fields import Stamp, header
 from ..channels import IMU, JOINT_STATE, POINT, TENSION_CHANNELS
+from ..messages.fields import Stamp, header
 from ..model.plant import CABLE_NAMES
+from .attitude import quaternion_from_roll_pitch
 from .faults import SensorFaults
 
 NAN = float("nan")
@@ -75,12 +76,6 @@ def sensor_streams(sensors: Mapping[str, Any], duration: float, rng: np.random.G
         if sensors[name]["enabled"]:
             streams.append(Stream(name, topic, msgtype, sample_times(sensors[name]["rate"], duration, jitter, rng)))
     return streams
-
-
-def quaternion_from_roll_pitch(roll: float, pitch: float) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of the rotation with this roll and pitch and zero yaw (REP-103 x-y-z)."""
-    cr, sr, cp, sp = np.cos(roll / 2), np.sin(roll / 2), np.cos(pitch / 2), np.sin(pitch / 2)
-    return float(sr * cp), float(cr * sp), float(-sr * sp), float(cr * cp)
 
 
 class Sensors:

@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ..bagio.fields import Stamp, stamp_ns
-from ..bagio.records import build
 from ..bagio.writer import BagWriter
+from ..messages.fields import Stamp, stamp_ns
+from ..messages.records import build
 from ..model.geometry import roll_pitch_yaw
 from ..model.plant import load_plant
 from ..model.result import Solution

@@ -33,8 +33,8 @@ from ..model.result import Solution, SolveStatus, failed
 from . import physics
 from .equilibrium import NoEquilibrium, Rig, State, Trajectory, imbalance
 from .hidden import hidden_effects
+from .keys import ScenarioError
 from .pulleys import Pulleys
-from .scenario import ScenarioError
 
 METHOD = "truth"
 AIR_TEMPERATURE = "/shaft/temperature.temperature"  # the input key a user's effect reads the air temperature by

@@ -16,10 +16,10 @@ from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import Dataset, read_bag
 from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows, what_follows
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.channels import TENSION_CHANNELS, names
 from cable_winch_monitor.effects import PlantModel
+from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.model.conditions import derivatives, directions, motion_direction
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.sim.profile import Profile

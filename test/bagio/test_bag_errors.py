@@ -17,8 +17,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from simbags import assert_clean, run_cli, simulated
 
 from cable_winch_monitor.bagio.reader import BagError, BagReader
-from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.replay import replay
 
 JOINTS = "/winch/joint_states"

@@ -4,13 +4,13 @@ from __future__ import annotations
 from rosbags.typesys import Stores, get_typestore
 
 from cable_winch_monitor import channels
-from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.decode import decode
 from cable_winch_monitor.bagio.jazzy_types import FIELDDEFS
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.typestore import COMMON_TYPES, MSG_PACKAGE, knows, msg_dir, with_dependencies
 from cable_winch_monitor.bagio.typestore import typestore as monitor_store
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.messages import records
 
 
 def test_common_types_are_rosbags_jazzy_definitions():

@@ -9,7 +9,7 @@ import pytest
 import yaml
 from simbags import assert_clean, run_cli
 
-from cable_winch_monitor.bagio.topics import listed_topics
+from cable_winch_monitor.messages.topics import listed_topics
 from cable_winch_monitor.paths import default_plant_file, demo_bag
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

@@ -17,9 +17,9 @@ import zstandard
 from mcap.writer import CompressionType, Writer
 
 from cable_winch_monitor.bagio.reader import BagError, BagReader
-from cable_winch_monitor.bagio.records import build
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.messages.records import build
 
 T0 = 1_700_000_000 * 10 ** 9
 TOPICS = {"/winch/joint_states": "sensor_msgs/msg/JointState", "/platform/imu": "sensor_msgs/msg/Imu"}

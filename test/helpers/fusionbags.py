@@ -16,9 +16,9 @@ from root_truth import elastic_truth, slack_truth, weak_mode_truth
 from scipy.spatial.transform import Rotation
 
 from cable_winch_monitor import channels
-from cable_winch_monitor.bagio import fields
 from cable_winch_monitor.bagio.cdr import encoder
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.plant import CABLE_NAMES
 
 NOISE = {"length": 1e-3, "tension": 150.0, "roll": np.radians(0.01), "pitch": np.radians(0.01), "depth": 5e-3}

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cable_winch_monitor.bagio.scene import (
+from cable_winch_monitor.messages.scene import (
     DELETEALL,
     LEVEL_COLOURS,
     LINE_LIST,

@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from cable_winch_monitor.bagio.scene import CYLINDER, LINE_LIST, LINE_STRIP, SPHERE, SPHERE_LIST, TEXT
+from cable_winch_monitor.messages.scene import CYLINDER, LINE_LIST, LINE_STRIP, SPHERE, SPHERE_LIST, TEXT
 
 
 def _points(marker: dict[str, Any]) -> np.ndarray:

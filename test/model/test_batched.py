@@ -16,9 +16,9 @@ from lengths import random_lengths
 from simbags import simulated
 
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.bagio.records import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
 from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.bench.solvers import lowering_samples
+from cable_winch_monitor.messages.records import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
 from cable_winch_monitor.model.batched import solve_batch
 from cable_winch_monitor.model.energy import solve_energy
 from cable_winch_monitor.model.result import SolveStatus

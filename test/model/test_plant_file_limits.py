@@ -11,8 +11,8 @@ import pytest
 import yaml
 
 from cable_winch_monitor.model.plant import PlantConfigError, load_plant
-from cable_winch_monitor.model.safe_yaml import MAX_DEPTH, YamlLimitError, parse_yaml
 from cable_winch_monitor.paths import default_plant_file
+from cable_winch_monitor.safe_yaml import MAX_DEPTH, YamlLimitError, parse_yaml
 
 BASE = yaml.safe_load(default_plant_file().read_text())
 RECTANGLE = [[2.0, 2.5, 0.0], [-2.0, 2.5, 0.0], [-2.0, -2.5, 0.0], [2.0, -2.5, 0.0]]

@@ -90,7 +90,7 @@ def test_without_a_clock_a_kept_far_future_reading_does_not_block_its_cable(plan
 
 def test_the_same_in_replay_a_bad_stamp_costs_one_message(plant):
     """The replay feed gives the log time as the arrival time: the same window applies."""
-    from cable_winch_monitor.bagio import fields
+    from cable_winch_monitor.messages import fields
     from cable_winch_monitor.replay.windows import WindowScheduler
 
     def item(stamp: float, log_time: float, lengths):

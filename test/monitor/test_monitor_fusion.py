@@ -19,7 +19,7 @@ from root_truth import weak_mode_truth
 from scipy.special import chdtri
 
 from cable_winch_monitor import channels
-from cable_winch_monitor.bagio import fields
+from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.gate import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
 from cable_winch_monitor.model.plant import CABLE_NAMES
 from cable_winch_monitor.model.result import check_physics

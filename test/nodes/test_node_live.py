@@ -12,7 +12,7 @@ import pytest
 import yaml
 from ros_harness import PARAMS_FILE, ROOT, LiveNode, stamped
 
-from cable_winch_monitor.bagio.fields import STATUS_NUMBERS
+from cable_winch_monitor.messages.fields import STATUS_NUMBERS
 from cable_winch_monitor.model.geometry import (
     quaternion_from_rotation,
     roll_pitch_of_quaternion,

@@ -19,8 +19,8 @@ from ros_harness import NodeProcess, TestClient, stamp_key
 from simbags import simulated
 
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.bagio.records import ALARM, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.messages.records import ALARM, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.replay import replay
 
 JOINTS = "/winch/joint_states"

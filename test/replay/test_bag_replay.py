@@ -11,8 +11,9 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 from simbags import assert_clean, messages, run_cli, simulated, truth
 
-from cable_winch_monitor.bagio.fields import input_topics
-from cable_winch_monitor.bagio.records import (
+from cable_winch_monitor.bagio.typestore import typestore
+from cable_winch_monitor.messages.fields import input_topics
+from cable_winch_monitor.messages.records import (
     ALARM,
     DIAGNOSTICS,
     OUTLINE,
@@ -25,7 +26,6 @@ from cable_winch_monitor.bagio.records import (
     TF,
     TF_STATIC,
 )
-from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
 from cable_winch_monitor.replay import replay
 from cable_winch_monitor.replay import worker as forked

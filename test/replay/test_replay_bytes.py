@@ -16,10 +16,10 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2.storage_mcap import McapWriter
 from simbags import encoder_tracking_plant
 
-from cable_winch_monitor.bagio import records
 from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.messages import records
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
 

@@ -1,9 +1,9 @@
-"""The monitor's outputs as CDR bytes, and messages of the type store, from the plain field values of bagio.fields.
+"""The monitor's outputs as CDR bytes, and messages of the type store, from the plain field values of messages.fields.
 
 `build` turns any nested mapping of field values into a message of the type store, and
 the output records are those mappings encoded straight to the bytes that serialising
 the built message gives (bagio.cdr). This module holds no field mapping of its own:
-that lives in bagio/fields.py, shared with the live node.
+that lives in messages/fields.py, shared with the live node.
 """
 from __future__ import annotations
 
@@ -15,15 +15,15 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
+from ..bagio.cdr import Encoder, encoder, fixed_encoder
+from ..bagio.typestore import knows, typestore
 from ..model.estimation import Estimate
 from ..model.result import Solution
 from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from . import fields, frames
-from .cdr import Encoder, encoder, fixed_encoder
 from .scene import SceneBuilder, scene_encoder
-from .typestore import knows, typestore
 
 MSGS = "cable_winch_monitor_msgs/msg"
 POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"

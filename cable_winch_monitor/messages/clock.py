@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bagio.reader import BagReader
 from ..channels import JOINT_STATE, WINCH_TOPICS
 from ..monitor.inputs import StampWindow
 from . import fields
-from .reader import BagReader
 
 SAMPLE = 100  # winch messages the offset is taken from
 

@@ -19,8 +19,8 @@ from scene_picture import render
 from scipy.spatial.transform import Rotation
 from simbags import encoder_tracking_plant
 
-from cable_winch_monitor.bagio.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
 from cable_winch_monitor.bagio.typestore import typestore
+from cable_winch_monitor.messages.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
 from cable_winch_monitor.model.plant import load_plant
 from cable_winch_monitor.model.result import solved
 from cable_winch_monitor.monitor.alarm import AlarmLevel

@@ -10,9 +10,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from ..bagio.mcapfile import McapError, McapFile
+from ..bagio.reader import BagError, ReadReport, bag_files
 from ..channels import Input
-from .mcapfile import McapError, McapFile
-from .reader import BagError, ReadReport, bag_files
 
 
 def listed_topics(bag: str | Path) -> dict[str, int | None] | None:

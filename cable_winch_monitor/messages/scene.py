@@ -17,11 +17,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..bagio.cdr import Encoder, fixed_encoder
 from ..model.plant import CABLE_NAMES, Plant
 from ..model.result import Solution
 from ..monitor.alarm import Alarm, AlarmLevel
 from ..monitor.inputs import small_mean
-from .cdr import Encoder, fixed_encoder
 from .fields import FRAME, Fields, Stamp, header
 from .frames import PLATFORM_FRAME
 
