@@ -19,7 +19,7 @@ import math
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from functools import cache, lru_cache
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -164,71 +164,92 @@ BUILTIN = (
               predict_states=_position_states(k))
       for k, (name, axis) in enumerate(zip(("x", "y", "depth"), "xyz"))),
 )
-_BUILTIN_BY_NAME: dict[str, Channel] = {c.name: c for c in BUILTIN}
-_declared: dict[str, Channel] = dict(_BUILTIN_BY_NAME)
+class ChannelRegistry:
+    """The channels known: the built-ins, then those declared (a user's sensors), with what is asked of them at
+    every sample worked out once per declaration."""
+
+    def __init__(self, builtin: Iterable[Channel]):
+        self.builtin = {c.name: c for c in builtin}
+        self.channels: dict[str, Channel] = dict(self.builtin)
+        self._changed()
+
+    def declare(self, channel: Channel) -> Channel:
+        """Add a channel (a user's sensor); a name may be declared again only with the same topics."""
+        known = self.channels.get(channel.name)
+        if known is not None and (known.topics, known.msgtype) != (channel.topics, channel.msgtype):
+            raise ChannelError(f"channel '{channel.name}' is declared twice, on {known.topics} and {channel.topics}")
+        if not channel.topics or not all(t.startswith("/") for t in channel.topics):
+            raise ChannelError(f"channel '{channel.name}': topics must be absolute ROS topic names, got "
+                               f"{channel.topics}")
+        self.channels[channel.name] = channel
+        self._changed()
+        return channel
+
+    def _changed(self) -> None:
+        """What the samples ask (by topic, whether any is a user's), worked out again."""
+        self.user = any(c is not self.builtin.get(c.name) for c in self.channels.values())
+        self.by_topic: dict[str, tuple[Channel, ...]] = {}
+        for channel in self.channels.values():
+            if channel.read is not None:
+                for topic in channel.topics:
+                    self.by_topic[topic] = (*self.by_topic.get(topic, ()), channel)
+
+
+REGISTRY = ChannelRegistry(BUILTIN)  # the package's: what user modules declare into
 
 
 def declare(channel: Channel) -> Channel:
-    """Add a channel (a user's sensor); a name may be declared again only with the same topics."""
-    known = _declared.get(channel.name)
-    if known is not None and (known.topics, known.msgtype) != (channel.topics, channel.msgtype):
-        raise ChannelError(f"channel '{channel.name}' is declared twice, on {known.topics} and {channel.topics}")
-    if not channel.topics or not all(t.startswith("/") for t in channel.topics):
-        raise ChannelError(f"channel '{channel.name}': topics must be absolute ROS topic names, got {channel.topics}")
-    _declared[channel.name] = channel
-    on_topic.cache_clear()
-    user_declared.cache_clear()
-    return channel
+    """Add a channel (a user's sensor) to the package's registry; a name may be declared again only with the
+    same topics."""
+    return REGISTRY.declare(channel)
 
 
-@cache  # asked for every sample; cleared when a channel is declared
 def user_declared() -> bool:
     """Some channel is a user's: declared beside the built-ins, or in place of one."""
-    return any(c is not _BUILTIN_BY_NAME.get(c.name) for c in _declared.values())
+    return REGISTRY.user
 
 
 def declared() -> tuple[Channel, ...]:
     """Every channel: the built-ins, then those user modules declared, in order."""
-    return tuple(_declared.values())
+    return tuple(REGISTRY.channels.values())
 
 
 def names() -> tuple[str, ...]:
-    return tuple(_declared)
+    return tuple(REGISTRY.channels)
 
 
 def get(name: str) -> Channel:
-    return _declared[name]
+    return REGISTRY.channels[name]
 
 
 def noise_keys() -> tuple[str, ...]:
     """Every key a plant file's `noise:` section may give: the encoders', then each declared channel's."""
-    return tuple(dict.fromkeys((LENGTH_NOISE, *(c.noise_key for c in _declared.values()))))
+    return tuple(dict.fromkeys((LENGTH_NOISE, *(c.noise_key for c in REGISTRY.channels.values()))))
 
 
 def topic_types() -> dict[str, str]:
     """Every topic a channel is read from, with its message type."""
-    return {topic: c.msgtype for c in _declared.values() for topic in c.topics}
+    return {topic: c.msgtype for c in REGISTRY.channels.values() for topic in c.topics}
 
 
-@cache  # asked for every sensor message; cleared when a channel is declared
 def on_topic(topic: str) -> tuple[Channel, ...]:
     """The channels read from messages of `topic` by their own reader (not the winch merger's)."""
-    return tuple(c for c in _declared.values() if topic in c.topics and c.read is not None)
+    return REGISTRY.by_topic.get(topic, ())
 
 
 def predicted(solution: Solution, plant: Plant, conditions: Conditions) -> dict[str, float]:
     """What every channel reads for a solved state under the plain model (no measurement effects):
     load pins the tension (weightless ropes), the inclinometer the platform's roll and pitch, the
     depth gauge the platform origin."""
-    return {name: channel.predict(solution, plant, conditions) for name, channel in _declared.items()}
+    return {name: channel.predict(solution, plant, conditions) for name, channel in REGISTRY.channels.items()}
 
 
 def predicted_states(states: States, conditions: Iterable[Conditions]) -> dict[str, np.ndarray]:
     """`predicted` for stacked states (conditions[k] is state k's): arrays (n,), one per channel."""
     out: dict[str, np.ndarray] = {}
-    alone = [c for c in _declared.values() if c.predict_states is None]
+    alone = [c for c in REGISTRY.channels.values() if c.predict_states is None]
     solutions = states.solutions() if alone else []
-    for name, channel in _declared.items():
+    for name, channel in REGISTRY.channels.items():
         if channel.predict_states is not None:
             out[name] = np.array(channel.predict_states(states), dtype=float)
         else:

@@ -30,29 +30,74 @@ USER_MODULES = "cable_winch_monitor_user_effects."  # the package user modules a
 BUILTINS: tuple[type[Effect], ...] = (RopeElasticity, RopeWeight, EncoderScale, EncoderOffset, SheaveFriction,
                                       CogOffset, PayloadMass, SheaveGeometry, TensionSensorBending, InclinometerOffset,
                                       LoadPinCalibration, PulleyGeometry)
-_registry: dict[str, type[Effect]] = {}
-_entry_points_loaded = False
+class EffectRegistry:
+    """The effect classes known, by name: the built-ins from the start, then those of the installed packages'
+    entry points (read only when a name is not known otherwise, or for a listing: reading every installed
+    package's metadata costs 13 ms of each start) and of user modules."""
+
+    def __init__(self, builtins: tuple[type[Effect], ...] = BUILTINS, group: str = GROUP):
+        self.classes: dict[str, type[Effect]] = {cls.name: cls for cls in builtins}
+        self.group = group
+        self.entry_points_loaded = False
+
+    def register(self, cls: type[Effect]) -> type[Effect]:
+        """Add an effect class; its name must be new, snake_case, its `acts` known. A user's effect named like a
+        built-in is refused whenever it comes; a class is the one already known only if it is that class, or
+        the same definition (module and name) imported again."""
+        if not (isinstance(cls, type) and issubclass(cls, Effect)) or not cls.name:
+            raise EffectError(f"{cls!r} is not an Effect subclass with a name")
+        if not cls.name.replace("_", "").isalnum() or cls.name != cls.name.lower():
+            raise EffectError(f"effect name {cls.name!r} must be snake_case")
+        if cls.acts not in ACTS:
+            raise EffectError(f"effect '{cls.name}': acts={cls.acts!r}, must be one of {', '.join(ACTS)}")
+        known = self.classes.get(cls.name)
+        if known is not None and (known.__module__, known.__qualname__) != (cls.__module__, cls.__qualname__):
+            raise EffectError(f"effect '{cls.name}' is defined twice ({_origin(known)} and {_origin(cls)}): "
+                              "give one of them another name")
+        self.classes[cls.name] = cls
+        return cls
+
+    def load_entry_points(self) -> None:
+        """Register the effects that installed packages declare, once."""
+        if self.entry_points_loaded:
+            return
+        self.entry_points_loaded = True
+        for point in entry_points(group=self.group):
+            loaded = point.load()
+            for cls in [loaded] if isinstance(loaded, type) else _effect_classes(loaded):
+                self.register(cls)
+
+    def available(self) -> dict[str, type[Effect]]:
+        """Every known effect by name: built-ins first, then entry points and loaded user modules."""
+        self.load_entry_points()
+        return dict(self.classes)
+
+    def effect_class(self, name: str) -> type[Effect]:
+        """The effect called `name`: a built-in, one of a loaded user module, else an installed entry point."""
+        if name not in self.classes:
+            self.load_entry_points()
+        if name not in self.classes:
+            raise EffectError(f"unknown effect '{name}' (known: {', '.join(self.available())}; a user effect needs "
+                              "--effect-module or an entry point)")
+        return self.classes[name]
+
+
+REGISTRY = EffectRegistry()  # the package's: what user modules and entry points register into
 
 
 def register(cls: type[Effect]) -> type[Effect]:
-    """Add an effect class (usable as a decorator); its name must be new, snake_case, its `acts` known.
+    """Add an effect class to the package's registry (usable as a decorator); see `EffectRegistry.register`."""
+    return REGISTRY.register(cls)
 
-    The built-ins are registered before anything else, so that a user's effect named like one is refused
-    whenever it comes; a class is the one already known only if it is that class, or the same definition
-    (module and name) imported again."""
-    _register_builtins()
-    if not (isinstance(cls, type) and issubclass(cls, Effect)) or not cls.name:
-        raise EffectError(f"{cls!r} is not an Effect subclass with a name")
-    if not cls.name.replace("_", "").isalnum() or cls.name != cls.name.lower():
-        raise EffectError(f"effect name {cls.name!r} must be snake_case")
-    if cls.acts not in ACTS:
-        raise EffectError(f"effect '{cls.name}': acts={cls.acts!r}, must be one of {', '.join(ACTS)}")
-    known = _registry.get(cls.name)
-    if known is not None and (known.__module__, known.__qualname__) != (cls.__module__, cls.__qualname__):
-        raise EffectError(f"effect '{cls.name}' is defined twice ({_origin(known)} and {_origin(cls)}): "
-                          "give one of them another name")
-    _registry[cls.name] = cls
-    return cls
+
+def available() -> dict[str, type[Effect]]:
+    """Every known effect by name: built-ins first, then entry points and loaded user modules."""
+    return REGISTRY.available()
+
+
+def effect_class(name: str) -> type[Effect]:
+    """The effect called `name`: a built-in, one of a loaded user module, else an installed entry point."""
+    return REGISTRY.effect_class(name)
 
 
 def _origin(cls: type[Effect]) -> str:
@@ -61,20 +106,6 @@ def _origin(cls: type[Effect]) -> str:
     if cls.__module__.startswith(USER_MODULES) and file:
         return file
     return cls.__module__
-
-
-def _load_entry_points() -> None:
-    """Register the effects that installed packages declare, once. Reading every installed package's
-    metadata costs 13 ms of each start, so it is done only for a name not known otherwise, or a listing."""
-    global _entry_points_loaded
-    if _entry_points_loaded:
-        return
-    _entry_points_loaded = True
-    for point in entry_points(group=GROUP):
-        loaded = point.load()
-        classes = [loaded] if isinstance(loaded, type) else _effect_classes(loaded)
-        for cls in classes:
-            register(cls)
 
 
 def _effect_classes(module: ModuleType) -> list[type[Effect]]:
@@ -103,26 +134,3 @@ def load_module(path: str | Path) -> list[str]:
     if not classes:
         raise EffectError(f"effect module {path}: defines no Effect subclass with a name")
     return [register(cls).name for cls in classes]
-
-
-def _register_builtins() -> None:
-    for cls in BUILTINS:
-        _registry.setdefault(cls.name, cls)
-
-
-def available() -> dict[str, type[Effect]]:
-    """Every known effect by name: built-ins first, then entry points and loaded user modules."""
-    _register_builtins()
-    _load_entry_points()
-    return dict(_registry)
-
-
-def effect_class(name: str) -> type[Effect]:
-    """The effect called `name`: a built-in, one of a loaded user module, else an installed entry point."""
-    _register_builtins()
-    if name not in _registry:
-        _load_entry_points()
-    if name not in _registry:
-        raise EffectError(f"unknown effect '{name}' (known: {', '.join(available())}; a user effect needs "
-                          "--effect-module or an entry point)")
-    return _registry[name]

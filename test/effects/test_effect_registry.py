@@ -22,8 +22,7 @@ def installed(tmp_path, monkeypatch):
     (info / "entry_points.txt").write_text(f"[{registry.GROUP}]\nrope_temperature = rope_temperature:RopeTemperature\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.syspath_prepend(str(EXAMPLES))
-    monkeypatch.setattr(registry, "_registry", {})
-    monkeypatch.setattr(registry, "_entry_points_loaded", False)
+    monkeypatch.setattr(registry, "REGISTRY", registry.EffectRegistry())  # the installed packages not read yet
     yield
     sys.modules.pop("rope_temperature", None)
 
@@ -31,9 +30,9 @@ def installed(tmp_path, monkeypatch):
 def test_an_installed_packages_entry_point_adds_its_effect(installed):
     """A built-in is found without reading the installed packages' metadata; a name only an entry point
     declares is found there, and listed with the built-ins."""
-    assert effect_class("rope_elasticity") is RopeElasticity and not registry._entry_points_loaded
+    assert effect_class("rope_elasticity") is RopeElasticity and not registry.REGISTRY.entry_points_loaded
     cls = effect_class("rope_temperature")
-    assert registry._entry_points_loaded
+    assert registry.REGISTRY.entry_points_loaded
     assert cls.__module__ == "rope_temperature" and cls.name == "rope_temperature"
     assert {"rope_elasticity", "rope_temperature"} <= set(available())
 
@@ -57,9 +56,10 @@ class {cls}(Effect):
 
 @pytest.fixture
 def fresh_registry(monkeypatch):
-    """The registry as at start-up: nothing registered yet, not even the built-ins."""
-    monkeypatch.setattr(registry, "_registry", {})
-    monkeypatch.setattr(registry, "_entry_points_loaded", True)
+    """The registry as at start-up (the built-ins alone), the installed packages' entry points taken as read."""
+    fresh = registry.EffectRegistry()
+    fresh.entry_points_loaded = True
+    monkeypatch.setattr(registry, "REGISTRY", fresh)
 
 
 @pytest.mark.parametrize("built_ins_first", [False, True])
