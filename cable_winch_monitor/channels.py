@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 
 from .model.conditions import Conditions
-from .model.geometry import roll_pitch_of_quaternion, roll_pitch_yaw
-from .model.observations import States, pitch_of, roll_of
-from .model.plant import CABLE_NAMES, Plant
-from .model.result import Solution
+from .model.estimator.observations import States, pitch_of, roll_of
+from .model.plantfile.plant import CABLE_NAMES, Plant
+from .model.statics.geometry import roll_pitch_of_quaternion, roll_pitch_yaw
+from .model.statics.result import Solution
 
 JOINT_STATE, IMU, POINT = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "geometry_msgs/msg/PointStamped"
 WINCH_TOPICS = ("/winch/joint_states", *(f"/winch_{i}/joint_states" for i in range(1, 5)))  # interface.md

@@ -13,8 +13,8 @@ from .bagio.reader import BagError
 from .effects.base import EffectError
 from .formatting import format_solution
 from .messages.scene import LIVE_RATE, REPLAY_RATE
-from .model.plant import CABLE_NAMES, PlantConfigError, load_plant
-from .model.solve import METHODS
+from .model.plantfile.plant import CABLE_NAMES, PlantConfigError, load_plant
+from .model.solvers.solve import METHODS
 from .paths import config_dir
 from .sim.keys import ScenarioError
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import seed002
-from .model.plant import Plant
-from .model.result import Solution
-from .model.solve import METHODS, solve
+from .model.plantfile.plant import Plant
+from .model.solvers.solve import METHODS, solve
+from .model.statics.result import Solution
 
 
 def table2_values(solution: Solution) -> np.ndarray:

@@ -18,7 +18,7 @@ from typing import Any
 
 from .bagio.reader import BagError
 from .messages.scene import REPLAY_RATE
-from .model.plant import Plant
+from .model.plantfile.plant import Plant
 from .monitor.alarm import AlarmLevel
 
 Row = dict[str, Any]            # one bag's result: column -> value (numbers are summed in the total)

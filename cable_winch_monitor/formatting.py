@@ -6,9 +6,9 @@ from typing import Any
 
 import numpy as np
 
-from .model.geometry import roll_pitch_yaw
-from .model.plant import CABLE_NAMES
-from .model.result import Solution
+from .model.plantfile.plant import CABLE_NAMES
+from .model.statics.geometry import roll_pitch_yaw
+from .model.statics.result import Solution
 
 
 def _row(label: str, values: Iterable[Any], fmt: str = "{:>10.3f}") -> str:

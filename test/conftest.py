@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from cable_winch_monitor.model.plant import Plant, load_plant
+from cable_winch_monitor.model.plantfile.plant import Plant, load_plant
 
 
 @pytest.fixture(scope="session")

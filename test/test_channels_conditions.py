@@ -22,7 +22,7 @@ from cable_winch_monitor.effects import EffectError, PlantModel, effect_class, l
 from cable_winch_monitor.messages.fields import header
 from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.model.conditions import Conditions, ConditionsTracker, derivatives
-from cable_winch_monitor.model.plant import CABLE_NAMES, load_plant, plant_from_mapping
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant, plant_from_mapping
 from cable_winch_monitor.monitor.clearance import solution_clearance
 from cable_winch_monitor.monitor.inputs import JointSample
 from cable_winch_monitor.monitor.limits import synchronisation_limits
@@ -176,7 +176,7 @@ def test_clearance_is_the_plant_with_its_effects():
             parameters = (Parameter("s", "-", 1.05, (1.0, 2.0), 0.01, "outline scale"),)
 
             def plant(self, plant):
-                from cable_winch_monitor.model.plant import OutlinePoint
+                from cable_winch_monitor.model.plantfile.plant import OutlinePoint
                 return plant.with_changes(outline=tuple(OutlinePoint(p.name, p.position * [self["s"], self["s"], 1.0])
                                                         for p in plant.outline))
         ''')

@@ -14,7 +14,7 @@ from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.fleet import diagnose_job, find_bags, is_fleet, replay_job, run_fleet
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.paths import demo_bag
 
 BAGS = ("shaft_a", "shaft_b", "shaft_c")

@@ -1,7 +1,8 @@
 """The package's layers, bottom to top: a module or subpackage imports only from layers below its own.
 
 Every top-level module and subpackage of cable_winch_monitor must be placed here, so that a
-new one is placed on purpose; imports inside a subpackage are its own business.
+new one is placed on purpose; imports inside a subpackage are its own business, but for
+`model`, whose parts by job have layers of their own (MODEL_LAYERS).
 """
 from __future__ import annotations
 
@@ -25,47 +26,76 @@ LAYERS = (  # bottom first
     {"bench"},                          # benchmarks
     {"cli"},                            # the command line
 )
+MODEL_LAYERS = (  # model's parts, bottom first
+    {"plantfile", "conditions"},        # the plant file; a sample's operating conditions
+    {"statics"},                        # poses, spans, the wrench balance, the load, the result type
+    {"paper"},                          # seed 002's special cases and its traversal solver
+    {"solvers"},                        # the energy solvers, one sample or many
+    {"estimator"},                      # the estimator (its front door: model/estimator/__init__.py)
+)
+
+
 
 
 def _unit(path: Path) -> str:
     return path.relative_to(PACKAGE).parts[0].removesuffix(".py")
 
 
-def _imported(path: Path) -> set[str]:
-    """The package's top-level modules or subpackages that the file `path` imports."""
-    inside = path.parent != PACKAGE
+def _targets(path: Path) -> set[tuple[str, ...]]:
+    """What the file `path` imports of the package, each as its dotted path below the package (relative
+    imports resolved against the file's own package)."""
+    package = path.relative_to(PACKAGE).parent.parts
     out = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.level > 0:
-            if inside and node.level == 1:
-                continue  # its own subpackage
+            base = package[:len(package) - (node.level - 1)]
             if node.module:
-                out.add(node.module.split(".")[0])
+                out.add((*base, *node.module.split(".")))
             else:
-                out.update(alias.name for alias in node.names)
+                out.update((*base, alias.name) for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("cable_winch_monitor."):
-            out.add(node.module.split(".")[1])
+            out.add(tuple(node.module.split(".")[1:]))
         elif isinstance(node, ast.Import):
-            out.update(alias.name.split(".")[1] for alias in node.names if alias.name.startswith("cable_winch_monitor."))
+            out.update(tuple(alias.name.split(".")[1:]) for alias in node.names
+                       if alias.name.startswith("cable_winch_monitor."))
     return out
 
 
-def _sources() -> list[Path]:
-    return [p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts and p != PACKAGE / "__init__.py"]
+def _sources(below: Path = PACKAGE) -> list[Path]:
+    return [p for p in below.rglob("*.py") if "__pycache__" not in p.parts and p != below / "__init__.py"]
+
+
+def _downward(layers: tuple[set[str], ...], units: dict[Path, str], imported: dict[Path, set[str]]) -> list[str]:
+    """The imports that do not point to a lower layer: each file's unit (`units`) against what it imports."""
+    level = {unit: k for k, layer in enumerate(layers) for unit in layer}
+    wrong = []
+    for path, unit in units.items():
+        for other in imported[path] - {unit}:
+            if level.get(other, len(layers)) >= level[unit]:
+                wrong.append(f"{path.relative_to(PACKAGE)} ({unit}, layer {level[unit]}) imports {other} "
+                             f"(layer {level.get(other, '?')})")
+    return wrong
 
 
 def test_every_module_has_a_layer():
     placed = set().union(*LAYERS)
     assert {_unit(p) for p in _sources()} - placed == set()
+    model = PACKAGE / "model"
+    assert {p.relative_to(model).parts[0].removesuffix(".py") for p in _sources(model)} - set().union(*MODEL_LAYERS) \
+        == set()
 
 
 def test_imports_point_down():
-    level = {unit: k for k, layer in enumerate(LAYERS) for unit in layer}
-    wrong = []
-    for path in _sources():
-        unit = _unit(path)
-        for imported in _imported(path) - {unit}:
-            if level.get(imported, len(LAYERS)) >= level[unit]:
-                wrong.append(f"{path.relative_to(PACKAGE)} ({unit}, layer {level[unit]}) imports {imported} "
-                             f"(layer {level.get(imported, '?')})")
-    assert not wrong, "\n".join(wrong)
+    sources = _sources()
+    units = {path: _unit(path) for path in sources}
+    imported = {path: {target[0] for target in _targets(path)} for path in sources}
+    assert not (wrong := _downward(LAYERS, units, imported)), "\n".join(wrong)
+
+
+def test_the_models_parts_point_down():
+    model = PACKAGE / "model"
+    sources = _sources(model)
+    units = {path: path.relative_to(model).parts[0].removesuffix(".py") for path in sources}
+    imported = {path: {target[1] for target in _targets(path) if len(target) > 1 and target[0] == "model"}
+                for path in sources}
+    assert not (wrong := _downward(MODEL_LAYERS, units, imported)), "\n".join(wrong)

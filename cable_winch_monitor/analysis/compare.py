@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..effects import PlantModel
-from ..model.result import Solution
+from ..model.statics.result import Solution
 from .bagfields import BagFields
 from .conditioning import IllConditioned, ill_conditioned
 from .data import Dataset

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..model.conditions import Conditions
-from ..model.result import Solution
+from ..model.statics.result import Solution
 from .data import Dataset
 from .evaluate import thin
 

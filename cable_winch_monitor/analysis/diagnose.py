@@ -42,7 +42,7 @@ import numpy as np
 
 from ..effects import Effect, PlantModel, available
 from ..effects.model import refines
-from ..model.plant import Plant, load_plant
+from ..model.plantfile.plant import Plant, load_plant
 from ..progress import Progress
 from .bagfields import BagFields, read_fields
 from .budget import Budget

@@ -29,9 +29,9 @@ from .. import channels
 from ..bagio.reader import BagError
 from ..effects import PlantModel
 from ..effects.estimate import estimate_recording, fuses
-from ..model.estimation import Estimate
-from ..model.plant import Plant
-from ..model.result import Solution
+from ..model.estimator import Estimate
+from ..model.plantfile.plant import Plant
+from ..model.statics.result import Solution
 from .data import Dataset
 
 FAILED_PENALTY = 30.0  # [sigma] residual of a measured channel whose row the model cannot solve

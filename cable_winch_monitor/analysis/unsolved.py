@@ -12,7 +12,7 @@ from collections import Counter
 from collections.abc import Sequence
 
 from ..bagio.reader import BagError
-from ..model.result import Solution
+from ..model.statics.result import Solution
 
 SHOWN = 3  # reasons named in a report line
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import yaml
 
 from ..analysis.diagnose import diagnose_bag
-from ..model.plant import load_plant
+from ..model.plantfile.plant import load_plant
 from ..paths import default_plant_file
 from ..sim.scenario import load_scenario
 from ..sim.simulate import simulate

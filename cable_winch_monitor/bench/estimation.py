@@ -12,12 +12,12 @@ from scipy.spatial.transform import Rotation
 
 from .. import channels
 from ..messages import fields
-from ..model import observations as obs
-from ..model.batched import solve_batch
-from ..model.estimation import estimate, estimate_batch
-from ..model.geometry import roll_pitch_yaw
-from ..model.plant import CABLE_NAMES, load_plant
-from ..model.solve import solve
+from ..model.estimator import estimate, estimate_batch
+from ..model.estimator import observations as obs
+from ..model.plantfile.plant import CABLE_NAMES, load_plant
+from ..model.solvers.batched import solve_batch
+from ..model.solvers.solve import solve
+from ..model.statics.geometry import roll_pitch_yaw
 from ..monitor.pipeline import MonitorPipeline
 from ..replay.windows import WindowScheduler
 from .solvers import lowering_samples

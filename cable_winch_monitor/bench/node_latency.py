@@ -47,7 +47,7 @@ from ..channels import TENSION_CHANNELS
 from ..effects import PlantModel
 from ..messages.fields import JOINT_STATE, input_topics
 from ..model.conditions import ConditionsTracker
-from ..model.plant import CABLE_NAMES, load_plant
+from ..model.plantfile.plant import CABLE_NAMES, load_plant
 from ..nodes.conversions import message_class
 
 LOWERING_SPEED = 0.2        # [m/s] payout speed of all four winches

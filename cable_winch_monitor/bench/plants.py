@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import yaml
 
-from ..model.plant import Plant
+from ..model.plantfile.plant import Plant
 from ..paths import default_plant_file
 
 REALISTIC_EFFECTS = {"rope_elasticity": {"EA": 7.5e7}, "rope_weight": {"w": 60.0},

@@ -6,8 +6,8 @@ import time
 
 import numpy as np
 
-from ..model.plant import load_plant
-from ..model.solve import solve
+from ..model.plantfile.plant import load_plant
+from ..model.solvers.solve import solve
 
 
 def lowering_samples(count: int, seed: int = 6) -> np.ndarray:

@@ -33,8 +33,8 @@ from ..bagio.writer import BagWriter
 from ..effects import PlantModel
 from ..fleet import find_bags, replay_job, run_fleet
 from ..messages.fields import input_topics
-from ..model.plant import Plant, load_plant
-from ..model.solve import solve
+from ..model.plantfile.plant import Plant, load_plant
+from ..model.solvers.solve import solve
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
 from .plants import REALISTIC_EFFECTS, SITE_CASES, plant_file, realistic, realistic_plant_file

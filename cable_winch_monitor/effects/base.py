@@ -39,9 +39,9 @@ import numpy as np
 
 from ..channels import Input
 from ..model.conditions import Conditions, StackedConditions
-from ..model.observations import States
-from ..model.plant import Plant, file_number
-from ..model.result import Solution
+from ..model.estimator import States
+from ..model.plantfile.plant import Plant, file_number
+from ..model.statics.result import Solution
 
 ACTS = ("rope_law", "geometry", "load", "measurement")
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.plant import Plant
+from ..model.plantfile.plant import Plant
 from .base import Effect, Parameter, reach, relative, relative_bounds
 
 PLAUSIBLE_MASS_CHANGE = 0.3  # a payload beyond +-30 % of the platform's mass is a wrong plant file, not a load

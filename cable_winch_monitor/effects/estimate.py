@@ -26,11 +26,10 @@ from dataclasses import replace
 import numpy as np
 
 from .. import channels
-from ..model import observations as obs
 from ..model.conditions import Conditions, StackedConditions
-from ..model.estimation import BatchEstimate, Estimate, estimate, estimate_batch
-from ..model.observations import Observation, States, forward_differences
-from ..model.result import Solution
+from ..model.estimator import BatchEstimate, Estimate, Observation, States, estimate, estimate_batch, forward_differences
+from ..model.estimator import observations as obs
+from ..model.statics.result import Solution
 from .model import NO_CONDITIONS, REFINE_STEPS, REFINE_TOL, PlantModel
 
 BUILT_IN: dict[str, Callable[[float | np.ndarray, float], Observation]] = {

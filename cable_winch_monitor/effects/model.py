@@ -25,14 +25,14 @@ from numpy.typing import ArrayLike
 
 from .. import channels
 from ..channels import Input
-from ..model.batched import BatchSolution, solve_batch
-from ..model.batched_elastic import solve_batch_elastic
 from ..model.conditions import Conditions, StackedConditions
-from ..model.elastic import solve_elastic
-from ..model.observations import States
-from ..model.plant import Plant, PlantConfigError
-from ..model.result import Solution, SolveStatus, failed
-from ..model.solve import METHODS, solve
+from ..model.estimator import States
+from ..model.plantfile.plant import Plant, PlantConfigError
+from ..model.solvers.batched import BatchSolution, solve_batch
+from ..model.solvers.batched_elastic import solve_batch_elastic
+from ..model.solvers.elastic import solve_elastic
+from ..model.solvers.solve import METHODS, solve
+from ..model.statics.result import Solution, SolveStatus, failed
 from .base import Effect, EffectError, RopeLaw
 from .pulley import wrap
 from .registry import USER_MODULES, effect_class, load_module

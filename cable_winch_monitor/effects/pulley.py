@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.plant import Plant, Sheave
+from ..model.plantfile.plant import Plant, Sheave
 from .base import Effect, Parameter, relative, relative_bounds, span
 
 AXIS_FROM_BELOW = np.array([0.0, 0.0, -1.0])  # a rope running up a post from a winch at its foot

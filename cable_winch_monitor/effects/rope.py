@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.observations import States
-from ..model.plant import CABLE_NAMES, Plant
+from ..model.estimator import States
+from ..model.plantfile.plant import CABLE_NAMES, Plant
 from .base import Effect, Parameter, RopeLaw, StackedConditions, relative, relative_bounds, span, weight
 
 

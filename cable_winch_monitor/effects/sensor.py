@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..channels import TENSION_CHANNELS
-from ..model.observations import States
-from ..model.plant import Plant
+from ..model.estimator import States
+from ..model.plantfile.plant import Plant
 from .base import Effect, Parameter, StackedConditions, relative, relative_bounds, weight
 
 MAX_BENDING = 0.5  # 3 sqrt(B/T)/l beyond this the sensor is outside its range: reading capped at 2 T

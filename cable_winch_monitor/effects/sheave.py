@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.conditions import Conditions, StackedConditions
-from ..model.observations import States
-from ..model.plant import CABLE_NAMES, Plant
+from ..model.estimator import States
+from ..model.plantfile.plant import CABLE_NAMES, Plant
 from .base import Effect, Parameter, relative, relative_bounds, span
 
 MIN_SHARE = 0.05  # fraction of samples needed in each direction of motion to identify friction

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..model.plant import Plant
+from ..model.plantfile.plant import Plant
 from .base import Effect, EffectError
 from .registry import effect_class
 

@@ -19,7 +19,7 @@ import threading
 from collections import deque
 from collections.abc import Hashable
 
-from ..model.plant import Plant
+from ..model.plantfile.plant import Plant
 from ..monitor.inputs import JointSample, StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 

@@ -14,9 +14,9 @@ import numpy as np
 
 from .. import channels
 from ..channels import JOINT_STATE, WINCH_TOPICS, Input
-from ..model.estimation import Estimate
-from ..model.plant import CABLE_NAMES
-from ..model.result import Solution, SolveStatus
+from ..model.estimator import Estimate
+from ..model.plantfile.plant import CABLE_NAMES
+from ..model.statics.result import Solution, SolveStatus
 from ..monitor.alarm import Alarm
 from ..monitor.inputs import JointSample
 from ..monitor.pipeline import MonitorOutput

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ..model.plant import Plant
-from ..model.result import Solution
+from ..model.plantfile.plant import Plant
+from ..model.statics.result import Solution
 from .fields import FRAME, Fields, Stamp, header
 
 PLATFORM_FRAME = "platform"

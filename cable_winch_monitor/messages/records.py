@@ -17,8 +17,8 @@ from rosbags.typesys.store import Typestore
 
 from ..bagio.cdr import Encoder, encoder, fixed_encoder
 from ..bagio.typestore import knows, typestore
-from ..model.estimation import Estimate
-from ..model.result import Solution
+from ..model.estimator import Estimate
+from ..model.statics.result import Solution
 from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals

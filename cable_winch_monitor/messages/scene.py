@@ -18,8 +18,8 @@ from functools import lru_cache
 import numpy as np
 
 from ..bagio.cdr import Encoder, fixed_encoder
-from ..model.plant import CABLE_NAMES, Plant
-from ..model.result import Solution
+from ..model.plantfile.plant import CABLE_NAMES, Plant
+from ..model.statics.result import Solution
 from ..monitor.alarm import Alarm, AlarmLevel
 from ..monitor.inputs import small_mean
 from .fields import FRAME, Fields, Stamp, header

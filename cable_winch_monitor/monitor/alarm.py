@@ -6,8 +6,8 @@ from enum import IntEnum
 
 import numpy as np
 
-from ..model.plant import CABLE_NAMES, Plant, PlantConfigError
-from ..model.result import Solution, SolveStatus
+from ..model.plantfile.plant import CABLE_NAMES, Plant, PlantConfigError
+from ..model.statics.result import Solution, SolveStatus
 from .clearance import Clearance
 
 

@@ -17,7 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..model.plant import Plant
+from ..model.plantfile.plant import Plant
 from .clearance import Clearance
 
 SIGMAS = 3.0  # the two clearances disagree when further apart than this many of their combined 1-sigma

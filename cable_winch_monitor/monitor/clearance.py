@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.plant import Plant
-from ..model.plumb_hang import PlumbHang
-from ..model.result import Solution
+from ..model.paper.plumb_hang import PlumbHang
+from ..model.plantfile.plant import Plant
+from ..model.statics.result import Solution
 
 SWING_SAMPLES_PER_RAD = 60
 

@@ -23,8 +23,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..model.plant import CABLE_NAMES
-from ..model.result import SolveStatus
+from ..model.plantfile.plant import CABLE_NAMES
+from ..model.statics.result import SolveStatus
 from .alarm import AlarmLevel
 from .pipeline import MonitorOutput, MonitorPipeline
 from .residuals import Residuals

@@ -33,16 +33,23 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..effects.estimate import length_noise, observations_for
-from ..model.batched import BatchSolution
 from ..model.conditions import Conditions
-from ..model.estimation import BatchEstimate, estimate_batch, forward_kinematics, unfused
-from ..model.fusion import Problem, Rows
-from ..model.gate import chi_square_threshold
-from ..model.geometry import roll_pitch_yaw
-from ..model.model_error import ErrorState, ModelError
-from ..model.prior import Prior
-from ..model.result import Solution
-from ..model.ropes import Ropes
+from ..model.estimator import (
+    BatchEstimate,
+    ErrorState,
+    ModelError,
+    Prior,
+    Problem,
+    Rows,
+    chi_square_threshold,
+    estimate_batch,
+    forward_kinematics,
+    unfused,
+)
+from ..model.solvers.batched import BatchSolution
+from ..model.solvers.ropes import Ropes
+from ..model.statics.geometry import roll_pitch_yaw
+from ..model.statics.result import Solution
 from .sensitivity import WindowSamples
 from .sensors import sensor_of
 from .tracking import ParameterTracker, ParameterView, TrackState

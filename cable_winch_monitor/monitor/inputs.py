@@ -9,7 +9,7 @@ from typing import Any, NamedTuple, cast
 
 import numpy as np
 
-from ..model.plant import CABLE_NAMES
+from ..model.plantfile.plant import CABLE_NAMES
 
 CABLE_INDEX = {name: i for i, name in enumerate(CABLE_NAMES)}
 NAN = float("nan")

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import PlantModel
-from ..model.plant import CABLE_NAMES, Plant
-from ..model.result import Solution
+from ..model.plantfile.plant import CABLE_NAMES, Plant
+from ..model.statics.result import Solution
 from .alarm import AlarmPolicy
 from .clearance import solution_clearance
 

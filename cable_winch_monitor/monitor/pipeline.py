@@ -31,9 +31,9 @@ from ..effects import PlantModel
 from ..effects.estimate import fuses
 from ..effects.model import NO_CONDITIONS
 from ..model.conditions import Conditions, ConditionsTracker
-from ..model.estimation import Estimate
-from ..model.plant import Plant
-from ..model.result import Solution, SolveStatus
+from ..model.estimator import Estimate
+from ..model.plantfile.plant import Plant
+from ..model.statics.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .basis import CORROBORATING_PINS, Basis, judged, tilt_sigmas
 from .clearance import Clearance, solution_clearance, solution_clearances

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from typing import NamedTuple
 
 from .. import channels
-from ..model.plant import Plant
+from ..model.plantfile.plant import Plant
 
 
 class Residuals(NamedTuple):

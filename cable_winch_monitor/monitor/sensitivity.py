@@ -32,11 +32,19 @@ from ..effects.estimate import observations_for
 from ..effects.model import overrides
 from ..effects.tracked import TrackedParameter
 from ..model.conditions import Conditions, StackedConditions
-from ..model.fusion import Problem, Rows, implied_lengths, prior_jacobian, reduced_normal, residuals_and_balance
-from ..model.model_error import chain
-from ..model.observations import States
-from ..model.prior import SIZE, Prior
-from ..model.ropes import Ropes
+from ..model.estimator import (
+    Prior,
+    Problem,
+    Rows,
+    States,
+    chain,
+    implied_lengths,
+    prior_jacobian,
+    reduced_normal,
+    residuals_and_balance,
+)
+from ..model.plantfile.error_spec import SIZE
+from ..model.solvers.ropes import Ropes
 
 MAX_ROWS = 50      # a window's estimated samples the parameters are learnt from, at most
 DERIVATIVE = 1e-3  # the numerical derivative's step, per max(|value|, the parameter's fit step)

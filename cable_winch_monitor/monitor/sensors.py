@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping
 from functools import lru_cache
 
 from .. import channels
-from ..model.estimation import Estimate
+from ..model.estimator import Estimate
 
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 STUCK = 5  # a sensor repeating its reading to the bit this many times running is stuck

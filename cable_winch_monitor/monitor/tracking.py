@@ -44,8 +44,8 @@ import numpy as np
 from ..effects import PlantModel
 from ..effects.plantfile import write_plant
 from ..effects.tracked import TrackedParameter, tracked_parameters
-from ..model.prior import SIZE
-from ..model.track import TrackSpec
+from ..model.plantfile.error_spec import SIZE
+from ..model.plantfile.track import TrackSpec
 from .sensitivity import WindowSamples, window_information
 
 INITIAL = 10.0     # [tolerances] 1-sigma of a tracked parameter before the first window, and after a step

@@ -15,8 +15,8 @@ from rosidl_parser.definition import AbstractNestedType, NamespacedType
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 
 from ..messages import fields
-from ..model.plant import CABLE_NAMES
-from ..model.result import Solution
+from ..model.plantfile.plant import CABLE_NAMES
+from ..model.statics.result import Solution
 from ..monitor.alarm import Alarm
 
 

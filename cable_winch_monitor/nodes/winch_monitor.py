@@ -41,8 +41,8 @@ from ..effects import EffectError
 from ..live.scheduler import BACKLOG, LiveScheduler
 from ..messages import fields, frames, records
 from ..messages.scene import LIVE_RATE, SceneBuilder, SceneThrottle
-from ..model.plant import PlantConfigError, load_plant
-from ..model.solve import METHODS
+from ..model.plantfile.plant import PlantConfigError, load_plant
+from ..model.solvers.solve import METHODS
 from ..monitor.diagnostics import DiagnosticsReporter
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput

@@ -26,8 +26,8 @@ from ..messages import fields, records
 from ..messages.clock import clock_offset
 from ..messages.scene import REPLAY_RATE
 from ..messages.topics import require_inputs
-from ..model.plant import CABLE_NAMES, Plant, load_plant
-from ..model.result import SolveStatus
+from ..model.plantfile.plant import CABLE_NAMES, Plant, load_plant
+from ..model.statics.result import SolveStatus
 from ..monitor.alarm import AlarmLevel
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import MonitorStats

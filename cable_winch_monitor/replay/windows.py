@@ -36,7 +36,7 @@ from ..messages import fields
 from ..messages.records import Record, diagnostics_record
 from ..messages.scene import REPLAY_RATE
 from ..model.conditions import Conditions
-from ..model.plant import CABLE_NAMES, Plant
+from ..model.plantfile.plant import CABLE_NAMES, Plant
 from ..monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorPipeline, MonitorStats

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..channels import TENSION_CHANNELS
-from ..model.plant import CABLE_NAMES
+from ..model.plantfile.plant import CABLE_NAMES
 from .attitude import quaternion_from_roll_pitch
 from .keys import ScenarioError, check_item
 

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..effects import Effect, EffectError, available, load_module
-from ..model.plant import Plant
+from ..model.plantfile.plant import Plant
 from . import physics
 from .keys import ScenarioError
 

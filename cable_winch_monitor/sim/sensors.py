@@ -20,7 +20,7 @@ import numpy as np
 
 from ..channels import IMU, JOINT_STATE, POINT, TENSION_CHANNELS
 from ..messages.fields import Stamp, header
-from ..model.plant import CABLE_NAMES
+from ..model.plantfile.plant import CABLE_NAMES
 from .attitude import quaternion_from_roll_pitch
 from .faults import SensorFaults
 

@@ -25,9 +25,9 @@ import yaml
 from ..bagio.writer import BagWriter
 from ..messages.fields import Stamp, stamp_ns
 from ..messages.records import build
-from ..model.geometry import roll_pitch_yaw
-from ..model.plant import load_plant
-from ..model.result import Solution
+from ..model.plantfile.plant import load_plant
+from ..model.statics.geometry import roll_pitch_yaw
+from ..model.statics.result import Solution
 from ..monitor.clearance import solution_clearance
 from .profile import Profile, air_temperature
 from .sensors import Sensors, Stream, sensor_streams

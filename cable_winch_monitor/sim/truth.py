@@ -28,8 +28,8 @@ import numpy as np
 
 from ..channels import TENSION_CHANNELS
 from ..effects import Conditions
-from ..model.plant import Plant
-from ..model.result import Solution, SolveStatus, failed
+from ..model.plantfile.plant import Plant
+from ..model.statics.result import Solution, SolveStatus, failed
 from . import physics
 from .equilibrium import NoEquilibrium, Rig, State, Trajectory, imbalance
 from .hidden import hidden_effects

@@ -9,7 +9,7 @@ from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.conditioning import INTERNAL_MODE, LENGTH_STEP, LIMIT
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.effects import PlantModel, effect_class
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,7 @@ from simbags import assert_clean, run_cli
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.effects import PlantModel, effect_class, load_module
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario, scenario_path
 from cable_winch_monitor.sim.simulate import simulate

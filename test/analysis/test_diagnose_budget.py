@@ -13,7 +13,7 @@ from cable_winch_monitor.analysis.diagnose import Candidate, Diagnosis, Step, di
 from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.analysis.fit import fit_effects
 from cable_winch_monitor.effects import PlantModel, effect_class
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 
 BAG = Path(__file__).parents[2] / "bags" / "all_channels"
 

@@ -8,7 +8,7 @@ from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.diagnose import diagnose
 from cable_winch_monitor.analysis.evaluate import noise
 from cable_winch_monitor.effects import PlantModel, available
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 
 # effect: (hidden parameters, plant, profile); a geometry differs only where the effect needs it to show
 CASES = {

@@ -11,7 +11,7 @@ from effectbags import SEED002, plant_file, simulate_bag
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.effects import PlantModel, effect_class
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 
 ROOT = Path(__file__).resolve().parents[2]
 

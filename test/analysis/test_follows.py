@@ -21,7 +21,7 @@ from cable_winch_monitor.channels import TENSION_CHANNELS, names
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.model.conditions import derivatives, directions, motion_direction
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.sim.profile import Profile
 
 RATE = 10.0  # [Hz]

@@ -13,7 +13,7 @@ from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.analysis.fit import fit_effects
 from cable_winch_monitor.effects import Parameter, PlantModel
 from cable_winch_monitor.effects.body import PayloadMass
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 
 HIDDEN_DM = 4000.0  # 40 % of the 10 t platform: beyond any plausible payload
 

@@ -17,7 +17,7 @@ import yaml
 from cable_winch_monitor.analysis.diagnose import diagnose_bag
 from cable_winch_monitor.cli import DIAGNOSE_BUDGET
 from cable_winch_monitor.effects.pulley import wrap
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate

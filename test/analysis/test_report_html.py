@@ -16,7 +16,7 @@ from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.html import write_report
 from cable_winch_monitor.effects import PlantModel
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.sim.profile import Profile
 from cable_winch_monitor.sim.simulate import TRUTH_FILE
 

@@ -18,7 +18,7 @@ from cable_winch_monitor.analysis.motion import MOTIONS, SHIFTING, STANDING, mot
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.effects import PlantModel, effect_class
 from cable_winch_monitor.model.conditions import directions
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
 

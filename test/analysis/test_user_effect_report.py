@@ -10,13 +10,13 @@ from effectbags import ELASTIC, SEED002, plant_file, simulate_bag
 from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.effects import load_module
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 
 USER_EFFECT = '''
 """A load-pin zero error per cable: not in the library."""
 from cable_winch_monitor.effects import Effect, Parameter
-from cable_winch_monitor.model.plant import CABLE_NAMES
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 
 
 class LoadPinBias(Effect):

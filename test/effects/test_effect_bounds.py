@@ -6,7 +6,7 @@ import pytest
 
 from cable_winch_monitor.effects import EffectError, PlantModel, available, effect_class
 from cable_winch_monitor.effects.base import span
-from cable_winch_monitor.model.plant import PlantConfigError, load_plant, plant_from_mapping
+from cable_winch_monitor.model.plantfile.plant import PlantConfigError, load_plant, plant_from_mapping
 
 LAB = {"name": "lab robot", "mass": 13.0, "g": 9.81,
        "geometry": {"anchors": [[0.9, 0.75, 0.0], [-0.9, 0.75, 0.0], [-0.9, -0.75, 0.0], [0.9, -0.75, 0.0]],

@@ -13,7 +13,7 @@ from root_truth import elastic_truth
 from cable_winch_monitor.effects.estimate import estimate_recording, estimate_sample, length_noise
 from cable_winch_monitor.effects.model import NO_CONDITIONS, PlantModel
 from cable_winch_monitor.effects.rope import RopeElasticity, RopeWeight
-from cable_winch_monitor.model.result import check_physics
+from cable_winch_monitor.model.statics.result import check_physics
 
 NOISE = {"length": 1e-3, "tension": 150.0, "roll": np.radians(0.01), "pitch": np.radians(0.01), "depth": 5e-3}
 

@@ -13,10 +13,10 @@ from cable_winch_monitor import channels
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.effects.estimate import estimate_recording, estimate_sample
 from cable_winch_monitor.effects.model import NO_CONDITIONS, REFINE_TOL
-from cable_winch_monitor.model.geometry import roll_pitch_yaw
-from cable_winch_monitor.model.observations import States
-from cable_winch_monitor.model.plant import load_plant
-from cable_winch_monitor.model.result import check_physics
+from cable_winch_monitor.model.estimator import States
+from cable_winch_monitor.model.plantfile.plant import load_plant
+from cable_winch_monitor.model.statics.geometry import roll_pitch_yaw
+from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.equilibrium import Rig, Trajectory
 from cable_winch_monitor.sim.truth import plant_pulleys

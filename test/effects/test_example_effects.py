@@ -24,7 +24,7 @@ from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.diagnose import diagnose_bag
 from cable_winch_monitor.effects import PlantModel, available, load_module
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
 

@@ -13,7 +13,7 @@ import yaml
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.effects.base import span
 from cable_winch_monitor.effects.tracked import tracked_parameters
-from cable_winch_monitor.model.plant import PlantConfigError, load_plant
+from cable_winch_monitor.model.plantfile.plant import PlantConfigError, load_plant
 from cable_winch_monitor.paths import default_plant_file
 
 BASE = yaml.safe_load(default_plant_file().read_text())

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.result import check_physics
+from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics.result import check_physics
 
 
 def per_sample(plant, lengths, warm: bool, solver=solve_energy):

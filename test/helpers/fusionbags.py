@@ -19,7 +19,7 @@ from cable_winch_monitor import channels
 from cable_winch_monitor.bagio.cdr import encoder
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.messages import fields
-from cable_winch_monitor.model.plant import CABLE_NAMES
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 
 NOISE = {"length": 1e-3, "tension": 150.0, "roll": np.radians(0.01), "pitch": np.radians(0.01), "depth": 5e-3}
 RATE, SPEED = 10.0, 0.4  # [Hz] winches, [m/s] lowering

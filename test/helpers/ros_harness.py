@@ -29,7 +29,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, JointState
 
-from cable_winch_monitor.model.plant import CABLE_NAMES
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
 

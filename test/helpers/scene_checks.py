@@ -18,8 +18,8 @@ from cable_winch_monitor.messages.scene import (
     SLACK_COLOUR,
     tension_colour,
 )
-from cable_winch_monitor.model.plant import CABLE_NAMES, Plant
-from cable_winch_monitor.model.result import Solution
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, Plant
+from cable_winch_monitor.model.statics.result import Solution
 from cable_winch_monitor.monitor.alarm import AlarmLevel
 
 LENGTH_TOL = 1e-3  # [m]

@@ -11,7 +11,7 @@ from typing import Any
 import yaml
 
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.model.plant import Plant, load_plant
+from cable_winch_monitor.model.plantfile.plant import Plant, load_plant
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario, scenario_path
 from cable_winch_monitor.sim.simulate import TRUTH_FILE, simulate

@@ -17,8 +17,8 @@ import yaml
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bench.plants import SITE_EA, SITE_WEIGHT, plant_file
 from cable_winch_monitor.messages.records import DIAGNOSTICS, OUTPUT_TYPES, PARAMETERS
-from cable_winch_monitor.model.plant import Plant, load_plant
-from cable_winch_monitor.model.track import TrackSpec
+from cable_winch_monitor.model.plantfile.plant import Plant, load_plant
+from cable_winch_monitor.model.plantfile.track import TrackSpec
 from cable_winch_monitor.sim.simulate import TRUTH_FILE
 
 TRACKED = ["rope_elasticity.EA", "rope_weight.w", "encoder_offset"] + [f"load_pin_calibration.zero_{i}"

@@ -7,8 +7,8 @@ import threading
 import numpy as np
 
 from cable_winch_monitor.live.scheduler import LiveScheduler
-from cable_winch_monitor.model.plant import CABLE_NAMES
-from cable_winch_monitor.model.result import check_physics
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
+from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor.inputs import JointSample
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 

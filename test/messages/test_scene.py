@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cable_winch_monitor.messages.scene import DELETEALL, SLACK_COLOUR, SceneBuilder, SceneThrottle, tension_colour
-from cable_winch_monitor.model.solve import solve
+from cable_winch_monitor.model.solvers.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
 from cable_winch_monitor.monitor.clearance import solution_clearance
 from cable_winch_monitor.seed002 import TABLE_1

@@ -21,8 +21,8 @@ from simbags import encoder_tracking_plant
 
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.messages.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
-from cable_winch_monitor.model.plant import load_plant
-from cable_winch_monitor.model.result import solved
+from cable_winch_monitor.model.plantfile.plant import load_plant
+from cable_winch_monitor.model.statics.result import solved
 from cable_winch_monitor.monitor.alarm import AlarmLevel
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay

@@ -13,9 +13,9 @@ from batch_checks import assert_same, per_sample
 from lengths import random_lengths
 
 from cable_winch_monitor.bench.solvers import lowering_samples
-from cable_winch_monitor.model.batched_elastic import solve_batch_elastic
-from cable_winch_monitor.model.elastic import solve_elastic
-from cable_winch_monitor.model.result import SolveStatus
+from cable_winch_monitor.model.solvers.batched_elastic import solve_batch_elastic
+from cable_winch_monitor.model.solvers.elastic import solve_elastic
+from cable_winch_monitor.model.statics.result import SolveStatus
 
 EA = 7.5e7      # [N]
 WEIGHT = 60.0   # [N/m]

@@ -13,12 +13,11 @@ from root_truth import elastic_truth, weak_mode_samples, weak_mode_truth
 
 from cable_winch_monitor.bench.node_latency import lowering
 from cable_winch_monitor.bench.solvers import lowering_samples
-from cable_winch_monitor.model import estimation
-from cable_winch_monitor.model import observations as obs
-from cable_winch_monitor.model.elastic import solve_elastic
-from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.estimation import estimate, estimate_batch
-from cable_winch_monitor.model.result import SolveStatus, check_physics
+from cable_winch_monitor.model.estimator import estimate, estimate_batch, estimation
+from cable_winch_monitor.model.estimator import observations as obs
+from cable_winch_monitor.model.solvers.elastic import solve_elastic
+from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
 
 PIN, TILT, DEPTH, ENCODER = 150.0, np.radians(0.01), 5e-3, 1e-3
 

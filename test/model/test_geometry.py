@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.geometry import (
+from cable_winch_monitor.model.plantfile.plant import load_plant
+from cable_winch_monitor.model.statics.geometry import (
     quaternion_from_rotation,
     roll_pitch_of_quaternion,
     roll_pitch_yaw,
@@ -11,8 +12,7 @@ from cable_winch_monitor.model.geometry import (
     wrench_residual,
     wrench_residuals,
 )
-from cable_winch_monitor.model.plant import load_plant
-from cable_winch_monitor.model.result import solved, solved_rows
+from cable_winch_monitor.model.statics.result import solved, solved_rows
 from cable_winch_monitor.monitor.clearance import clearance_at_pose, clearances_at_poses
 
 RNG = np.random.default_rng(7)

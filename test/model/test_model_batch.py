@@ -22,7 +22,7 @@ from cable_winch_monitor.effects.body import CogOffset
 from cable_winch_monitor.effects.encoder import EncoderScale
 from cable_winch_monitor.effects.sheave import SheaveGeometry
 from cable_winch_monitor.model.conditions import Conditions
-from cable_winch_monitor.model.result import SolveStatus
+from cable_winch_monitor.model.statics.result import SolveStatus
 
 
 class SidePull(Effect):

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.elastic import solve_elastic
-from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.geometry import wrench_residual
-from cable_winch_monitor.model.result import SolveStatus
+from cable_winch_monitor.model.solvers.elastic import solve_elastic
+from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics.geometry import wrench_residual
+from cable_winch_monitor.model.statics.result import SolveStatus
 
 EA = 7.5e7  # [N] a 40 mm six-strand rope
 

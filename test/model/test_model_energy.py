@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.plant import plant_from_mapping
-from cable_winch_monitor.model.result import check_physics
+from cable_winch_monitor.model.plantfile.plant import plant_from_mapping
+from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics.result import check_physics
 
 
 def test_warm_start_follows_a_lowering(plant):

@@ -4,12 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.batched import solve_batch
-from cable_winch_monitor.model.elastic import solve_elastic
-from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.plant import load_plant
-from cable_winch_monitor.model.result import SolveStatus, check_physics
-from cable_winch_monitor.model.traversal import solve_traversal
+from cable_winch_monitor.model.paper.traversal import solve_traversal
+from cable_winch_monitor.model.plantfile.plant import load_plant
+from cable_winch_monitor.model.solvers.batched import solve_batch
+from cable_winch_monitor.model.solvers.elastic import solve_elastic
+from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
 
 PLANT = load_plant()
 LENGTHS = np.array([120.3, 120.1, 120.5, 120.2])

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from cable_winch_monitor import seed002
-from cable_winch_monitor.model.critical_lengths import critical_lengths, initial_pose, rotation_range
-from cable_winch_monitor.model.equal_lengths import level_pose, rectangle_tensions, tau4_interval, tau4_star
-from cable_winch_monitor.model.geometry import rotation_about_z, structure_matrix
-from cable_winch_monitor.model.planar import solve_planar
-from cable_winch_monitor.model.plant import plant_from_mapping
-from cable_winch_monitor.model.result import SolveStatus, check_physics
-from cable_winch_monitor.model.tensions import least_norm_tensions
-from cable_winch_monitor.model.traversal import EQUAL_LENGTH_TOL, solve_traversal
+from cable_winch_monitor.model.paper.critical_lengths import critical_lengths, initial_pose, rotation_range
+from cable_winch_monitor.model.paper.equal_lengths import level_pose, rectangle_tensions, tau4_interval, tau4_star
+from cable_winch_monitor.model.paper.planar import solve_planar
+from cable_winch_monitor.model.paper.traversal import EQUAL_LENGTH_TOL, solve_traversal
+from cable_winch_monitor.model.plantfile.plant import plant_from_mapping
+from cable_winch_monitor.model.statics.geometry import rotation_about_z, structure_matrix
+from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
+from cable_winch_monitor.model.statics.tensions import least_norm_tensions
 
 
 def rectangle_plant(k1: float = 0.25, k2: float = 0.2, h: float = 10.0):

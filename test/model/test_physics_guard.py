@@ -6,10 +6,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.batched import solve_batch
-from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.result import SolveStatus, check_physics, guarded_solve, physics_guard
-from cable_winch_monitor.model.traversal import solve_traversal
+from cable_winch_monitor.model.paper.traversal import solve_traversal
+from cable_winch_monitor.model.solvers.batched import solve_batch
+from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics.result import SolveStatus, check_physics, guarded_solve, physics_guard
 
 ABSURD = [[1e300, 20.1, 20.5, 20.2], [1e9, 1e9 + 0.2, 1e9 + 0.1, 1e9], [3000.5, 3000.0, 3000.2, 3000.1]]
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from cable_winch_monitor.model.plant import PlantConfigError, load_plant
+from cable_winch_monitor.model.plantfile.plant import PlantConfigError, load_plant
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.safe_yaml import MAX_DEPTH, YamlLimitError, parse_yaml
 

@@ -18,11 +18,11 @@ from bagdamage import check_replayed, locate, read_damaged, write_bag
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cable_winch_monitor.model.batched import solve_batch
-from cable_winch_monitor.model.energy import solve_energy
-from cable_winch_monitor.model.plant import CABLE_NAMES, load_plant
-from cable_winch_monitor.model.result import SolveStatus, check_physics
-from cable_winch_monitor.model.traversal import solve_traversal
+from cable_winch_monitor.model.paper.traversal import solve_traversal
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant
+from cable_winch_monitor.model.solvers.batched import solve_batch
+from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
 from cable_winch_monitor.monitor.inputs import CableLengthMerger, InputLimits, JointSample, StampWindow
 
 PLANT = load_plant()

@@ -7,7 +7,7 @@ import pytest
 from cable_winch_monitor.effects import PlantModel, available, effect_class
 from cable_winch_monitor.effects.pulley import wrap
 from cable_winch_monitor.model.conditions import Conditions
-from cable_winch_monitor.model.plant import PlantConfigError, Sheave, load_plant, plant_from_mapping
+from cable_winch_monitor.model.plantfile.plant import PlantConfigError, Sheave, load_plant, plant_from_mapping
 from cable_winch_monitor.paths import default_plant_file
 
 LAB_FILE = default_plant_file().parent / "lab_robot_plant.yaml"

@@ -7,8 +7,8 @@ import pytest
 
 from cable_winch_monitor import seed002
 from cable_winch_monitor.demo import table2_values
-from cable_winch_monitor.model.result import SolveStatus, check_physics
-from cable_winch_monitor.model.solve import METHODS, solve
+from cable_winch_monitor.model.solvers.solve import METHODS, solve
+from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
 
 
 @pytest.mark.parametrize("method", METHODS)

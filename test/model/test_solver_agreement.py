@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 from lengths import random_lengths
 
-from cable_winch_monitor.model.geometry import structure_matrix
-from cable_winch_monitor.model.result import SolveStatus, check_physics
-from cable_winch_monitor.model.solve import solve
+from cable_winch_monitor.model.solvers.solve import solve
+from cable_winch_monitor.model.statics.geometry import structure_matrix
+from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
 
 SAMPLES = 2000
 CONDITION_LIMIT = 1e-5  # smallest/largest singular value below which one direction is unresolved

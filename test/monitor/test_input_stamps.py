@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.plant import CABLE_NAMES
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.monitor.inputs import CableLengthMerger, InputLimits, JointSample, StampWindow
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.energy import solve_energy
+from cable_winch_monitor.model.solvers.energy import solve_energy
 from cable_winch_monitor.monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
 from cable_winch_monitor.monitor.clearance import clearance_at_pose, solution_clearance
 

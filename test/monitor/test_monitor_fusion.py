@@ -20,9 +20,9 @@ from scipy.special import chdtri
 
 from cable_winch_monitor import channels
 from cable_winch_monitor.messages import fields
-from cable_winch_monitor.model.gate import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
-from cable_winch_monitor.model.plant import CABLE_NAMES
-from cable_winch_monitor.model.result import check_physics
+from cable_winch_monitor.model.estimator import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
+from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 from cable_winch_monitor.monitor.sensors import sensors_used
 from cable_winch_monitor.replay import second_process, worker

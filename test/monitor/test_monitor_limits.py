@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cable_winch_monitor.effects import PlantModel
-from cable_winch_monitor.model.solve import solve
+from cable_winch_monitor.model.solvers.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmPolicy
 from cable_winch_monitor.monitor.clearance import solution_clearance
 from cable_winch_monitor.monitor.limits import BISECTION_TOL, synchronisation_limits

@@ -6,8 +6,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cable_winch_monitor.model.plant import CABLE_NAMES
-from cable_winch_monitor.model.solve import solve
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
+from cable_winch_monitor.model.solvers.solve import solve
 from cable_winch_monitor.monitor.inputs import JointSample, small_mean
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 

@@ -44,7 +44,7 @@ from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.bench.plants import SITE_EA
 from cable_winch_monitor.bench.safety import score
 from cable_winch_monitor.effects import PlantModel
-from cable_winch_monitor.model.plant import load_plant
+from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.replay import ReplaySummary, replay
 from cable_winch_monitor_msgs.srv import WritePlantFile
 

@@ -22,7 +22,7 @@ from ros_harness import (
     stamp_key,
 )
 
-from cable_winch_monitor.model.plant import CABLE_NAMES
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 
 pytestmark = pytest.mark.timeout(60)
 

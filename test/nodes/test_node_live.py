@@ -13,13 +13,13 @@ import yaml
 from ros_harness import PARAMS_FILE, ROOT, LiveNode, stamped
 
 from cable_winch_monitor.messages.fields import STATUS_NUMBERS
-from cable_winch_monitor.model.geometry import (
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
+from cable_winch_monitor.model.solvers.solve import solve
+from cable_winch_monitor.model.statics.geometry import (
     quaternion_from_rotation,
     roll_pitch_of_quaternion,
     rotation_from_vector,
 )
-from cable_winch_monitor.model.plant import CABLE_NAMES
-from cable_winch_monitor.model.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel, AlarmPolicy, AlarmTracker
 from cable_winch_monitor.monitor.clearance import solution_clearance
 from cable_winch_monitor.nodes.winch_monitor import NODE_NAME, PARAMETERS

@@ -11,7 +11,7 @@ from scene_checks import check_outline, check_scene, check_static_tf, check_tran
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from cable_winch_monitor.model.solve import solve
+from cable_winch_monitor.model.solvers.solve import solve
 from cable_winch_monitor.monitor.alarm import AlarmLevel
 from cable_winch_monitor.seed002 import TABLE_1
 

@@ -9,7 +9,7 @@ import pytest
 from cable_winch_monitor import channels
 from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.messages import fields
-from cable_winch_monitor.model.plant import CABLE_NAMES
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 from cable_winch_monitor.replay.stages import Encoded
 from cable_winch_monitor.replay.windows import WindowScheduler

@@ -8,7 +8,7 @@ from scipy.spatial import ConvexHull
 
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.effects.pulley import wrap
-from cable_winch_monitor.model.plant import Sheave, load_plant
+from cable_winch_monitor.model.plantfile.plant import Sheave, load_plant
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.equilibrium import Rig, Trajectory, imbalance
 from cable_winch_monitor.sim.pulleys import Pulleys, pulley_exits

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from simbags import assert_clean, messages, run_cli, simulated, truth
 
-from cable_winch_monitor.model.geometry import roll_pitch_of_quaternion
+from cable_winch_monitor.model.statics.geometry import roll_pitch_of_quaternion
 from cable_winch_monitor.paths import config_dir
 from cable_winch_monitor.sim.scenario import ScenarioError, load_scenario, scenario_path
 from cable_winch_monitor.sim.simulate import simulate

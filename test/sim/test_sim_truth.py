@@ -12,10 +12,10 @@ import yaml
 from lengths import random_lengths
 
 from cable_winch_monitor.effects import PlantModel, effect_class
-from cable_winch_monitor.model.elastic import solve_elastic
-from cable_winch_monitor.model.plant import load_plant
-from cable_winch_monitor.model.result import SolveStatus
-from cable_winch_monitor.model.solve import solve
+from cable_winch_monitor.model.plantfile.plant import load_plant
+from cable_winch_monitor.model.solvers.elastic import solve_elastic
+from cable_winch_monitor.model.solvers.solve import solve
+from cable_winch_monitor.model.statics.result import SolveStatus
 from cable_winch_monitor.sim.equilibrium import NoEquilibrium, Rig, Trajectory, equilibrium
 from cable_winch_monitor.sim.scenario import ScenarioError, load_scenario
 from cable_winch_monitor.sim.truth import Sample, TruthModel

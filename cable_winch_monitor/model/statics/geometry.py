@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .plant import Plant
+from ..plantfile.plant import Plant
 
 
 def skew(v: np.ndarray) -> np.ndarray:

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from .geometry import rotation_about_z, rotation_aligning
-from .plant import CABLE_NAMES, Plant
+from ..plantfile.plant import CABLE_NAMES, Plant
+from ..statics.geometry import rotation_about_z, rotation_aligning
 
 TWO_PI = 2.0 * np.pi
 Intervals = tuple[tuple[float, float], ...]

@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from ..paths import default_plant_file
-from ..safe_yaml import YamlLimitError, load_yaml_file
+from ...paths import default_plant_file
+from ...safe_yaml import YamlLimitError, load_yaml_file
+from .error_spec import ModelErrorConfigError, ModelErrorSpec
 from .plant_checks import degenerate_points
-from .prior import ModelErrorConfigError, ModelErrorSpec
 from .track import TrackConfigError, TrackSpec
 
 CABLE_NAMES = ("cable_1", "cable_2", "cable_3", "cable_4")

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import rotation_about_z, rotation_aligning
-from .plant import Plant
+from ..plantfile.plant import Plant
+from ..statics.geometry import rotation_about_z, rotation_aligning
 
 TWO_PI = 2.0 * np.pi
 SAMPLES = 720

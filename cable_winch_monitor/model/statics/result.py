@@ -8,8 +8,8 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
+from ..plantfile.plant import CABLE_NAMES, Plant
 from .geometry import quaternion_from_rotation, roll_pitch_yaw, wrench_residuals
-from .plant import CABLE_NAMES, Plant
 
 
 class SolveStatus(str, Enum):

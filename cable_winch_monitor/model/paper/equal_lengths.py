@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import structure_matrix
-from .plant import Plant
-from .result import Solution, solved
-from .tensions import least_norm_tensions
+from ..plantfile.plant import Plant
+from ..statics.geometry import structure_matrix
+from ..statics.result import Solution, solved
+from ..statics.tensions import least_norm_tensions
 
 PLUMB_TOL = 1e-9  # [m] attachments must repeat the anchors' layout for a level, plumb hang
 

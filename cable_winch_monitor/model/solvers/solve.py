@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..plantfile.plant import Plant
+from ..statics.result import Solution, SolveStatus, failed
 from .energy import solve_energy
-from .plant import Plant
-from .result import Solution, SolveStatus, failed
 
 METHODS = ("energy", "traversal")
 
@@ -20,7 +20,7 @@ def solve(plant: Plant, lengths: object, method: str = "energy", warm_start: Sol
     if method == "energy":
         return solve_energy(plant, lengths, warm_start=warm_start, load=load)
     if method == "traversal":
-        from .traversal import solve_traversal
+        from ..paper.traversal import solve_traversal
 
         return solve_traversal(plant, lengths, load=load)
     return failed(SolveStatus.INVALID_INPUT, f"unknown solver {method!r}; use one of {', '.join(METHODS)}", method,

@@ -31,8 +31,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..plantfile.error_spec import LENGTHS, PINS, SIZE, ModelErrorSpec
 from .fusion import Problem, Rows, prior_jacobian, reduced_normal
-from .prior import LENGTHS, PINS, SIZE, ModelErrorSpec, Prior
+from .prior import Prior
 
 MAX_STEP = 5.0  # [sigma of the prior] the largest move of the error at one update
 

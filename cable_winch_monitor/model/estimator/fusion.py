@@ -24,12 +24,12 @@ from functools import cached_property
 
 import numpy as np
 
-from . import load as loads
-from .geometry import cross, rotations_from_vectors, skew
+from ..plantfile.plant import CABLE_NAMES, Plant
+from ..solvers.ropes import Ropes
+from ..statics import load as loads
+from ..statics.geometry import cross, rotations_from_vectors, skew
 from .observations import Observation, States
-from .plant import CABLE_NAMES, Plant
 from .prior import Prior, whitening
-from .ropes import Ropes
 
 MAX_STEPS = 12
 EPS = 1e-6                # Levenberg term (residuals are in sigma, dz in m, rad, m g)

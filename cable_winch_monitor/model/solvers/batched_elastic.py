@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..plantfile.plant import Plant
+from ..statics.geometry import rotations_from_vectors, skew
+from ..statics.result import Solution, SolveStatus
 from .batched import BatchSolution, _geometry, empty_batch, solve_chunks
 from .elastic import MAX_STEPS, METHOD, ROUNDING_TOL, TOL, solve_elastic
-from .geometry import rotations_from_vectors, skew
-from .plant import Plant
-from .result import Solution, SolveStatus
 
 STRIDE = 16       # rows solved from the chunk's seed first; each other row starts from the one before it
 STEP_TURN = 0.05  # [rad] largest rotation of one Newton step (and 0.05 moment scales of travel), as elastic._newton

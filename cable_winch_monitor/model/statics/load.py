@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .plant import Plant
+from ..plantfile.plant import Plant
 
 VERTICAL_TOL = 1e-12  # relative horizontal force or moment below which a load counts as a plain vertical pull
 

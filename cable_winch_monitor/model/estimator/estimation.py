@@ -31,16 +31,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .batched import BatchSolution, solve_batch
-from .batched_elastic import solve_batch_elastic
-from .elastic import solve_elastic
-from .energy import TENSION_TOL, solve_energy
+from ..plantfile.plant import Plant
+from ..solvers.batched import BatchSolution, solve_batch
+from ..solvers.batched_elastic import solve_batch_elastic
+from ..solvers.elastic import solve_elastic
+from ..solvers.energy import TENSION_TOL, solve_energy
+from ..solvers.ropes import Ropes
+from ..statics.result import Solution, SolveStatus, failed, solved_rows, validate_lengths
 from .fusion import Problem, Rows, implied_lengths, residuals, solve_rows
 from .observations import Observation
-from .plant import Plant
 from .prior import Prior
-from .result import Solution, SolveStatus, failed, solved_rows, validate_lengths
-from .ropes import Ropes
 
 METHOD = "estimate"
 SEARCH_SIGMA = 3.0        # a residual beyond this many sigma makes the taut set doubtful

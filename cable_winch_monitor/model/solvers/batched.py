@@ -19,7 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from . import load as loads_
+from ..plantfile.plant import Plant
+from ..statics import load as loads_
+from ..statics.geometry import rotations_from_vectors, skew
+from ..statics.result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
 from .energy import (
     ACTIVE_SET_ROUNDS,
     MAX_TURN,
@@ -30,9 +33,6 @@ from .energy import (
     TENSION_TOL,
     solve_energy,
 )
-from .geometry import rotations_from_vectors, skew
-from .plant import Plant
-from .result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
 
 CHUNK = 1024              # samples solved together from one warm start
 

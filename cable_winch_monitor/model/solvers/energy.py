@@ -21,13 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import load as loads
-from .equal_lengths import level_pose
-from .geometry import cross, rotation_from_vector, skew, structure_matrix
-from .plant import Plant
-from .plumb_hang import PlumbHang, lowest_hang_cable
-from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
-from .tensions import balance_tensions
+from ..paper.equal_lengths import level_pose
+from ..paper.plumb_hang import PlumbHang, lowest_hang_cable
+from ..plantfile.plant import Plant
+from ..statics import load as loads
+from ..statics.geometry import cross, rotation_from_vector, skew, structure_matrix
+from ..statics.result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
+from ..statics.tensions import balance_tensions
 
 METHOD = "energy"
 NEWTON_MAX_STEPS = 15

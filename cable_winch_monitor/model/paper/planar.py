@@ -14,9 +14,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..plantfile.plant import Plant
+from ..statics.geometry import structure_matrix
 from .equal_lengths import even_tensions, level_pose
-from .geometry import structure_matrix
-from .plant import Plant
 
 
 class PlanarResult(NamedTuple):

@@ -33,13 +33,13 @@ from typing import Any
 
 import numpy as np
 
-from . import load as loads
+from ..plantfile.plant import Plant
+from ..statics import load as loads
+from ..statics.geometry import cross, fit_rotation, skew, wrench_residual
+from ..statics.result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
 from .critical_lengths import describe, rotation_range
 from .equal_lengths import even_tensions, level_pose, solve_equal_lengths
-from .geometry import cross, fit_rotation, skew, wrench_residual
 from .planar import solve_planar
-from .plant import Plant
-from .result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
 
 EQUAL_LENGTH_TOL = 1e-9  # [m] lengths (or adjacent pairs) this close count as equal
 LENGTH_TOL = 1e-13  # distance residual or overstretch allowed, relative to max(l_i, |CB_i|): rounding level

@@ -17,9 +17,9 @@ from functools import cached_property
 
 import numpy as np
 
-from .geometry import rotations_from_vectors
-from .plant import CABLE_NAMES, Plant
-from .result import Solution, solved_rows
+from ..plantfile.plant import CABLE_NAMES, Plant
+from ..statics.geometry import rotations_from_vectors
+from ..statics.result import Solution, solved_rows
 
 STATE_SIZE = 10          # position (3), rotation vector (3), tensions (4)
 FD_STEPS = np.array([1e-6] * 3 + [1e-8] * 3 + [1e-3] * 4)  # finite-difference steps [m, rad, N]

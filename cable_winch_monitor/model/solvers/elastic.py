@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import load as loads
+from ..plantfile.plant import Plant
+from ..statics import load as loads
+from ..statics.geometry import cross, rotation_from_vector, skew
+from ..statics.result import Solution, SolveStatus, failed, guarded_solve, solved
 from .energy import solve_energy
-from .geometry import cross, rotation_from_vector, skew
-from .plant import Plant
-from .result import Solution, SolveStatus, failed, guarded_solve, solved
 
 METHOD = "elastic"
 MAX_STEPS = 50
