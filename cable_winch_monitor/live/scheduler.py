@@ -88,8 +88,8 @@ class LiveScheduler:
                 if generation != self.generation:
                     return []
                 outputs = []
-                for sample, at, ahead in zip(samples, conditions, solved):
-                    output, outcome = monitor.judge(sample, ahead, at)
+                for sample, at, done in zip(samples, conditions, solved):
+                    output, outcome = monitor.judge(sample, done, at)
                     monitor.note(outcome)
                     outputs.append(output)
                 return outputs

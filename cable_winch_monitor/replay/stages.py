@@ -48,8 +48,8 @@ class WindowStages:
         monitor = self.monitor
         solved = monitor.solve_samples(samples, conditions) if batched else [None] * len(samples)
         out = []
-        for sample, at, header, ahead in zip(samples, conditions, headers, solved):
-            output, outcome = monitor.judge(sample, ahead, at)
+        for sample, at, header, done in zip(samples, conditions, headers, solved):
+            output, outcome = monitor.judge(sample, done, at)
             encoded = records.output_records(header, output)
             if self.throttle.due(output.stamp):
                 encoded += records.scene_records(header, self.builder, output.solution, output.alarm)

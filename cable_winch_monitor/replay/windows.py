@@ -120,31 +120,31 @@ class WindowScheduler:
         A stop signal (stopping.py) breaks it off only while a window is merged or its samples are awaited,
         never between the messages of a window taken; the counts of the messages read or merged but not
         taken are then taken back (`not_taken`: the reader's)."""
-        ahead = SecondProcess(self.stages) if self.second_process else None
-        depth = MERGED_AHEAD if ahead is not None else 0
+        second = SecondProcess(self.stages) if self.second_process else None
+        depth = MERGED_AHEAD if second is not None else 0
         prepared: deque[Prepared] = deque()
         window: list[Any] = []
         try:
             for item in items:
                 window.append(item)
                 if len(window) == self.window:
-                    prepared.append(self._prepare(window, ahead))
+                    prepared.append(self._prepare(window, second))
                     window = []
                     if len(prepared) > depth:
-                        yield from self._take(prepared[0], ahead)
+                        yield from self._take(prepared[0], second)
                         prepared.popleft()
-            prepared.append(self._prepare(window, ahead))
+            prepared.append(self._prepare(window, second))
             window = []
             while prepared:
-                yield from self._take(prepared[0], ahead)
+                yield from self._take(prepared[0], second)
                 prepared.popleft()
         except KeyboardInterrupt:
             self._take_back(prepared, window)
             raise
         finally:
-            if ahead is not None:
-                ahead.close()
-                self.worker_lost = ahead.lost
+            if second is not None:
+                second.close()
+                self.worker_lost = second.lost
 
     def _take_back(self, prepared: Iterable[Prepared], unmerged: list[Any]) -> None:
         """After a stop: what merging counted of the messages not taken (never written) taken back from the
@@ -159,7 +159,7 @@ class WindowScheduler:
         self.not_taken = Counter(item.topic for p in prepared for item in p.window)
         self.not_taken.update(item.topic for item in unmerged)
 
-    def _prepare(self, window: list[Any], ahead: SecondProcess | None) -> Prepared:
+    def _prepare(self, window: list[Any], second: SecondProcess | None) -> Prepared:
         """Step 1 for a window: extra inputs taken in first (a sample's is interpolated between the readings
         around it), every message merged; its complete samples handed to the stages."""
         with interruptible():
@@ -175,8 +175,8 @@ class WindowScheduler:
             samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
             job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
                    self.batched)
-            if ahead is not None:
-                ahead.submit(*job)
+            if second is not None:
+                second.submit(*job)
             else:
                 self._encoded = self.stages.run(*job)
             counted, self._merging = _since(self._merging, self.monitor.stats), None
@@ -184,7 +184,7 @@ class WindowScheduler:
 
     def _inputs_due(self, item: Any) -> tuple[float, Any] | None:
         """The arrival of a winch message's cables, and where /diagnostics are due at this message, the
-        inputs' status as merging has left them (it runs windows ahead of the rest)."""
+        inputs' status as merging has left them (it runs windows second of the rest)."""
         now = item.log_time * 1e-9
         if item.msgtype == fields.JOINT_STATE:
             names = list(getattr(item.message, "name", []))
@@ -194,10 +194,10 @@ class WindowScheduler:
         self.diagnostics_due = now + DIAGNOSTICS_PERIOD
         return now, winch_view(self.monitor, self.reporter.rates(now))
 
-    def _take(self, prepared: Prepared, ahead: SecondProcess | None) -> Iterator[tuple[Any, Result, list[Record]]]:
+    def _take(self, prepared: Prepared, second: SecondProcess | None) -> Iterator[tuple[Any, Result, list[Record]]]:
         """The window's messages in log order with what became of them, and the diagnostics due there."""
         with interruptible():
-            encoded = iter(ahead.take() if ahead is not None else self._encoded)
+            encoded = iter(second.take() if second is not None else self._encoded)
         for item, outcome, due in zip(prepared.window, prepared.merged, prepared.inputs):
             try:
                 result = self._result(item, outcome, encoded)

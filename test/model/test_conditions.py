@@ -1,0 +1,36 @@
+"""The live conditions, one sample at a time (ConditionsTracker), are the stacked ones of the same samples
+(`derivatives` over causal windows, `directions`): the per-sample twin is kept for speed (four winches a
+sample; numpy's calls on a window of ten samples cost more than the sums) and held to the stacked form here."""
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cable_winch_monitor.model.conditions import ConditionsTracker, derivatives, directions
+
+
+def winch_series(seed: int, count: int, silent: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stamps (jittered 10 Hz), lengths and reported speeds (n, 4) of a lowering that stops and hauls back in;
+    winch `silent` reports no speed (its lengths' slope stands in)."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.08, 0.12, count))
+    speed = np.where(t < t[count // 3], 0.5, np.where(t < t[count // 2], 0.0, -0.3))[:, None] + \
+        rng.normal(0.0, 0.002, (count, 4))
+    lengths = 100.0 + np.cumsum(speed * np.gradient(t)[:, None], axis=0) + rng.normal(0.0, 0.001, (count, 4))
+    speeds = speed.copy()
+    if silent is not None:
+        speeds[:, silent] = np.nan
+    return t, lengths, speeds
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), count=st.integers(3, 120), silent=st.sampled_from([None, 0, 3]))
+def test_live_conditions_are_the_stacked_ones(seed, count, silent):
+    t, lengths, speeds = winch_series(seed, count, silent)
+    tracker = ConditionsTracker()
+    live = [tracker.update(float(at), row, rate) for at, row, rate in zip(t, lengths, speeds)]
+    stacked_speeds, stacked_accelerations = derivatives(t, lengths, speeds, centred=False)
+    np.testing.assert_allclose([c.speeds for c in live], stacked_speeds, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose([c.accelerations for c in live], stacked_accelerations, rtol=1e-7, atol=1e-9)
+    np.testing.assert_array_equal([c.direction for c in live], directions(stacked_speeds))
