@@ -19,7 +19,7 @@ from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..bagio.reader import BagMessage, BagReader, ReadReport
+from ..bagio.reader import BagReader, ReadReport
 from ..bagio.writer import new_bag
 from ..effects import PlantModel
 from ..messages import fields, records
@@ -35,7 +35,7 @@ from ..monitor.residuals import Residuals
 from ..progress import Progress
 from ..stopping import Stopped, stop_signals
 from .stages import Encoded
-from .windows import WindowScheduler
+from .windows import Failed, WindowScheduler
 
 INVALID = "invalid input"  # the tension state of a sample whose input could not be used
 
@@ -135,7 +135,7 @@ class ReplaySummary:
         return "\n".join(lines)
 
 
-def _records(item: BagMessage, stamp: fields.Stamp, result: Encoded | Residuals | None) -> list[records.Record]:
+def _records(stamp: fields.Stamp, result: Encoded | Residuals | None) -> list[records.Record]:
     """What the node publishes for one input message (header `stamp`) and what became of it."""
     if isinstance(result, Encoded):
         return result.records
@@ -199,18 +199,16 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                         writer.write_raw(topic, msgtype, item.log_time, data, latched=True)
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
                 try:
-                    if isinstance(result, Exception):
-                        raise result
-                    stamp = fields.message_stamp(item.message, item.log_time)
-                    outputs = _records(item, stamp, result)
-                    if isinstance(result, Encoded) and result.outcome.status is not SolveStatus.SOLVED:
-                        summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
-                except Exception as error:
-                    summary.errors[f"{item.topic}: {type(error).__name__}: {error}"] += 1
-                    continue
-                log_time = fields.stamp_ns(stamp)
-                for topic, msgtype, data in outputs:
-                    writer.write_raw(topic, msgtype, log_time, data)
+                    if isinstance(result, Failed):
+                        summary.errors[f"{item.topic}: {result.why}"] += 1
+                    else:
+                        stamp = fields.message_stamp(item.message, item.log_time)
+                        for topic, msgtype, data in _records(stamp, result):
+                            writer.write_raw(topic, msgtype, fields.stamp_ns(stamp), data)
+                        if isinstance(result, Encoded) and result.outcome.status is not SolveStatus.SOLVED:
+                            summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
+                except Exception as error:  # a message whose stamp cannot be read
+                    summary.errors[f"{item.topic}: {Failed.of(error).why}"] += 1
                 for topic, msgtype, data in diagnostics:
                     writer.write_raw(topic, msgtype, item.log_time, data)
                 bar.update(count)

@@ -20,7 +20,8 @@ make the geometry depend on the pose, or with another solver, each sample is sol
 step 3 instead, as the node solves it.
 
 Each message comes out with its result: the encoded sample (`Encoded`), residuals, None,
-or the exception the monitor raised on it (counted like the node's callback errors). The
+or why the monitor could not take it (`Failed`: what it raised, counted like the node's
+callback errors). The
 scheduler holds the monitor and decides when and where its stages run (steps 2 and 3 in a
 second process where there is one: second_process.py); what they do is the monitor's.
 """
@@ -50,7 +51,18 @@ MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a secon
 DIAGNOSTICS_PERIOD = 1.0  # [s] of log time between /diagnostics, as the node's default
 COUNTED = ("messages", "used", "rejected", "ignored_names")  # the stats merging counts, ahead of the messages taken
 
-Result = Encoded | Residuals | Exception | None
+
+class Failed(NamedTuple):
+    """A message the monitor could not take: what it raised, as "Type: message"."""
+
+    why: str
+
+    @classmethod
+    def of(cls, error: Exception) -> Failed:
+        return cls(f"{type(error).__name__}: {error}")
+
+
+Result = Encoded | Residuals | Failed | None
 
 
 class Merged(NamedTuple):
@@ -109,7 +121,7 @@ class WindowScheduler:
     def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
         """Every item in order, with what became of it: a winch message that made a complete sample with its
         `Encoded`, a sensor message with its residuals (or None), a message the monitor could not
-        take with the exception it raised (counted as the node counts its callback errors)."""
+        take with why (`Failed`: counted as the node counts its callback errors)."""
         for item, result, _ in self.run_diagnosed(items):
             yield item, result
 
@@ -202,7 +214,7 @@ class WindowScheduler:
             try:
                 result = self._result(item, outcome, encoded)
             except Exception as error:
-                result = error
+                result = Failed.of(error)
             residuals = result.outcome.residuals if isinstance(result, Encoded) else result
             if isinstance(residuals, Residuals):
                 self.reporter.note_residuals(residuals)
@@ -213,7 +225,7 @@ class WindowScheduler:
         values = self.reporter.build(self.monitor, now, divmod(item.log_time, 1_000_000_000), last=last, winch=winch)
         return diagnostics_record(values)
 
-    def _merge_item(self, item: Any) -> Merged | dict[str, float] | Exception | None:
+    def _merge_item(self, item: Any) -> Merged | dict[str, float] | Failed | None:
         """Step 1 for one message: a winch message merged (its complete sample, if it makes one), a
         sensor's readings kept for the samples to come (and returned, for its residuals)."""
         if item.msgtype != fields.JOINT_STATE:
@@ -229,15 +241,15 @@ class WindowScheduler:
         try:
             sample = self.monitor.merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival
         except Exception as error:
-            return error
+            return Failed.of(error)
         return None if sample is None else Merged(sample, self.monitor.conditions(sample), fields.stamp_of(item.message))
 
-    def _result(self, item: Any, outcome: Merged | dict[str, float] | Exception | None,
+    def _result(self, item: Any, outcome: Merged | dict[str, float] | Failed | None,
                 encoded: Iterator[Encoded]) -> Result:
         msg = item.message
         if item.msgtype == fields.JOINT_STATE:
-            if isinstance(outcome, Exception):
-                raise outcome
+            if isinstance(outcome, Failed):
+                return outcome
             if outcome is None:
                 return None
             done = next(encoded)
