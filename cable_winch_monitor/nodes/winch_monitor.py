@@ -65,10 +65,6 @@ LATCHED_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=History
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_THROTTLE = 5.0  # [s] between log lines about rejected input
 WORKER_POLL = 0.1  # [s] the solving worker checks this often whether the node is shutting down
-# [s] how long the solving worker may hold the interpreter while a message waits: Python's 5 ms default let a
-# callback that takes and releases it several times wait tens of milliseconds behind a busy worker, so that a
-# sensor's reading sent before a winch message was merged after it.
-SWITCH_INTERVAL = 5e-4
 # The publishers go without rclpy's default QoS-event handlers (a warning logged here on an incompatible
 # subscriber, which warns on its own side too): each publisher's two are waitables the executor polls at
 # every wake, and the twenty cost the node 0.6-0.9 ms of its publish-to-pose latency. The subscriptions
@@ -333,7 +329,6 @@ class WinchMonitorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point `winch_monitor`: ROS arguments (--ros-args -p ..., --params-file) are honoured."""
-    sys.setswitchinterval(SWITCH_INTERVAL)
     rclpy.init(args=args)
     try:
         node = WinchMonitorNode()
