@@ -164,6 +164,8 @@ BUILTIN = (
               predict_states=_position_states(k))
       for k, (name, axis) in enumerate(zip(("x", "y", "depth"), "xyz"))),
 )
+
+
 class ChannelRegistry:
     """The channels known: the built-ins, then those declared (a user's sensors), with what is asked of them at
     every sample worked out once per declaration."""

@@ -30,6 +30,8 @@ USER_MODULES = "cable_winch_monitor_user_effects."  # the package user modules a
 BUILTINS: tuple[type[Effect], ...] = (RopeElasticity, RopeWeight, EncoderScale, EncoderOffset, SheaveFriction,
                                       CogOffset, PayloadMass, SheaveGeometry, TensionSensorBending, InclinometerOffset,
                                       LoadPinCalibration, PulleyGeometry)
+
+
 class EffectRegistry:
     """The effect classes known, by name: the built-ins from the start, then those of the installed packages'
     entry points (read only when a name is not known otherwise, or for a listing: reading every installed

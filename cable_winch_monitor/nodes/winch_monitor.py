@@ -2,9 +2,9 @@
 diagnostics out.
 
 A thin adapter around the monitor (held by the live scheduler): every callback converts a message and hands
-it to the monitor; winch messages are merged in the callback and the newest complete
-sample is solved by a worker thread (live.scheduler), so that a burst never queues stale
-work. Outputs are stamped with the input's own stamp. Callbacks never raise: bad input
+it to the monitor; winch messages are merged in the callback and the complete samples waiting
+are solved together, in order, by a worker thread (live.scheduler), so that a burst never
+queues more than the backlog. Outputs are stamped with the input's own stamp. Callbacks never raise: bad input
 is counted (diagnostics), logged with a throttle and skipped.
 """
 from __future__ import annotations

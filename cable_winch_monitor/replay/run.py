@@ -198,17 +198,21 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                     for topic, msgtype, data in records.static_records(first, scheduler.stages.builder):
                         writer.write_raw(topic, msgtype, item.log_time, data, latched=True)
                 writer.write_raw(item.topic, item.msgtype, item.log_time, item.data)
-                try:
-                    if isinstance(result, Failed):
-                        summary.errors[f"{item.topic}: {result.why}"] += 1
-                    else:
+                outputs: list[records.Record] = []  # the message's outputs, stamped `log_time`
+                log_time = item.log_time
+                if isinstance(result, Failed):
+                    summary.errors[f"{item.topic}: {result.why}"] += 1
+                else:
+                    try:  # a message whose stamp cannot be read, or whose outputs cannot be encoded
                         stamp = fields.message_stamp(item.message, item.log_time)
-                        for topic, msgtype, data in _records(stamp, result):
-                            writer.write_raw(topic, msgtype, fields.stamp_ns(stamp), data)
+                        outputs, log_time = _records(stamp, result), fields.stamp_ns(stamp)
+                    except Exception as error:
+                        summary.errors[f"{item.topic}: {Failed.of(error).why}"] += 1
+                    else:
                         if isinstance(result, Encoded) and result.outcome.status is not SolveStatus.SOLVED:
                             summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
-                except Exception as error:  # a message whose stamp cannot be read
-                    summary.errors[f"{item.topic}: {Failed.of(error).why}"] += 1
+                for topic, msgtype, data in outputs:
+                    writer.write_raw(topic, msgtype, log_time, data)
                 for topic, msgtype, data in diagnostics:
                     writer.write_raw(topic, msgtype, item.log_time, data)
                 bar.update(count)

@@ -21,9 +21,9 @@ step 3 instead, as the node solves it.
 
 Each message comes out with its result: the encoded sample (`Encoded`), residuals, None,
 or why the monitor could not take it (`Failed`: what it raised, counted like the node's
-callback errors). The
-scheduler holds the monitor and decides when and where its stages run (steps 2 and 3 in a
-second process where there is one: second_process.py); what they do is the monitor's.
+callback errors). The scheduler holds the monitor and decides when and where its stages
+run (steps 2 and 3 in a second process where there is one: second_process.py); what they
+do is the monitor's.
 """
 from __future__ import annotations
 
