@@ -10,24 +10,33 @@ sample more than `backlog` seconds (of stamps) older than the newest is dropped 
 and counted as skipped: the work waiting never outgrows the backlog, and the outputs are
 never more than that behind the winches.
 
+DDS delivers each topic in order, but not the topics in the order they were sent: under load a
+winch message can overtake an inclinometer reading stamped before it. A complete sample with a
+reading due at it is held until the reading comes, `wait` seconds at most (monitor.waiting), so that
+the node fuses what a replay fuses, and its state stays the replay's.
+
 It holds a monitor (`monitor`) and decides when its stages run; what they do is the
 monitor's.
 """
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
+from typing import Any
 
 from ..model.plantfile.plant import Plant
 from ..monitor.inputs import JointSample, StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
+from ..monitor.residuals import Residuals
+from ..monitor.waiting import READING_WAIT, ReadingWait
 
 BACKLOG = 0.3  # [s] of sample stamps the worker may be behind the newest sample before the oldest are skipped
 
 
 class LiveScheduler:
-    """A monitor fed by a callback thread (`offer`, and the monitor's `on_measurement`, `on_input` under
+    """A monitor fed by a callback thread (`offer`, `on_measurement`, and the monitor's `on_input` under
     `lock`) and solved by a worker (`take`, `solve_all`).
 
     `lock` guards every piece of state, the monitor's included; hold it to read the counters from a third
@@ -35,13 +44,15 @@ class LiveScheduler:
     """
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
-                 stamp_window: StampWindow | None = None, backlog: float = BACKLOG):
+                 stamp_window: StampWindow | None = None, backlog: float = BACKLOG, wait: float = READING_WAIT,
+                 clock: Callable[[], float] = time.monotonic):
         # the model error's updates are worked out beside the samples (`background`), in a thread of their own
         self.monitor = MonitorPipeline(plant, solver, staleness, stamp_window, background=True)
-        self.backlog = backlog
+        self.backlog, self.clock = backlog, clock
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
-        self._pending: deque[tuple[Hashable, CompleteSample]] = deque()
+        self._held = ReadingWait(self.monitor, wait)  # waiting for a reading due at them
+        self._pending: deque[tuple[Hashable, CompleteSample]] = deque()  # with their readings, for the worker
         self._solving = 0  # samples taken by the worker and not yet noted: still waiting for their outputs
         self.unseen = 0  # winch messages the transport dropped before they were offered (as far as known)
         self.complete = 0  # complete samples merged
@@ -49,25 +60,42 @@ class LiveScheduler:
         self.generation = 0  # restarts so far
 
     def offer(self, sample: JointSample, tag: Hashable = None) -> bool:
-        """Merge a winch message; True if it made a complete sample (kept with `tag` for the worker)."""
+        """Merge a winch message; True if it made a complete sample (kept with `tag` for the worker, held
+        while a sensor reading due at it has not come)."""
         with self.lock:
-            complete = self.monitor.merge(sample)
+            complete = self.monitor.merge_winch(sample)
             if complete is None:
                 return False
             self.complete += 1
-            self._pending.append((tag, complete))
-            while self._pending[0][1].stamp < complete.stamp - self.backlog:
+            self._hand_over(self._held.add(tag, complete, self.clock()))
+            while self._pending and self._pending[0][1].stamp < complete.stamp - self.backlog:
                 self._pending.popleft()
                 self.skipped += 1
-            self._ready.notify()
             return True
+
+    def on_measurement(self, topic: str, stamp: float, message: Any) -> Residuals | None:
+        """A sensor message, kept by the monitor (its residuals, as `MonitorPipeline.on_measurement`); the
+        samples held for it go on."""
+        with self.lock:
+            residuals = self.monitor.on_measurement(topic, stamp, message)
+            self._hand_over(self._held.release(self.clock()))
+            return residuals
+
+    def _hand_over(self, released: list[tuple[Hashable, CompleteSample]]) -> None:
+        """Samples released with their readings, for the worker."""
+        if released:
+            self._pending.extend(released)
+            self._ready.notify()
 
     def take(self, timeout: float) -> list[tuple[Hashable, CompleteSample]]:
         """Every complete sample waiting, oldest first, with its tag; waits up to `timeout` [s] for one
         (empty: none came)."""
         with self.lock:
+            self._hand_over(self._held.release(self.clock()))
             if not self._pending:
-                self._ready.wait(timeout)
+                deadline = self._held.deadline()  # the oldest waits for a reading: until it comes, or its wait is over
+                self._ready.wait(timeout if deadline is None else min(timeout, max(deadline - self.clock(), 0.0)))
+                self._hand_over(self._held.release(self.clock()))
             taken = list(self._pending)
             self._pending.clear()
             self._solving = len(taken)
@@ -101,7 +129,8 @@ class LiveScheduler:
         """The node's own counts, for /diagnostics."""
         return {"complete samples": self.complete, "skipped (behind by more than the backlog)": self.skipped,
                 "winch messages": self.monitor.stats.winch, "winch messages lost before the node": self.unseen,
-                "waiting": self.waiting + self._solving}  # neither solved nor skipped yet: queued or being solved
+                "waiting": self.waiting + self._solving,  # neither solved nor skipped yet: queued or being solved
+                "held for a sensor reading": self._held.held, "of those, released without it": self._held.unheld}
 
     def restart(self) -> None:
         """Forget every stamp, keep the counts: the clock went back (a bag played again), so each reading kept,
@@ -112,11 +141,12 @@ class LiveScheduler:
             old = self.monitor
             self.monitor = MonitorPipeline(old.plant, old.solver, old.staleness, old.merger.window, background=True)
             self.monitor.stats = old.stats
-            self.skipped += len(self._pending) + self._solving  # dropped unsolved: from the future that went
+            self.skipped += self._held.clear() + len(self._pending) + self._solving  # dropped unsolved: from the future that went
             self._pending.clear()
+            self._held.monitor = self.monitor
             self.generation += 1
 
     @property
     def waiting(self) -> int:
         """Complete samples merged and not yet taken by the worker."""
-        return len(self._pending)
+        return len(self._held) + len(self._pending)

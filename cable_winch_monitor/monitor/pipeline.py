@@ -190,6 +190,11 @@ class MonitorStats:
                 entry[2], entry[3] = stamp, why
 
 
+def stuck_at(value: float, since: float) -> str:
+    """Why a sensor stuck at a constant is left out."""
+    return f"stuck at {value:.6g} since {since:.3f} s"
+
+
 class MonitorPipeline:
     """Merges inputs, estimates (or solves) each complete sample, and derives alarm and residuals."""
 
@@ -226,7 +231,15 @@ class MonitorPipeline:
         return None if complete is None else self.solve(complete)
 
     def merge(self, sample: JointSample) -> CompleteSample | None:
-        """Merge a winch message; the complete sample it makes, if it makes one."""
+        """Merge a winch message; the complete sample it makes, if it makes one, with what the sensors read
+        then (the readings in so far: a replay's, in log order)."""
+        complete = self.merge_winch(sample)
+        return None if complete is None else self.read_sensors(complete)
+
+    def merge_winch(self, sample: JointSample) -> CompleteSample | None:
+        """Merge a winch message; the complete sample it makes, if it makes one, with its own load pins (but
+        a stuck one) and the pins' faults. The other sensors' readings are `read_sensors`' to add: the live
+        node first waits for those due at the sample."""
         self.stats.messages[sample.topic] += 1
         self.stats.winch += 1
         self.stats.winch_topics.add(sample.topic)
@@ -255,28 +268,41 @@ class MonitorPipeline:
         complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in cables], speeds)
         if not self.fusing:
             return complete
-        sensors, taken = self.measured(complete)
-        return complete._replace(sensors=sensors, taken=taken, faults=self._missing(complete.stamp, sensors))
-
-    def measured(self, sample: CompleteSample) -> tuple[dict[str, float], dict[str, float]]:
-        """What the sensors read at a complete sample and when: its load pins (but a stuck one) and the
-        latest other readings within the staleness limit."""
-        values, taken = self.readings.at(sample.stamp, small_mean(sample.lengths.tolist()), self.payouts.at)
-        for name, value in zip(channels.TENSION_CHANNELS, sample.tensions):
+        pins, taken = {}, {}
+        for name, value in zip(channels.TENSION_CHANNELS, complete.tensions):
             if math.isfinite(value):
                 self.heard[name] = sample.stamp
                 if not self.pins.is_stuck(name):
-                    values[name], taken[name] = value, sample.stamp
-        return values, taken
+                    pins[name], taken[name] = value, sample.stamp
+        return complete._replace(sensors=pins, taken=taken,
+                                 faults=self._missing(sample.stamp, pins, self.pins.stuck(), self.heard, {}))
 
-    def _missing(self, stamp: float, measured: Mapping[str, float]) -> dict[str, str]:
-        """The sensors heard before whose readings are not at a sample stamped `stamp`: stuck at a constant,
-        or silent (no reading for SILENT staleness limits: one reading late is not a fault), with why."""
-        out = {sensor_of(name): f"stuck at {value:.6g} since {since:.3f} s" for name, (value, since) in self.stuck().items()}
-        heard = {**self.heard, **self.readings.latest()}
+    def read_sensors(self, sample: CompleteSample) -> CompleteSample:
+        """A complete sample from `merge_winch` with the latest other readings stamped at or before it, within
+        the staleness limit, and their sensors' faults."""
+        if not self.fusing:
+            return sample
+        stamp = sample.stamp
+        values, taken = self.readings.at(stamp, small_mean(sample.lengths.tolist()), self.payouts.at)
+        stuck = self.readings.stuck.stuck(stamp)
+        faults = {sensor_of(name): stuck_at(value, since) for name, (value, since) in stuck.items()}
+        faults.update(sample.faults)
+        faults.update(self._missing(stamp, values, {}, self.readings.latest(stamp), skip=faults))
+        return sample._replace(sensors={**values, **sample.sensors}, taken={**taken, **sample.taken}, faults=faults)
+
+    def waits_for_readings(self, stamp: float) -> bool:
+        """Whether a reading due at a sample stamped `stamp` has not come in yet (`LatestReadings.due`)."""
+        return self.fusing and self.readings.due(stamp)
+
+    def _missing(self, stamp: float, measured: Mapping[str, float], stuck: Mapping[str, tuple[float, float]],
+                 heard: Mapping[str, float], skip: Mapping[str, str]) -> dict[str, str]:
+        """The sensors heard before (`heard`: channel -> its latest stamp) whose readings are not at a sample
+        stamped `stamp`: `stuck` at a constant, or silent (no reading for SILENT staleness limits: one reading
+        late is not a fault), with why; those in `skip` are faulty already."""
+        out = {sensor_of(name): stuck_at(value, since) for name, (value, since) in stuck.items()}
         for name, when in heard.items():
             sensor = sensor_of(name)
-            if name not in measured and sensor not in out and stamp - when > SILENT * self.staleness:
+            if name not in measured and sensor not in out and sensor not in skip and stamp - when > SILENT * self.staleness:
                 out[sensor] = f"silent for {stamp - when:.1f} s"
         return out
 
@@ -285,10 +311,6 @@ class MonitorPipeline:
         as exact, only the residuals read them)."""
         if self.fusing:
             self.readings.add(stamp, values)
-
-    def stuck(self) -> dict[str, tuple[float, float]]:
-        """The channels stuck at a constant now: the value and since when [s]."""
-        return {**self.readings.stuck.stuck(), **self.pins.stuck()}
 
     def inputs_at(self, stamp: float) -> dict[str, float]:
         """The extra inputs' values at `stamp` (interpolated where later values are known, else the latest)."""

@@ -9,6 +9,12 @@ on vertical ropes: its depth follows the mean payout), as a stale depth reading 
 moving platform would otherwise be centimetres off. A channel whose readings repeat to
 the bit is stuck and not fused (`StuckReadings`); which sensors contradict the others is
 the estimator's to say (monitor.estimator).
+
+What a sample takes depends only on the readings' stamps, not on when they came, once every
+reading stamped at or before it is in: a channel's reading is *due* at a sample when its next one,
+a period after its latest, is stamped at or before the sample (`LatestReadings.due`). The live
+node holds a sample while one is due (DDS delivers each topic in order, but not the topics in
+the order they were sent), so that it fuses what a replay in log order fuses.
 """
 from __future__ import annotations
 
@@ -23,6 +29,7 @@ from ..model.estimator import Estimate
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 STUCK = 5  # a sensor repeating its reading to the bit this many times running is stuck
 HISTORY = 16  # readings kept per channel: those that came before a sample but are stamped after it, and one more
+LATE = 3.0  # [periods] a channel's reading is due at most this long after its latest: later, the sensor is late or silent
 PAYOUTS = 1024  # complete samples whose payout is kept: a staleness limit's worth at up to 2 kHz
 
 
@@ -68,17 +75,36 @@ class LatestReadings:
     def __init__(self, staleness: float):
         self.staleness = staleness
         self.values: dict[str, deque[tuple[float, float]]] = {}  # channel -> (stamp, value), recent ones
+        self.periods: dict[str, float] = {}  # channel -> the shortest interval between its recent readings [s]
         self.stuck = StuckReadings()
 
     def add(self, stamp: float, values: Mapping[str, float]) -> None:
         for name, value in values.items():
             if math.isfinite(value) and math.isfinite(stamp):
-                self.values.setdefault(name, deque(maxlen=HISTORY)).append((stamp, value))
+                history = self.values.setdefault(name, deque(maxlen=HISTORY))
+                history.append((stamp, value))
                 self.stuck.add(name, value, stamp)
+                if len(history) > 1:
+                    stamps = [when for when, _ in history]
+                    self.periods[name] = min(b - a for a, b in zip(stamps, stamps[1:]))
 
-    def latest(self) -> dict[str, float]:
-        """Each channel's latest stamp."""
-        return {name: history[-1][0] for name, history in self.values.items()}
+    def latest(self, stamp: float = math.inf) -> dict[str, float]:
+        """Each channel's latest stamp at or before `stamp`."""
+        out = {}
+        for name, history in self.values.items():
+            when = next((when for when, _ in reversed(history) if when <= stamp), None)
+            if when is not None:
+                out[name] = when
+        return out
+
+    def due(self, stamp: float) -> bool:
+        """Whether a channel's next reading is expected stamped at or before `stamp` and is not in yet: its
+        latest is at least its shortest interval before `stamp` (and not LATE intervals: a sensor that late
+        is late or silent, and not waited for)."""
+        for name, period in self.periods.items():
+            if period > 0.0 and 0.0 <= stamp - self.values[name][-1][0] - period < (LATE - 1.0) * period:
+                return True
+        return False
 
     def at(self, stamp: float, payout: float, payout_at: Callable[[float], float]
            ) -> tuple[dict[str, float], dict[str, float]]:
@@ -87,7 +113,7 @@ class LatestReadings:
         it was taken at (a stuck channel's left out)."""
         out, taken = {}, {}
         for name, history in self.values.items():
-            if self.stuck.is_stuck(name):
+            if self.stuck.is_stuck(name, stamp):
                 continue
             for when, value in reversed(history):
                 if when <= stamp:
@@ -107,22 +133,26 @@ class StuckReadings:
     the model or the other sensors say. Its readings are not used until one differs again."""
 
     def __init__(self) -> None:
-        self.last: dict[str, tuple[float, int, float]] = {}  # channel -> value, repeats, stamp of the first
+        # channel -> value, repeats, stamp of the first, stamp of the STUCK-th (inf: not that many yet)
+        self.last: dict[str, tuple[float, int, float, float]] = {}
 
     def add(self, name: str, value: float, stamp: float) -> None:
         last = self.last.get(name)
         if last is not None and last[0] == value:
-            self.last[name] = (value, last[1] + 1, last[2])
+            count = last[1] + 1
+            self.last[name] = (value, count, last[2], stamp if count == STUCK else last[3])
         else:
-            self.last[name] = (value, 1, stamp)
+            self.last[name] = (value, 1, stamp, math.inf)
 
-    def is_stuck(self, name: str) -> bool:
+    def is_stuck(self, name: str, stamp: float = math.inf) -> bool:
+        """Whether the channel is stuck at a sample stamped `stamp` (its STUCK-th repeat stamped at or before it)."""
         last = self.last.get(name)
-        return last is not None and last[1] >= STUCK
+        return last is not None and last[1] >= STUCK and last[3] <= stamp
 
-    def stuck(self) -> dict[str, tuple[float, float]]:
-        """The stuck channels: the value each is stuck at and since when [s]."""
-        return {name: (value, since) for name, (value, count, since) in self.last.items() if count >= STUCK}
+    def stuck(self, stamp: float = math.inf) -> dict[str, tuple[float, float]]:
+        """The channels stuck at a sample stamped `stamp`: the value each is stuck at and since when [s]."""
+        return {name: (value, since) for name, (value, count, since, found) in self.last.items()
+                if count >= STUCK and found <= stamp}
 
 
 class PayoutHistory:

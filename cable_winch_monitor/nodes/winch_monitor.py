@@ -47,6 +47,7 @@ from ..monitor.diagnostics import DiagnosticsReporter
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput
 from ..monitor.residuals import Residuals
+from ..monitor.waiting import READING_WAIT
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
 from .winch_input import WinchInput, waiting
 
@@ -91,6 +92,10 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
         description="[s] complete samples waiting while the solver is busy are solved together, in order; one more "
                     "than this (of stamps) behind the newest is skipped",
         floating_point_range=_range(0.0, 10.0), read_only=True)),
+    ("reading_wait", READING_WAIT, ParameterDescriptor(
+        description="[s] a complete sample waits at most this long for a sensor reading due at its stamp that another "
+                    "topic's messages overtook (then it is fused without it)",
+        floating_point_range=_range(0.0, 1.0), read_only=True)),
     ("stamp_ahead", StampWindow.ahead, ParameterDescriptor(
         description="[s] a winch stamp later than its arrival on the node clock by more than this is refused",
         floating_point_range=_range(0.001, 1e10), read_only=True)),
@@ -123,7 +128,7 @@ class WinchMonitorNode(Node):
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
         window = StampWindow(value("stamp_ahead"), value("stamp_behind"), value("stamp_skew"))
         self.live = LiveScheduler(plant, value("solver"), value("staleness"), stamp_window=window,
-                                             backlog=value("backlog"))
+                                  backlog=value("backlog"), wait=value("reading_wait"))
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0
@@ -280,8 +285,7 @@ class WinchMonitorNode(Node):
 
     def _on_measurement(self, msg: Any, topic: str) -> None:
         now = self.get_clock().now().nanoseconds
-        with self.live.lock:
-            residuals = self.live.monitor.on_measurement(topic, fields.message_seconds(msg, now), msg)
+        residuals = self.live.on_measurement(topic, fields.message_seconds(msg, now), msg)
         self._note_residuals(residuals)
         self._send(records.residual_records(fields.message_stamp(msg, now), residuals))
 

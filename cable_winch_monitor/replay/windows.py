@@ -6,7 +6,9 @@ ahead. For each window of messages:
 1. every winch message is merged, in log order, by the monitor's own merger (as the
    node would merge it, its log time standing for the node clock in the stamp window), and
    every sensor reading kept as the node keeps it; each complete sample keeps what the
-   merger knew at its message, what the sensors read then, and its conditions;
+   merger knew at its message, what the sensors read then (the latest readings stamped at or
+   before it: one logged after it is waited for, as the node waits, monitor.waiting), and its
+   conditions;
 2. the window's complete samples are estimated (or solved) together by the monitor's own
    `solve_samples`, with their wall clearances: the estimator is a function of the samples
    in order, so a window at once gives what the node gives one sample at a time;
@@ -42,6 +44,7 @@ from ..monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sa
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorPipeline, MonitorStats
 from ..monitor.residuals import Residuals
+from ..monitor.waiting import ReadingWait
 from ..stopping import interruptible
 from .second_process import SecondProcess
 from .stages import Encoded, WindowStages
@@ -88,6 +91,12 @@ def _counters(stats: MonitorStats) -> list[Counter[str]]:
     return [getattr(stats, name).copy() for name in COUNTED]
 
 
+def _read(merged: list[Any], released: list[tuple[Any, CompleteSample]]) -> None:
+    """The samples released by the wait for their readings, with them, in their places in a window's `merged`."""
+    for index, sample in released:
+        merged[index] = merged[index]._replace(sample=sample)
+
+
 def _since(before: list[Counter[str]], stats: MonitorStats) -> list[Counter[str]]:
     """What merging has counted since `before` (a `_counters` copy)."""
     return [getattr(stats, name) - counter for name, counter in zip(COUNTED, before)]
@@ -109,6 +118,7 @@ class WindowScheduler:
         self.batched = batched and (monitor.fusing or monitor.model.batchable)  # else one by one, as the node does
         self.input_specs = {spec.topic: spec for spec in monitor.model.inputs}
         self.stages = WindowStages(monitor, scene_rate)
+        self.waiting = ReadingWait(monitor)  # a window's complete samples waiting for a reading due at them
         self.second_process = second_process and SecondProcess.available()
         self.last_view: SampleView | None = None  # what /diagnostics says of the latest sample taken
         self.reporter = DiagnosticsReporter(plant.name)
@@ -180,10 +190,17 @@ class WindowScheduler:
                 spec = self.input_specs.get(item.topic)
                 if spec is not None:
                     self.monitor.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
-            merged, inputs = [], []
-            for item in window:
-                merged.append(self._merge_item(item))
+            merged: list[Merged | dict[str, float] | Failed | None] = []
+            inputs = []
+            for index, item in enumerate(window):
+                outcome = self._merge_item(item)
+                merged.append(outcome)
+                now = item.log_time * 1e-9
+                released = self.waiting.add(index, outcome.sample, now) if isinstance(outcome, Merged) else \
+                    self.waiting.release(now)
+                _read(merged, released)
                 inputs.append(self._inputs_due(item))
+            _read(merged, self.waiting.release(math.inf, everything=True))  # the window ends: what is in, they take
             samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
             job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
                    self.batched)
@@ -239,7 +256,7 @@ class WindowScheduler:
                 return values
             return None
         try:
-            sample = self.monitor.merge(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival
+            sample = self.monitor.merge_winch(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival
         except Exception as error:
             return Failed.of(error)
         return None if sample is None else Merged(sample, self.monitor.conditions(sample), fields.stamp_of(item.message))

@@ -5,8 +5,11 @@ from __future__ import annotations
 import threading
 
 import numpy as np
+from fusionbags import lowering_truths, noisy, sensed
 
+from cable_winch_monitor import channels
 from cable_winch_monitor.live.scheduler import LiveScheduler
+from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor.inputs import JointSample
@@ -62,3 +65,80 @@ def test_a_worker_solving_while_samples_pour_in_accounts_for_every_one(plant):
     assert len(solved) + scheduler.skipped == scheduler.complete == 2000
     assert solved == sorted(solved) and solved[-1] == sample(1999).stamp  # in order, and the last one solved
     assert np.all(np.diff(solved) > 0)
+
+
+def delivered(items: list, rng: np.random.Generator, late: float) -> list[tuple[float, object]]:
+    """The items as DDS may hand them over: each sensor message up to `late` [s] after its log time (each topic
+    still in order), the winch messages on time, overtaking them."""
+    arrivals = [(entry.log_time * 1e-9 + (0.0 if entry.msgtype == channels.JOINT_STATE else rng.uniform(0.0, late)), k)
+                for k, entry in enumerate(items)]
+    return [(at, items[k]) for at, k in sorted(arrivals)]
+
+
+def fed(plant, arrivals: list[tuple[float, object]], wait: float) -> tuple[list, list, LiveScheduler]:
+    """The complete samples a live scheduler hands the worker, and their outputs, fed the items as they arrive
+    (its clock their arrival)."""
+    clock = [0.0]
+    scheduler = LiveScheduler(plant, backlog=1e9, wait=wait, clock=lambda: clock[0])
+    samples, outputs = [], []
+    for at, entry in arrivals:
+        clock[0] = at
+        msg = entry.message
+        if entry.msgtype == channels.JOINT_STATE:
+            scheduler.offer(fields.joint_sample(msg, entry.topic, at))
+        else:
+            scheduler.on_measurement(entry.topic, fields.seconds(msg.header.stamp), msg)
+        taken = [sample for _, sample in scheduler.take(timeout=0.0)]
+        samples += taken
+        outputs += scheduler.solve_all(taken)
+    clock[0] += 1.0
+    taken = [sample for _, sample in scheduler.take(timeout=0.0)]
+    return samples + taken, outputs + scheduler.solve_all(taken), scheduler
+
+
+def test_a_sample_waits_for_the_readings_stamped_before_it_that_its_winch_message_overtook(plant):
+    """Sensor messages delivered up to 85 ms late, overtaken by the winch messages stamped after them (the
+    inclinometer is stamped 30-40 ms after the winches): held for them, every complete sample fuses the
+    readings it fuses in log order, and comes to the same state; not held, samples fuse older readings."""
+    fused = noisy(plant)
+    items = sensed(lowering_truths(fused, 60, seed=3), seed=4)
+    in_order, want, _ = fed(fused, [(entry.log_time * 1e-9, entry) for entry in items], wait=1.0)
+    late = delivered(items, np.random.default_rng(5), 0.085)
+    held, got, scheduler = fed(fused, late, wait=1.0)
+    unheld, _, _ = fed(fused, late, wait=0.0)
+    known = [k for k, sample in enumerate(in_order) if sample.stamp > 100.6]  # the depth gauge's interval known
+    assert len(held) == len(in_order) == len(got) == 60 and scheduler.counters()["held for a sensor reading"] > 0
+    for k in known:
+        assert held[k].taken == in_order[k].taken and held[k].sensors == in_order[k].sensors
+        assert held[k].faults == in_order[k].faults
+        np.testing.assert_allclose(got[k].solution.tensions, want[k].solution.tensions, atol=1e-6)
+        assert check_physics(fused, got[k].solution).passes()
+    assert sum(unheld[k].taken != in_order[k].taken for k in known) >= 10
+
+
+def test_a_sample_whose_reading_never_comes_goes_on_when_its_wait_is_over(plant):
+    """The inclinometer falls silent: the sample at which its next reading was due waits `wait` seconds of the
+    node's clock, then fuses what is in (the last reading, within the staleness limit), counted as released
+    without it; a sensor more than three intervals late is not waited for."""
+    fused = noisy(plant)
+    items = sensed(lowering_truths(fused, 20, seed=3, lags=False), seed=4)
+    silent = [entry for entry in items if entry.msgtype == channels.JOINT_STATE or entry.log_time * 1e-9 < 100.5]
+    clock = [0.0]
+    scheduler = LiveScheduler(fused, backlog=1e9, wait=0.05, clock=lambda: clock[0])
+    taken = []
+    for entry in silent:
+        clock[0] = entry.log_time * 1e-9
+        if entry.msgtype == channels.JOINT_STATE:
+            scheduler.offer(fields.joint_sample(entry.message, entry.topic, clock[0]))
+        else:
+            scheduler.on_measurement(entry.topic, fields.seconds(entry.message.header.stamp), entry.message)
+        taken += [sample for _, sample in scheduler.take(timeout=0.0)]
+    clock[0] += 0.05
+    taken += [sample for _, sample in scheduler.take(timeout=0.0)]
+    assert len(taken) == 20 and scheduler.waiting == 0
+    assert [s.stamp for s in taken] == sorted(s.stamp for s in taken)
+    last, period = scheduler.monitor.readings.values["roll"][-1][0], scheduler.monitor.readings.periods["roll"]
+    waited = [s.stamp for s in taken if last + period <= s.stamp < last + 3.0 * period]
+    counts = scheduler.counters()
+    assert len(waited) >= 1 and counts["of those, released without it"] == counts["held for a sensor reading"] == len(waited)
+    assert all(s.taken["roll"] == last for s in taken if s.stamp >= last + period - 1e-9 and s.stamp - last <= 0.5)
