@@ -226,20 +226,15 @@ class MonitorPipeline:
         self.stats.last_rejection = f"{topic}: {reason}"
 
     def on_joint_state(self, sample: JointSample) -> MonitorOutput | None:
-        """A winch message; returns the solved sample when the four lengths are complete and fresh."""
-        complete = self.merge(sample)
-        return None if complete is None else self.solve(complete)
-
-    def merge(self, sample: JointSample) -> CompleteSample | None:
-        """Merge a winch message; the complete sample it makes, if it makes one, with what the sensors read
-        then (the readings in so far: a replay's, in log order)."""
+        """A winch message; returns the solved sample when the four lengths are complete and fresh, with what the
+        sensors read then (the readings in so far: one due at it is not waited for)."""
         complete = self.merge_winch(sample)
-        return None if complete is None else self.read_sensors(complete)
+        return None if complete is None else self.solve(self.read_sensors(complete))
 
     def merge_winch(self, sample: JointSample) -> CompleteSample | None:
         """Merge a winch message; the complete sample it makes, if it makes one, with its own load pins (but
-        a stuck one) and the pins' faults. The other sensors' readings are `read_sensors`' to add: the live
-        node first waits for those due at the sample."""
+        a stuck one) and the pins' faults. The other sensors' readings are `read_sensors`' to add: the node
+        and replay first wait for those due at the sample (monitor.waiting)."""
         self.stats.messages[sample.topic] += 1
         self.stats.winch += 1
         self.stats.winch_topics.add(sample.topic)

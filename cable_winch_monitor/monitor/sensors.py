@@ -12,9 +12,9 @@ the estimator's to say (monitor.estimator).
 
 What a sample takes depends only on the readings' stamps, not on when they came, once every
 reading stamped at or before it is in: a channel's reading is *due* at a sample when its next one,
-a period after its latest, is stamped at or before the sample (`LatestReadings.due`). The live
-node holds a sample while one is due (DDS delivers each topic in order, but not the topics in
-the order they were sent), so that it fuses what a replay in log order fuses.
+a period after its latest, is stamped at or before the sample (`LatestReadings.due`). The node
+and replay hold a sample while one is due (monitor.waiting), so that both fuse the same readings
+whatever order the topics came in.
 """
 from __future__ import annotations
 

@@ -1,0 +1,86 @@
+"""Benchmark: why the per-sample twins of two stacked stages stay -- the live node's cost of one new sample
+with the twin against the stacked form asked for that same sample, on the same samples.
+
+- Conditions: `ConditionsTracker.update` (running sums over the last second of samples) against
+  `derivatives` and `directions` over the samples of that second, their last row taken (the
+  stacked form cannot be asked for one sample alone: a speed's slope needs the window).
+- Equilibrium: `solve` (the per-sample energy solve, warm-started) against `solve_batch` of one row
+  warm-started the same way.
+
+Each pair is held to the same answers by a test (test/model/test_conditions.py,
+test/model/test_batched.py). Figures are ratios within one run, the best of three passes. Run
+
+    .venv/bin/python -m cable_winch_monitor.bench.twins
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from ..model.conditions import ACCELERATION_WINDOW, ConditionsTracker, derivatives, directions
+from ..model.plantfile.plant import load_plant
+from ..model.solvers.batched import solve_batch
+from ..model.solvers.solve import solve
+from ..model.statics.result import Solution
+from .solvers import lowering_samples
+
+RATE = 10.0  # [Hz] the winches
+STEPS = 12_500  # samples of the 500 m lowering: 4 cm a sample, 0.4 m/s at RATE
+
+
+def per_sample(run: Callable[[int, object], object], count: int) -> float:
+    """Microseconds per call of run(k, previous) over samples 0..count-1, the best of three passes."""
+    best = np.inf
+    for _ in range(3):
+        previous, start = None, time.perf_counter()
+        for k in range(count):
+            previous = run(k, previous)
+        best = min(best, time.perf_counter() - start)
+    return best / count * 1e6
+
+
+def conditions_costs(lengths: np.ndarray) -> tuple[float, float]:
+    """[us] a sample's conditions live: the tracker's update, and the stacked form over its last second."""
+    times = 100.0 + np.arange(len(lengths)) / RATE
+    speeds = np.gradient(lengths, times, axis=0)
+    span = int(ACCELERATION_WINDOW * RATE) + 1
+
+    def tracked(k: int, tracker: object) -> ConditionsTracker:
+        tracker = tracker if isinstance(tracker, ConditionsTracker) else ConditionsTracker()
+        tracker.update(float(times[k]), lengths[k], speeds[k])
+        return tracker
+
+    def stacked(k: int, _: object) -> None:
+        window = slice(max(k + 1 - span, 0), k + 1)
+        rates, _accelerations = derivatives(times[window], lengths[window], speeds[window], centred=False)
+        directions(rates)
+
+    return per_sample(tracked, len(lengths)), per_sample(stacked, len(lengths))
+
+
+def solver_costs(plant, lengths: np.ndarray) -> tuple[float, float]:
+    """[us] a sample's equilibrium live, warm-started from the previous one: per sample, and as a batch of one."""
+    def warm(previous: object) -> Solution | None:
+        return previous if isinstance(previous, Solution) else None
+
+    one = per_sample(lambda k, previous: solve(plant, lengths[k], "energy", warm_start=warm(previous)), len(lengths))
+    batch = per_sample(lambda k, previous: solve_batch(plant, lengths[k][None], warm_start=warm(previous)).solution(0),
+                       len(lengths))
+    return one, batch
+
+
+def main() -> None:
+    plant = load_plant()
+    lengths = lowering_samples(STEPS)[:1000]
+    rows = {"conditions (speeds, accelerations, directions)": conditions_costs(lengths),
+            "equilibrium (energy, warm-started)": solver_costs(plant, lengths[:300])}
+    print("one new sample of a lowering from 50 m at 0.4 m/s, winches at 10 Hz, as the live node meets it; one core")
+    print(f"  {'stage':<48}{'twin us':>9}{'stacked us':>12}{'stacked/twin':>14}")
+    for name, (twin, stacked) in rows.items():
+        print(f"  {name:<48}{twin:9.1f}{stacked:12.1f}{stacked / twin:13.1f}x")
+
+
+if __name__ == "__main__":
+    main()
