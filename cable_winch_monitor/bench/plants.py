@@ -20,6 +20,9 @@ from ..paths import default_plant_file
 REALISTIC_EFFECTS = {"rope_elasticity": {"EA": 7.5e7}, "rope_weight": {"w": 60.0},
                      "sheave_friction": {"mu": 0.05}}
 SITE_EA, SITE_WEIGHT = 6.8e7, 58.0  # [N], [N/m] the ropes of config/scenarios/site_elastic.yaml
+# what a site tracks live (plant.track): the ropes' stiffness and weight, the encoders' zeros, the load pins' zeros
+TRACKED = ("rope_elasticity.EA", "rope_weight.w", "encoder_offset",
+           *(f"load_pin_calibration.zero_{i}" for i in range(1, 5)))
 
 
 class SiteCase(NamedTuple):
@@ -57,5 +60,16 @@ def plant_file(path: Path, effects: dict[str, dict[str, float]]) -> Path:
     config = yaml.safe_load(default_plant_file().read_text())
     if effects:
         config["plant"]["effects"] = {name: {"enabled": True, **values} for name, values in effects.items()}
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
+def tracking_plant_file(path: Path, ea: float = SITE_EA) -> Path:
+    """The bundled plant file with elastic ropes of axial stiffness `ea` [N] and the site's rope weight, tracking
+    TRACKED (the encoders' zeros with a tolerance of 1 cm, the rest the package's defaults), written to `path`."""
+    plant_file(path, {"rope_elasticity": {"EA": ea}, "rope_weight": {"w": SITE_WEIGHT}})
+    config = yaml.safe_load(path.read_text())
+    config["plant"]["track"] = list(TRACKED)
+    config["plant"]["track_tolerance"] = {"encoder_offset": {"absolute": 0.01}}
     path.write_text(yaml.safe_dump(config))
     return path

@@ -12,7 +12,8 @@ rigid plant), with its safety outputs judged against the simulator's truth, peak
 10,000-sample stream with shifted stamps; 1 GiB is the acceptance run, smaller by
 default), fleet replay on 1 and 2 workers, diagnose of a 20-minute bag when a diagnose
 job is given, and the live node's latency at 50 Hz when ROS 2 is available (on each plant's
-lowering, and on recording (a) at 50 Hz with every sensor).
+lowering, and on recording (a) at 50 Hz with every sensor). Recording (a) is replayed and fed to the node
+again with a plant file that tracks its parameters live (EA 10 % high, TRACKED: bench/plants.py).
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import shutil
 import struct
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -37,7 +38,15 @@ from ..model.plantfile.plant import Plant, load_plant
 from ..model.solvers.solve import solve
 from ..sim.scenario import load_scenario, scenario_path
 from ..sim.simulate import simulate
-from .plants import REALISTIC_EFFECTS, SITE_CASES, plant_file, realistic, realistic_plant_file
+from .plants import (
+    REALISTIC_EFFECTS,
+    SITE_CASES,
+    SITE_EA,
+    plant_file,
+    realistic,
+    realistic_plant_file,
+    tracking_plant_file,
+)
 from .replay_throughput import byte_compile_package, replay_child
 from .safety import score
 from .solvers import lowering_samples, timed
@@ -48,6 +57,7 @@ REPLAY_RUNS = 3
 NODE_SAMPLES = 1500                      # 30 s at 50 Hz per plant
 NODE_RATE = 50.0
 NODE_SECONDS = 30.0                      # [s] of the site recording whose latencies count (after the node's start)
+TRACKING_EA = 1.1 * SITE_EA  # [N] the data sheet's stiffness in the plant file that tracks recording (a)'s parameters
 
 
 def write_copies(source: Path, out: Path, megabytes: float) -> int:
@@ -193,8 +203,8 @@ def diagnose_rows(bag: Path, diagnose: Diagnose | None, plants: dict[str, Plant]
 
 
 def node_rows(files: dict[str, Path | None], traversal_ms: float,
-              recording: tuple[Path, Path] | None = None) -> list[Row]:
-    """The live node's publish-to-pose latency at 50 Hz on each plant, and on the site `recording` (its bag
+              recordings: Mapping[str, tuple[Path, Path]] | None = None) -> list[Row]:
+    """The live node's publish-to-pose latency at 50 Hz on each plant, and on each site recording (label: its bag
     and plant file) played with every sensor (needs ROS 2: rclpy)."""
     try:
         from .node_latency import SETTLE, leased_domain, measure, measure_recording
@@ -203,9 +213,8 @@ def node_rows(files: dict[str, Path | None], traversal_ms: float,
     jobs: list[tuple[str, Callable[[int], Any]]] = [  # (label, domain -> Latency)
         (label, partial(measure, NODE_SAMPLES, NODE_RATE, plant_file=plant_file))
         for label, plant_file in files.items()]
-    if recording is not None:
-        jobs.append(("site (a), every sensor", lambda domain: measure_recording(recording[0], domain, recording[1],
-                                                                                NODE_SECONDS + SETTLE)))
+    for label, (bag, plant) in (recordings or {}).items():
+        jobs.append((label, partial(measure_recording, bag, plant_file=plant, seconds=NODE_SECONDS + SETTLE)))
     rows = []
     for label, job in jobs:
         try:
@@ -267,8 +276,12 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
             rows += _progress(replay_rows(bags[label], directory, label, files[label], large_mb, traversal_ms))
         site, site_fast, site_plant = site_recordings(directory)
         rows += _progress(site_rows(site, site_plant, directory, traversal_ms))
+        tracking = tracking_plant_file(directory / "site_a_tracking.yaml", TRACKING_EA)
+        rows += _progress([replay_speed(site, directory, "site (a), tracking", tracking, traversal_ms,
+                                        "replay site recording, tracking its parameters live")[0]])
         if node:
-            rows += _progress(node_rows(files, traversal_ms, (site_fast, site_plant)))
+            rows += _progress(node_rows(files, traversal_ms, {"site (a), every sensor": (site_fast, site_plant),
+                                                              "site (a), tracking": (site_fast, tracking)}))
         twenty = directory / "twenty_minutes"
         simulate(load_scenario(scenario_path("benchmark"), ["duration=1200.0"]), twenty)
         rows += _progress(diagnose_rows(twenty, diagnose, plants, traversal_ms))

@@ -1,9 +1,9 @@
 """Recordings and plant files for judging the tracked plant parameters (config/scenarios/site_tracking.yaml).
 
 The recordings are the simulator's (its own root-found equilibrium, sim/truth.py) at site noise: lowering
-and hoisting with stops on elastic ropes (EA 6.8e7 N, 58 N/m). The plant files track what a site tracks --
-the ropes' stiffness and weight, the encoders' zeros, the load pins' zeros -- and give the encoders' zeros a
-tolerance of 1 cm (the contract's example); the rest keep the package's defaults.
+and hoisting with stops on elastic ropes (EA 6.8e7 N, 58 N/m). The plant files track what a site tracks
+(`bench.plants.tracking_plant_file`: the ropes' stiffness and weight, the encoders' zeros to 1 cm, the load
+pins' zeros).
 """
 from __future__ import annotations
 
@@ -12,33 +12,19 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-import yaml
 
 from cable_winch_monitor.bagio.reader import BagReader
-from cable_winch_monitor.bench.plants import SITE_EA, SITE_WEIGHT, plant_file
+from cable_winch_monitor.bench.plants import SITE_EA, SITE_WEIGHT
 from cable_winch_monitor.messages.records import DIAGNOSTICS, OUTPUT_TYPES, PARAMETERS
 from cable_winch_monitor.model.plantfile.plant import Plant, load_plant
 from cable_winch_monitor.model.plantfile.track import TrackSpec
 from cable_winch_monitor.sim.simulate import TRUTH_FILE
 
-TRACKED = ["rope_elasticity.EA", "rope_weight.w", "encoder_offset"] + [f"load_pin_calibration.zero_{i}"
-                                                                        for i in range(1, 5)]
 NAMES = ["rope_elasticity.EA", "rope_weight.w"] + [f"encoder_offset.d_{i}" for i in range(1, 5)] + \
     [f"load_pin_calibration.zero_{i}" for i in range(1, 5)]
 TRUTH = np.array([SITE_EA, SITE_WEIGHT] + [0.0] * 8)  # the simulator's value of each of NAMES
 SLIP = -0.05  # [m] what winch 1's encoder reports beyond the payout once it slipped: encoder_offset.d_1 = +0.05
 MOVING = 0.02  # [m/s] payout speed beyond which the stage moves
-
-
-def tracking_plant(path: Path, ea: float = SITE_EA) -> Path:
-    """The bundled plant file with elastic ropes of axial stiffness `ea` and the truth's rope weight, tracking
-    TRACKED."""
-    plant_file(path, {"rope_elasticity": {"EA": ea}, "rope_weight": {"w": SITE_WEIGHT}})
-    config = yaml.safe_load(path.read_text())
-    config["plant"]["track"] = TRACKED
-    config["plant"]["track_tolerance"] = {"encoder_offset": {"absolute": 0.01}}
-    path.write_text(yaml.safe_dump(config))
-    return path
 
 
 def untracked(path: Path) -> Plant:

@@ -34,14 +34,13 @@ from trackbags import (
     moving_time,
     parameter_lines,
     tracked,
-    tracking_plant,
     tracking_statuses,
     untracked,
 )
 
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
-from cable_winch_monitor.bench.plants import SITE_EA
+from cable_winch_monitor.bench.plants import SITE_EA, tracking_plant_file
 from cable_winch_monitor.bench.safety import score
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.model.plantfile.plant import load_plant
@@ -83,8 +82,8 @@ def recordings(directory: Path, length: str) -> dict[str, Path]:
 
 def cases(bags: dict[str, Path], directory: Path) -> dict[str, Case]:
     """(a)-(d) replayed with their plant files, and the elastic recording with the correct file untracked."""
-    stiff = tracking_plant(directory / "stiff.yaml", SITE_EA / 0.9)  # the ropes are 10 % less stiff than it says
-    right = tracking_plant(directory / "right.yaml")
+    stiff = tracking_plant_file(directory / "stiff.yaml", SITE_EA / 0.9)  # the ropes are 10 % less stiff than it says
+    right = tracking_plant_file(directory / "right.yaml")
     plans = {"a": (bags["elastic"], stiff), "b": (bags["slip"], right), "c": (bags["stuck"], right),
              "d": (bags["elastic"], right)}
     out = {}
@@ -115,7 +114,7 @@ def hour(hour_bags, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Case]
 
 
 def check_the_correct_model_explains_the_recording(bag: Path, directory: Path) -> None:
-    model = PlantModel.from_plant(untracked(tracking_plant(directory / "right.yaml")))
+    model = PlantModel.from_plant(untracked(tracking_plant_file(directory / "right.yaml")))
     result = compare(model, read_bag(bag))
     print(f"the correct plant file on {bag.parent.name}: score {result.score:.3f}")
     assert result.score <= 1.2
@@ -135,7 +134,7 @@ def check_stiffness_learnt(case: Case, length: str, directory: Path) -> None:
     assert np.abs(result.used[-1, column] / SITE_EA - 1.0) <= 0.02
     assert result.drifting[later, column].all()  # 10 % from the plant file's value: a drift
     correct = directory / "correct"
-    replay(bag, correct, untracked(tracking_plant(directory / "right.yaml")), progress=False)
+    replay(bag, correct, untracked(tracking_plant_file(directory / "right.yaml")), progress=False)
     tracked_score, correct_score = score(case.out, bag, start=settled), score(correct, bag, start=settled)
     print(f"(a) from {settled:.0f} s, tracking: {tracked_score.format()}\n"
           f"    the correct file: {correct_score.format()}")
