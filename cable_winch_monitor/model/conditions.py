@@ -94,19 +94,27 @@ def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
                      zip(np.asarray(speeds, dtype=float).tolist(), np.asarray(previous, dtype=float).tolist())])
 
 
-def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
-    """Least-squares slope of values (n, k) over rows start[j]:stop[j] for every j (cumulative sums)."""
-    t = times - times[0]
+def line_slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray,
+                least: int = 1) -> np.ndarray:
+    """Least-squares slopes (m, k) of values (n, k) against times (n,) over the rows start[j]:stop[j] of each
+    of m windows, from cumulative sums; NaN where a window has fewer than `least` rows or its times do not
+    spread."""
+    t = times - times[0] if len(times) else times
     cumulative = [np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
                   for a in (np.ones_like(t), t, t * t)]
     count, sum_t, sum_tt = (c[stop] - c[start] for c in cumulative)
-    filled = np.nan_to_num(values)
-    sum_v = (np.cumsum(np.vstack([np.zeros((1, values.shape[1])), filled]), axis=0))
-    sum_tv = (np.cumsum(np.vstack([np.zeros((1, values.shape[1])), filled * t[:, None]]), axis=0))
+    sum_v = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
+    sum_tv = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values * t[:, None]]), axis=0)
     sv, stv = sum_v[stop] - sum_v[start], sum_tv[stop] - sum_tv[start]
     denominator = count * sum_tt - sum_t ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
         slope = (count[:, None] * stv - sum_t[:, None] * sv) / denominator[:, None]
+    return np.where(((count >= least) & (denominator > 0.0))[:, None], slope, np.nan)
+
+
+def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """`line_slopes` with a missing value counted as 0 and 0 where no slope is known (a speed not known)."""
+    slope = line_slopes(times, np.nan_to_num(values), start, stop)
     return np.where(np.isfinite(slope), slope, 0.0)
 
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..effects import PlantModel
 from ..effects.estimate import length_noise, observations_for
-from ..model.conditions import Conditions
+from ..model.conditions import Conditions, line_slopes
 from ..model.estimator import (
     BatchEstimate,
     ErrorState,
@@ -224,7 +224,8 @@ class MonitorEstimator:
         earlier = np.array(self.predictions).reshape(-1, 3)
         times = np.concatenate([earlier[:, 0], stamps[ok]])
         values = np.concatenate([earlier[:, 1:], angles])
-        rates = _line_slopes(times, values, stamps, CARRY_WINDOW)
+        rates = line_slopes(times, values, np.searchsorted(times, stamps - CARRY_WINDOW, side="left"),
+                            np.searchsorted(times, stamps, side="right"), least=3)
         recent = times >= stamps[-1] - CARRY_WINDOW
         self.predictions = [tuple(row) for row in np.column_stack([times[recent], values[recent]]).tolist()]
         out = []
@@ -468,25 +469,6 @@ def _stacked(window: _Window, rows: list[int]) -> tuple[np.ndarray, np.ndarray, 
         states.append(state)
     taut, rotation, position, tensions = (np.array([state[j] for state in states]) for j in range(4))
     return taut, rotation, position, tensions
-
-
-def _line_slopes(times: np.ndarray, values: np.ndarray, at: np.ndarray, span: float) -> np.ndarray:
-    """(N, k) the slope of a least-squares line through the points (times (n,), values (n, k)) in
-    [at_i - span, at_i], for each of `at` (N,) (times sorted; NaN where fewer than three points)."""
-    if not len(times):
-        return np.full((len(at), values.shape[1]), np.nan)
-    t = times - times[0]
-    sums = [np.concatenate([[0.0], np.cumsum(x)]) for x in (np.ones_like(t), t, t * t)]
-    cross = np.vstack([np.zeros(values.shape[1]), np.cumsum(t[:, None] * values, axis=0)])
-    total = np.vstack([np.zeros(values.shape[1]), np.cumsum(values, axis=0)])
-    hi = np.searchsorted(times, at, side="right")
-    lo = np.searchsorted(times, at - span, side="left")
-    n, st, stt = (c[hi] - c[lo] for c in sums)
-    sx, stx = total[hi] - total[lo], cross[hi] - cross[lo]
-    spread = n * stt - st * st
-    with np.errstate(invalid="ignore", divide="ignore"):
-        slopes = (n[:, None] * stx - st[:, None] * sx) / spread[:, None]
-    return np.where((n >= 3)[:, None] & (spread > 0.0)[:, None], slopes, np.nan)
 
 
 def _take(forward: BatchSolution, rows: np.ndarray) -> BatchSolution:
