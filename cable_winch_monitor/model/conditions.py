@@ -95,10 +95,10 @@ def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
 
 
 def line_slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray,
-                least: int = 1) -> np.ndarray:
+                least: int = 2) -> np.ndarray:
     """Least-squares slopes (m, k) of values (n, k) against times (n,) over the rows start[j]:stop[j] of each
-    of m windows, from cumulative sums; NaN where a window has fewer than `least` rows or its times do not
-    spread."""
+    of m windows, from cumulative sums; NaN where a window has fewer than `least` rows (two at least: one row's
+    sums leave rounding errors for a slope) or its times do not spread."""
     t = times - times[0] if len(times) else times
     cumulative = [np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
                   for a in (np.ones_like(t), t, t * t)]
@@ -109,7 +109,7 @@ def line_slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: 
     denominator = count * sum_tt - sum_t ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
         slope = (count[:, None] * stv - sum_t[:, None] * sv) / denominator[:, None]
-    return np.where(((count >= least) & (denominator > 0.0))[:, None], slope, np.nan)
+    return np.where(((count >= max(least, 2)) & (denominator > 0.0))[:, None], slope, np.nan)
 
 
 def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cable_winch_monitor.model.conditions import ConditionsTracker, derivatives, directions
+from cable_winch_monitor.model.conditions import ConditionsTracker, derivatives, directions, line_slopes
 
 
 def winch_series(seed: int, count: int, silent: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -34,3 +34,21 @@ def test_live_conditions_are_the_stacked_ones(seed, count, silent):
     np.testing.assert_allclose([c.speeds for c in live], stacked_speeds, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose([c.accelerations for c in live], stacked_accelerations, rtol=1e-7, atol=1e-9)
     np.testing.assert_array_equal([c.direction for c in live], directions(stacked_speeds))
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), count=st.integers(1, 40), least=st.integers(1, 4))
+def test_line_slopes_are_least_squares_lines_over_each_window(seed, count, least):
+    """Each window's slope is numpy's least-squares line through its rows; NaN where it has fewer than `least`
+    rows or one time only."""
+    rng = np.random.default_rng(seed)
+    t = 50.0 + np.cumsum(rng.uniform(0.05, 0.15, count))
+    values = rng.normal(0.0, 1.0, (count, 2)) + np.outer(t, [0.3, -2.0])
+    stop = rng.integers(1, count + 1, 10)
+    start = np.maximum(stop - rng.integers(1, 8, 10), 0)
+    slopes = line_slopes(t, values, start, stop, least)
+    for j, (a, b) in enumerate(zip(start, stop)):
+        if b - a < max(least, 2):
+            assert np.isnan(slopes[j]).all()
+        else:
+            np.testing.assert_allclose(slopes[j], np.polyfit(t[a:b], values[a:b], 1)[0], rtol=1e-6, atol=1e-6)
