@@ -50,6 +50,7 @@ from .second_process import SecondProcess
 from .stages import Encoded, WindowStages
 
 WINDOW = 2000  # messages read ahead
+EXTENDED = 1000  # messages a window goes on by at most while a sample waits for a reading due at it
 MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a second process
 DIAGNOSTICS_PERIOD = 1.0  # [s] of log time between /diagnostics, as the node's default
 COUNTED = ("messages", "used", "rejected", "ignored_names")  # the stats merging counts, ahead of the messages taken
@@ -147,10 +148,11 @@ class WindowScheduler:
         prepared: deque[Prepared] = deque()
         window: list[Any] = []
         try:
-            for item in items:
+            stream = iter(items)
+            for item in stream:
                 window.append(item)
                 if len(window) == self.window:
-                    prepared.append(self._prepare(window, second))
+                    prepared.append(self._prepare(window, second, stream))
                     window = []
                     if len(prepared) > depth:
                         yield from self._take(prepared[0], second)
@@ -181,26 +183,22 @@ class WindowScheduler:
         self.not_taken = Counter(item.topic for p in prepared for item in p.window)
         self.not_taken.update(item.topic for item in unmerged)
 
-    def _prepare(self, window: list[Any], second: SecondProcess | None) -> Prepared:
+    def _prepare(self, window: list[Any], second: SecondProcess | None, more: Iterator[Any] | None = None) -> Prepared:
         """Step 1 for a window: extra inputs taken in first (a sample's is interpolated between the readings
-        around it), every message merged; its complete samples handed to the stages."""
+        around it), every message merged; while a sample waits for a reading due at it, the window goes on
+        with the messages after it (`more`, up to EXTENDED more), so that no window's end cuts a wait short;
+        its complete samples handed to the stages."""
         with interruptible():
             self._merging = _counters(self.monitor.stats)
             for item in window:
-                spec = self.input_specs.get(item.topic)
-                if spec is not None:
-                    self.monitor.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
+                self._take_input(item)
             merged: list[Merged | dict[str, float] | Failed | None] = []
-            inputs = []
-            for index, item in enumerate(window):
-                outcome = self._merge_item(item)
-                merged.append(outcome)
-                now = item.log_time * 1e-9
-                released = self.waiting.add(index, outcome.sample, now) if isinstance(outcome, Merged) else \
-                    self.waiting.release(now)
-                _read(merged, released)
-                inputs.append(self._inputs_due(item))
-            _read(merged, self.waiting.release(math.inf, everything=True))  # the window ends: what is in, they take
+            inputs: list[Any] = []
+            for item in window:
+                self._merge_one(item, merged, inputs)
+            if more is not None:
+                self._extend(window, more, merged, inputs)
+            _read(merged, self.waiting.release(math.inf, everything=True))  # the stream ended: what is in, they take
             samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
             job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
                    self.batched)
@@ -210,6 +208,33 @@ class WindowScheduler:
                 self._encoded = self.stages.run(*job)
             counted, self._merging = _since(self._merging, self.monitor.stats), None
             return Prepared(window, merged, inputs, counted)
+
+    def _extend(self, window: list[Any], more: Iterator[Any], merged: list[Any], inputs: list[Any]) -> None:
+        """The window gone on with the messages after it while a sample waits for a reading (EXTENDED at most)."""
+        for _ in range(EXTENDED):
+            item = next(more, None) if len(self.waiting) else None
+            if item is None:
+                return
+            window.append(item)
+            self._take_input(item)
+            self._merge_one(item, merged, inputs)
+
+    def _take_input(self, item: Any) -> None:
+        """An extra input's message (a shaft temperature), taken in ahead of the samples' merging."""
+        spec = self.input_specs.get(item.topic)
+        if spec is not None:
+            self.monitor.on_input(spec, fields.message_seconds(item.message, item.log_time), item.message)
+
+    def _merge_one(self, item: Any, merged: list[Any], inputs: list[Any]) -> None:
+        """A message merged (appended to the window's `merged`, with the diagnostics due at it to `inputs`); the
+        samples the wait for their readings releases then put in their places, with their readings."""
+        outcome = self._merge_item(item)
+        merged.append(outcome)
+        now = item.log_time * 1e-9
+        key = len(merged) - 1
+        _read(merged, self.waiting.add(key, outcome.sample, now) if isinstance(outcome, Merged) else
+              self.waiting.release(now))
+        inputs.append(self._inputs_due(item))
 
     def _inputs_due(self, item: Any) -> tuple[float, Any] | None:
         """The arrival of a winch message's cables, and where /diagnostics are due at this message, the
