@@ -5,7 +5,9 @@ seed 002's traversal per sample on the same lengths (figures are ratios within o
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -94,7 +96,7 @@ def pipeline_rates(plant, items: list[SimpleNamespace], count: int) -> tuple[flo
     return replay_rate, live_rate, float(np.percentile(times, 99)) * 1e3
 
 
-def per_sample_rate(run, count: int) -> float:
+def per_sample_rate(run: Callable[[int, Any], Any], count: int) -> float:
     """Samples/s of run(k, previous) over samples 0..count-1 (the best of three passes)."""
     best = np.inf
     for _ in range(3):

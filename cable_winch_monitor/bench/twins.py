@@ -14,7 +14,6 @@ test/model/test_batched.py). Figures are ratios within one run, the best of thre
 """
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 import numpy as np
@@ -24,6 +23,7 @@ from ..model.plantfile.plant import load_plant
 from ..model.solvers.batched import solve_batch
 from ..model.solvers.solve import solve
 from ..model.statics.result import Solution
+from .estimation import per_sample_rate
 from .solvers import lowering_samples
 
 RATE = 10.0  # [Hz] the winches
@@ -32,13 +32,7 @@ STEPS = 12_500  # samples of the 500 m lowering: 4 cm a sample, 0.4 m/s at RATE
 
 def per_sample(run: Callable[[int, object], object], count: int) -> float:
     """Microseconds per call of run(k, previous) over samples 0..count-1, the best of three passes."""
-    best = np.inf
-    for _ in range(3):
-        previous, start = None, time.perf_counter()
-        for k in range(count):
-            previous = run(k, previous)
-        best = min(best, time.perf_counter() - start)
-    return best / count * 1e6
+    return 1e6 / per_sample_rate(run, count)
 
 
 def conditions_costs(lengths: np.ndarray) -> tuple[float, float]:
