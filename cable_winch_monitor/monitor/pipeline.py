@@ -190,9 +190,9 @@ class MonitorStats:
                 entry[2], entry[3] = stamp, why
 
 
-def stuck_at(value: float, since: float) -> str:
-    """Why a sensor stuck at a constant is left out."""
-    return f"stuck at {value:.6g} since {since:.3f} s"
+def stuck_faults(stuck: Mapping[str, tuple[float, float]]) -> dict[str, str]:
+    """The sensors of channels stuck at a constant (channel: value, since when [s]), with why they are left out."""
+    return {sensor_of(name): f"stuck at {value:.6g} since {since:.3f} s" for name, (value, since) in stuck.items()}
 
 
 class MonitorPipeline:
@@ -269,8 +269,9 @@ class MonitorPipeline:
                 self.heard[name] = sample.stamp
                 if not self.pins.is_stuck(name):
                     pins[name], taken[name] = value, sample.stamp
-        return complete._replace(sensors=pins, taken=taken,
-                                 faults=self._missing(sample.stamp, pins, self.pins.stuck(), self.heard, {}))
+        faults = stuck_faults(self.pins.stuck())
+        faults.update(self._silent(sample.stamp, pins, self.heard, faults))
+        return complete._replace(sensors=pins, taken=taken, faults=faults)
 
     def read_sensors(self, sample: CompleteSample) -> CompleteSample:
         """A complete sample from `merge_winch` with the latest other readings stamped at or before it, within
@@ -279,25 +280,24 @@ class MonitorPipeline:
             return sample
         stamp = sample.stamp
         values, taken = self.readings.at(stamp, small_mean(sample.lengths.tolist()), self.payouts.at)
-        stuck = self.readings.stuck.stuck(stamp)
-        faults = {sensor_of(name): stuck_at(value, since) for name, (value, since) in stuck.items()}
+        faults = stuck_faults(self.readings.stuck.stuck(stamp))
         faults.update(sample.faults)
-        faults.update(self._missing(stamp, values, {}, self.readings.latest(stamp), skip=faults))
+        faults.update(self._silent(stamp, values, self.readings.latest(stamp), faults))
         return sample._replace(sensors={**values, **sample.sensors}, taken={**taken, **sample.taken}, faults=faults)
 
     def waits_for_readings(self, stamp: float) -> bool:
         """Whether a reading due at a sample stamped `stamp` has not come in yet (`LatestReadings.due`)."""
         return self.fusing and self.readings.due(stamp)
 
-    def _missing(self, stamp: float, measured: Mapping[str, float], stuck: Mapping[str, tuple[float, float]],
-                 heard: Mapping[str, float], skip: Mapping[str, str]) -> dict[str, str]:
-        """The sensors heard before (`heard`: channel -> its latest stamp) whose readings are not at a sample
-        stamped `stamp`: `stuck` at a constant, or silent (no reading for SILENT staleness limits: one reading
-        late is not a fault), with why; those in `skip` are faulty already."""
-        out = {sensor_of(name): stuck_at(value, since) for name, (value, since) in stuck.items()}
+    def _silent(self, stamp: float, measured: Mapping[str, float], heard: Mapping[str, float],
+                faulty: Mapping[str, str]) -> dict[str, str]:
+        """The sensors heard before (`heard`: channel -> its latest stamp) with no reading at a sample stamped
+        `stamp` for SILENT staleness limits (one reading late is not a fault), with why; those `faulty`
+        already (stuck) left as they are."""
+        out = {}
         for name, when in heard.items():
             sensor = sensor_of(name)
-            if name not in measured and sensor not in out and sensor not in skip and stamp - when > SILENT * self.staleness:
+            if name not in measured and sensor not in faulty and stamp - when > SILENT * self.staleness:
                 out[sensor] = f"silent for {stamp - when:.1f} s"
         return out
 

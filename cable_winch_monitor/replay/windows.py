@@ -198,7 +198,8 @@ class WindowScheduler:
                 self._merge_one(item, merged, inputs)
             if more is not None:
                 self._extend(window, more, merged, inputs)
-            _read(merged, self.waiting.release(math.inf, everything=True))  # the stream ended: what is in, they take
+            # none waits any more, or the stream ended, or the window went on EXTENDED messages: what is in, they take
+            _read(merged, self.waiting.release(math.inf, everything=True))
             samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
             job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
                    self.batched)
