@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -57,6 +58,8 @@ PIN_NOISE = 150.0           # [N] 1-sigma noise of each load pin
 START_LENGTH = 20.0         # [m]
 CONNECT_TIMEOUT = 20.0      # [s]
 SETTLE = 2.0                # [s] of a recording played before the latencies count (the node's first samples)
+SOLVER_STATUS = "winch_monitor: solver"
+NODE_TIMES = ("queued before the solve", "merged to outputs")  # the node's own latency in its solver diagnostics
 
 
 def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None,
@@ -113,7 +116,8 @@ def start_node(domain_id: int, solver: str, log: Path, plant_file: Path | None =
 
 
 class Probe:
-    """The benchmark's own node: publishes winch samples, time-stamps the poses and tension states."""
+    """The benchmark's own node: publishes winch samples, time-stamps the poses and tension states, keeps the
+    node's latest solver diagnostics."""
 
     def __init__(self, domain_id: int):
         self.context = Context()
@@ -125,9 +129,11 @@ class Probe:
         self.raw: dict[str, Any] = {"/winch/joint_states": self.publisher}
         self.received: dict[tuple[int, int], int] = {}
         self.taut: dict[tuple[int, int], tuple[bool, ...]] = {}
+        self.solver: dict[str, str] = {}
         self.subscriptions = [
             self.node.create_subscription(PoseStamped, "/platform/pose", self._on_pose, qos),
-            self.node.create_subscription(TensionDistribution, "/cables/tension", self._on_tension, qos)]
+            self.node.create_subscription(TensionDistribution, "/cables/tension", self._on_tension, qos),
+            self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)]
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
@@ -138,6 +144,31 @@ class Probe:
 
     def _on_tension(self, msg) -> None:
         self.taut[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = tuple(c.taut for c in msg.cables)
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name == SOLVER_STATUS:
+                self.solver = {kv.key: kv.value for kv in status.values}
+
+    def next_solver_status(self, timeout: float = 5.0, sim_time: int | None = None) -> dict[str, str]:
+        """The node's solver status (key -> value) from its next /diagnostics; a node on /clock has its clock
+        moved on from `sim_time` [ns] meanwhile (its diagnostics timer runs on it)."""
+        self.solver = {}
+        deadline = time.monotonic() + timeout
+        while not self.solver:
+            if time.monotonic() > deadline:
+                raise SystemExit("node_latency: no /diagnostics from the node")
+            if sim_time is not None:
+                sim_time += 100_000_000
+                self.clock.publish(Clock(clock=Time(sec=sim_time // 1_000_000_000, nanosec=sim_time % 1_000_000_000)))
+            time.sleep(0.02)
+        return self.solver
+
+    def node_times(self, sim_time: int | None = None) -> dict[str, str]:
+        """The node's own queueing and merge-to-outputs times of its latest samples (p50, p99, max [ms]), from its
+        next /diagnostics (`sim_time`: as `next_solver_status`): what the latency is made of inside the node."""
+        solver = self.next_solver_status(sim_time=sim_time)
+        return {name: value for name, value in solver.items() if name.startswith(NODE_TIMES)}
 
     def connected(self) -> bool:
         return self.publisher.get_subscription_count() > 0 and all(
@@ -210,13 +241,15 @@ def percentiles(values_ms: np.ndarray) -> str:
 @dataclass
 class Latency:
     """Publish-to-pose latencies [ms] of every sample, of those where the taut set held and where it
-    changed, and the node's CPU [s] over the wall time [s] of the run."""
+    changed, the node's CPU [s] over the wall time [s] of the run, and the node's own account of its latest
+    samples' times."""
 
     all: np.ndarray
     steady: np.ndarray
     changed: np.ndarray
     cpu: float
     wall: float
+    node: dict[str, str]  # the node's own times of its latest samples (`Probe.node_times`)
 
 
 def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
@@ -230,7 +263,8 @@ def measure(samples: int, rate: float, domain_id: int, solver: str = "energy",
         sent = publish_paced(probe, readings, rate)
         time.sleep(0.5)
         cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
-    return _latency(probe, sent, cpu, wall)
+        times = probe.node_times()
+    return _latency(probe, sent, cpu, wall, times)
 
 
 @contextmanager
@@ -279,16 +313,18 @@ def measure_recording(bag: Path, domain_id: int, plant_file: Path | None = None,
                 sent[(stamp.sec, stamp.nanosec)] = at
         time.sleep(0.5)
         cpu, wall = cpu_seconds(node.pid) - cpu0, time.monotonic() - wall0
-    return _latency(probe, sent, cpu, wall)
+        times = probe.node_times(sim_time=items[-1].log_time)
+    return _latency(probe, sent, cpu, wall, times)
 
 
-def _latency(probe: Probe, sent: dict[tuple[int, int], int], cpu: float, wall: float) -> Latency:
+def _latency(probe: Probe, sent: dict[tuple[int, int], int], cpu: float, wall: float,
+             times: dict[str, str]) -> Latency:
     """Each sent sample's latency, those where the taut set held and where it changed."""
     latency = {key: (probe.received[key] - at) / 1e6 for key, at in sent.items() if key in probe.received}
     keys = list(sent)
     switched = {b for a, b in zip(keys, keys[1:]) if probe.taut.get(a, ()) != probe.taut.get(b, ())}
     return Latency(np.array(list(latency.values())), np.array([v for k, v in latency.items() if k not in switched]),
-                   np.array([v for k, v in latency.items() if k in switched]), cpu, wall)
+                   np.array([v for k, v in latency.items() if k in switched]), cpu, wall, times)
 
 
 def run(samples: int, rate: float, domain_id: int, solver: str, plant_file: Path | None = None,
@@ -309,6 +345,8 @@ def run(samples: int, rate: float, domain_id: int, solver: str, plant_file: Path
     print(f"  taut set changed    {percentiles(result.changed)}")
     print(f"  node CPU share      {100.0 * result.cpu / result.wall:.1f} % of one core ({result.cpu:.2f} s CPU in "
           f"{result.wall:.2f} s)")
+    for name, value in result.node.items():
+        print(f"  in the node: {name}: {value}")
     return 0
 
 

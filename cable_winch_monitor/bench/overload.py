@@ -19,39 +19,21 @@ import time
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 
 from .node_latency import Probe, connect, cpu_seconds, lowering, percentiles, publish_paced, start_node, warm_up
 
-SOLVER_STATUS = "winch_monitor: solver"
 COUNTERS = ("samples", "complete samples", "skipped (behind by more than the backlog)", "waiting", "winch messages",
             "winch messages lost before the node")
 SETTLE = 1.5  # [s] after the last sample: the last solve and a /diagnostics period
 
 
 class OverloadProbe(Probe):
-    """The latency probe, also keeping the node's latest solver diagnostics and its winch message count."""
-
-    def __init__(self, domain_id: int):
-        super().__init__(domain_id)
-        self.solver: dict[str, str] = {}
-        self.subscriptions.append(self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics,
-                                                                10))
-
-    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
-        for status in msg.status:
-            if status.name == SOLVER_STATUS:
-                self.solver = {kv.key: kv.value for kv in status.values}
+    """The latency probe, reading the node's counters from its solver diagnostics."""
 
     def counters(self, timeout: float = 5.0) -> dict[str, int]:
         """The solver's counters from the next /diagnostics."""
-        self.solver = {}
-        deadline = time.monotonic() + timeout
-        while not self.solver:
-            if time.monotonic() > deadline:
-                raise SystemExit("overload: no /diagnostics from the node")
-            time.sleep(0.02)
-        return {key: int(self.solver[key]) for key in COUNTERS}
+        solver = self.next_solver_status(timeout)
+        return {key: int(solver[key]) for key in COUNTERS}
 
 
 def run(rate: float, seconds: float, domain_id: int) -> int:
@@ -71,6 +53,7 @@ def run(rate: float, seconds: float, domain_id: int) -> int:
             cpu = cpu_seconds(node.pid) - cpu0
             time.sleep(SETTLE)
             after = probe.counters()
+            times = probe.node_times()
         finally:
             probe.close()
             node.send_signal(signal.SIGINT)
@@ -91,6 +74,8 @@ def run(rate: float, seconds: float, domain_id: int) -> int:
     print(f"  pose latency        {percentiles(latency)}  (target p99 < 50 ms)")
     print(f"  accounted for       {'every input solved, or counted as skipped or lost' if accounted else 'NO: ' + str(delta)}")
     print(f"  node CPU share      {100.0 * cpu / duration:.1f} % of one core")
+    for name, value in times.items():
+        print(f"  in the node: {name}: {value}")
     return 0
 
 

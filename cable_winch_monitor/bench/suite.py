@@ -224,10 +224,11 @@ def node_rows(files: dict[str, Path | None], traversal_ms: float,
             rows.append((f"node latency at {NODE_RATE:g} Hz [{label}]", "not measured", str(error), ""))
             continue
         p50, p99 = np.percentile(latency.all, [50, 99])
+        inside = "; ".join(f"{name.split(' [ms]')[0]} {value}" for name, value in latency.node.items())
         rows.append((f"node latency at {NODE_RATE:g} Hz [{label}]", f"p99 {p99:.2f} ms",
                      f"p50 {p50:.2f} ms, {latency.all.size} poses, node CPU "
-                     f"{100.0 * latency.cpu / latency.wall:.0f} % of a core", f"{p99 / traversal_ms:.2f}x a traversal "
-                     "solve  (p99 < 10 ms)"))
+                     f"{100.0 * latency.cpu / latency.wall:.0f} % of a core; in the node, its latest samples [ms]: "
+                     f"{inside or 'not reported'}", f"{p99 / traversal_ms:.2f}x a traversal solve  (p99 < 10 ms)"))
     return rows
 
 

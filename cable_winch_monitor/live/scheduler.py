@@ -8,7 +8,9 @@ batch is the replay's: the same states as one at a time, for a fraction of the c
 a stall of the machine costs no sample and leaves the node's state the replay's. Only a
 sample more than `backlog` seconds (of stamps) older than the newest is dropped unsolved,
 and counted as skipped: the work waiting never outgrows the backlog, and the outputs are
-never more than that behind the winches.
+never more than that behind the winches. What a sample waited before its solve and what it took from
+its merge to its outputs are kept for the last TIMED samples and reported in /diagnostics: the share of
+the latency that is queueing, the share that is solving.
 
 DDS delivers each topic in order, but not the topics in the order they were sent: under load a
 winch message can overtake an inclinometer reading stamped before it. A complete sample with a
@@ -26,6 +28,8 @@ from collections import deque
 from collections.abc import Callable, Hashable
 from typing import Any
 
+import numpy as np
+
 from ..model.plantfile.plant import Plant
 from ..monitor.inputs import JointSample, StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
@@ -33,6 +37,7 @@ from ..monitor.residuals import Residuals
 from ..monitor.waiting import READING_WAIT, ReadingWait
 
 BACKLOG = 0.3  # [s] of sample stamps the worker may be behind the newest sample before the oldest are skipped
+TIMED = 500  # the latest samples whose queueing and processing time /diagnostics reports
 
 
 class LiveScheduler:
@@ -58,6 +63,10 @@ class LiveScheduler:
         self.complete = 0  # complete samples merged
         self.skipped = 0  # complete samples dropped unsolved: more than the backlog behind the newest
         self.generation = 0  # restarts so far
+        # stamp and clock of each complete sample not yet solved (bounded: a scheduler nobody solves for forgets)
+        self._merged: deque[tuple[float, float]] = deque(maxlen=100 * TIMED)
+        self.queued: deque[float] = deque(maxlen=TIMED)  # [s] from merge to the start of its solve, latest samples
+        self.processed: deque[float] = deque(maxlen=TIMED)  # [s] from merge to its outputs
 
     def offer(self, sample: JointSample, tag: Hashable = None) -> bool:
         """Merge a winch message; True if it made a complete sample (kept with `tag` for the worker, held
@@ -67,7 +76,9 @@ class LiveScheduler:
             if complete is None:
                 return False
             self.complete += 1
-            self._hand_over(self._held.add(tag, complete, self.clock()))
+            now = self.clock()
+            self._merged.append((complete.stamp, now))
+            self._hand_over(self._held.add(tag, complete, now))
             while self._pending and self._pending[0][1].stamp < complete.stamp - self.backlog:
                 self._pending.popleft()
                 self.skipped += 1
@@ -108,6 +119,7 @@ class LiveScheduler:
         callbacks merge the messages as they come meanwhile."""
         try:
             with self.lock:
+                started = self.clock()
                 monitor, generation = self.monitor, self.generation
                 conditions = [monitor.conditions(sample) for sample in samples]
                 estimator = monitor.estimator
@@ -120,13 +132,30 @@ class LiveScheduler:
                     output, outcome = monitor.judge(sample, done, at)
                     monitor.note(outcome)
                     outputs.append(output)
+                self._time(samples, started, self.clock())
                 return outputs
         finally:
             with self.lock:
                 self._solving = 0
 
-    def counters(self) -> dict[str, int]:
-        """The node's own counts, for /diagnostics."""
+    def _time(self, samples: list[CompleteSample], started: float, done: float) -> None:
+        """Keep how long each solved sample queued and took from its merge to its outputs (`started`, `done`:
+        the clock when their solve began and ended); the samples skipped before them are forgotten."""
+        for sample in samples:
+            while self._merged and self._merged[0][0] < sample.stamp:
+                self._merged.popleft()
+            if self._merged and self._merged[0][0] == sample.stamp:
+                merged = self._merged.popleft()[1]
+                self.queued.append(started - merged)
+                self.processed.append(done - merged)
+
+    def counters(self) -> dict[str, object]:
+        """The node's own counts, and its latest samples' times, for /diagnostics."""
+        return {**self._counts(), **{f"{name} [ms], latest {len(times)} samples": _percentiles(times)
+                                     for name, times in (("queued before the solve", self.queued),
+                                                         ("merged to outputs", self.processed)) if times}}
+
+    def _counts(self) -> dict[str, int]:
         return {"complete samples": self.complete, "skipped (behind by more than the backlog)": self.skipped,
                 "winch messages": self.monitor.stats.winch, "winch messages lost before the node": self.unseen,
                 "waiting": self.waiting + self._solving,  # neither solved nor skipped yet: queued or being solved
@@ -143,6 +172,7 @@ class LiveScheduler:
             self.monitor.stats = old.stats
             self.skipped += self._held.clear() + len(self._pending) + self._solving  # dropped unsolved: from the future that went
             self._pending.clear()
+            self._merged.clear()
             self._held.monitor = self.monitor
             self.generation += 1
 
@@ -150,3 +180,8 @@ class LiveScheduler:
     def waiting(self) -> int:
         """Complete samples merged and not yet taken by the worker."""
         return len(self._held) + len(self._pending)
+
+
+def _percentiles(seconds: deque[float]) -> str:
+    p50, p99, most = 1e3 * np.percentile(seconds, [50.0, 99.0, 100.0])
+    return f"p50 {p50:.1f}, p99 {p99:.1f}, max {most:.1f}"

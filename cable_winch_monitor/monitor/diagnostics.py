@@ -106,7 +106,7 @@ class DiagnosticsReporter:
             arrivals.popleft()
 
     def build(self, pipeline: MonitorPipeline, now: float, stamp: tuple[int, int],
-              node: Mapping[str, int] | None = None, last: SampleView | None = None,
+              node: Mapping[str, object] | None = None, last: SampleView | None = None,
               winch: WinchView | None = None) -> Fields:
         """All five statuses at time `now` [s], and a sixth where the plant file tracks parameters (from the
         start, so that a reader finds it in every message), stamped `stamp` (sec, nanosec); `node`: the live
@@ -139,7 +139,7 @@ class DiagnosticsReporter:
             return float("nan"), float("nan")
         return (offered - first) / span, (samples - solved) / span
 
-    def _solver(self, pipeline: MonitorPipeline, now: float, node: Mapping[str, int] | None,
+    def _solver(self, pipeline: MonitorPipeline, now: float, node: Mapping[str, object] | None,
                 last: SampleView, winch: WinchView) -> Fields:
         stats = pipeline.stats
         input_rate, solve_rate = self.throughput_rates(pipeline, now, winch)

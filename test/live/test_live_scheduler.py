@@ -142,3 +142,25 @@ def test_a_sample_whose_reading_never_comes_goes_on_when_its_wait_is_over(plant)
     counts = scheduler.counters()
     assert len(waited) >= 1 and counts["of those, released without it"] == counts["held for a sensor reading"] == len(waited)
     assert all(s.taken["roll"] == last for s in taken if s.stamp >= last + period - 1e-9 and s.stamp - last <= 0.5)
+
+
+def test_diagnostics_time_what_each_solved_sample_queued_and_took(plant):
+    now = [0.0]
+    scheduler = LiveScheduler(plant, backlog=0.3, clock=lambda: now[0])
+    for k in range(10):  # 10 Hz, merged 1 ms apart on the clock: the first six are skipped (beyond the backlog)
+        now[0] = 1e-3 * k
+        scheduler.offer(sample(k, 0.1), tag=k)
+    solve = scheduler.monitor.solve_samples
+
+    def solving(*args):  # the solve takes 7 ms of the clock
+        now[0] += 7e-3
+        return solve(*args)
+    scheduler.monitor.solve_samples = solving
+    now[0] = 0.020
+    scheduler.solve_all([s for _, s in scheduler.take(timeout=0.0)])
+    merged = 1e-3 * np.arange(6, 10)  # only the four solved samples are timed
+    np.testing.assert_allclose(scheduler.queued, 0.020 - merged)
+    np.testing.assert_allclose(scheduler.processed, 0.027 - merged)
+    counters = scheduler.counters()
+    assert counters["queued before the solve [ms], latest 4 samples"] == "p50 12.5, p99 14.0, max 14.0"
+    assert counters["merged to outputs [ms], latest 4 samples"] == "p50 19.5, p99 21.0, max 21.0"

@@ -184,6 +184,11 @@ def test_per_winch_topics_merge_into_one_solve(live, plant):
     statuses = live.client.diagnostics(lambda s: True, "any status")
     for i in range(1, 5):
         assert int(statuses["winch_monitor: inputs"][2][f"/winch_{i}/joint_states used"]) >= 1
+    solver = statuses["winch_monitor: solver"][2]
+    for name in ("queued before the solve", "merged to outputs"):  # the node's own latency, for the operator
+        value = next(v for k, v in solver.items() if k.startswith(f"{name} [ms], latest "))
+        p50, p99, most = (float(part.split()[1]) for part in value.split(", "))
+        assert 0.0 <= p50 <= p99 <= most < 5e3, value
 
 
 def quaternion_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
