@@ -64,10 +64,13 @@ def plant_file(path: Path, effects: dict[str, dict[str, float]]) -> Path:
     return path
 
 
-def tracking_plant_file(path: Path, ea: float = SITE_EA) -> Path:
+def tracking_plant_file(path: Path, ea: float = SITE_EA, track: bool = True) -> Path:
     """The bundled plant file with elastic ropes of axial stiffness `ea` [N] and the site's rope weight, tracking
-    TRACKED (the encoders' zeros with a tolerance of 1 cm, the rest the package's defaults), written to `path`."""
+    TRACKED (the encoders' zeros with a tolerance of 1 cm, the rest the package's defaults; `track` False: the
+    same file tracking nothing, to tell what tracking costs from what the model costs), written to `path`."""
     plant_file(path, {"rope_elasticity": {"EA": ea}, "rope_weight": {"w": SITE_WEIGHT}})
+    if not track:
+        return path
     config = yaml.safe_load(path.read_text())
     config["plant"]["track"] = list(TRACKED)
     config["plant"]["track_tolerance"] = {"encoder_offset": {"absolute": 0.01}}

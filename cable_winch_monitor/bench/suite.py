@@ -13,7 +13,9 @@ rigid plant), with its safety outputs judged against the simulator's truth, peak
 default), fleet replay on 1 and 2 workers, diagnose of a 20-minute bag when a diagnose
 job is given, and the live node's latency at 50 Hz when ROS 2 is available (on each plant's
 lowering, and on recording (a) at 50 Hz with every sensor). Recording (a) is replayed and fed to the node
-again with a plant file that tracks its parameters live (EA 10 % high, TRACKED: bench/plants.py).
+again with a plant file that tracks its parameters live (EA 10 % high, TRACKED: bench/plants.py), and with
+the same file tracking nothing: the two differ by what tracking costs, the rigid row by what the elastic
+model costs.
 """
 from __future__ import annotations
 
@@ -278,11 +280,15 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
         site, site_fast, site_plant = site_recordings(directory)
         rows += _progress(site_rows(site, site_plant, directory, traversal_ms))
         tracking = tracking_plant_file(directory / "site_a_tracking.yaml", TRACKING_EA)
+        untracked = tracking_plant_file(directory / "site_a_untracked.yaml", TRACKING_EA, track=False)
         rows += _progress([replay_speed(site, directory, "site (a), tracking", tracking, traversal_ms,
-                                        "replay site recording, tracking its parameters live")[0]])
+                                        "replay site recording, tracking its parameters live")[0],
+                           replay_speed(site, directory, "site (a), untracked", untracked, traversal_ms,
+                                        "replay site recording, the same plant file tracking nothing")[0]])
         if node:
             rows += _progress(node_rows(files, traversal_ms, {"site (a), every sensor": (site_fast, site_plant),
-                                                              "site (a), tracking": (site_fast, tracking)}))
+                                                              "site (a), tracking": (site_fast, tracking),
+                                                              "site (a), untracked": (site_fast, untracked)}))
         twenty = directory / "twenty_minutes"
         simulate(load_scenario(scenario_path("benchmark"), ["duration=1200.0"]), twenty)
         rows += _progress(diagnose_rows(twenty, diagnose, plants, traversal_ms))

@@ -34,6 +34,7 @@ from ..model.plantfile.plant import Plant
 from ..monitor.inputs import JointSample, StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 from ..monitor.residuals import Residuals
+from ..monitor.updates import UpdateProcess
 from ..monitor.waiting import READING_WAIT, ReadingWait
 
 BACKLOG = 0.3  # [s] of sample stamps the worker may be behind the newest sample before the oldest are skipped
@@ -51,8 +52,10 @@ class LiveScheduler:
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
                  stamp_window: StampWindow | None = None, backlog: float = BACKLOG, wait: float = READING_WAIT,
                  clock: Callable[[], float] = time.monotonic):
-        # the model error's updates are worked out beside the samples (`background`), in a thread of their own
-        self.monitor = MonitorPipeline(plant, solver, staleness, stamp_window, background=True)
+        # the window updates (the model's error, the tracked parameters) are worked out beside the samples, in a
+        # process of their own (started at the first)
+        self.updates = UpdateProcess(plant, solver)
+        self.monitor = MonitorPipeline(plant, solver, staleness, stamp_window, background=self.updates)
         self.backlog, self.clock = backlog, clock
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
@@ -168,13 +171,18 @@ class LiveScheduler:
         carries the counts on."""
         with self.lock:
             old = self.monitor
-            self.monitor = MonitorPipeline(old.plant, old.solver, old.staleness, old.merger.window, background=True)
+            self.monitor = MonitorPipeline(old.plant, old.solver, old.staleness, old.merger.window,
+                                           background=self.updates)
             self.monitor.stats = old.stats
             self.skipped += self._held.clear() + len(self._pending) + self._solving  # dropped unsolved: from the future that went
             self._pending.clear()
             self._merged.clear()
             self._held.monitor = self.monitor
             self.generation += 1
+
+    def close(self) -> None:
+        """Stop the window updates' process."""
+        self.updates.close()
 
     @property
     def waiting(self) -> int:

@@ -24,8 +24,8 @@ same sample stamps, so they give the same states.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -53,6 +53,7 @@ from ..model.statics.result import Solution
 from .sensitivity import WindowSamples
 from .sensors import sensor_of
 from .tracking import ParameterTracker, ParameterView, TrackState
+from .updates import UpdateProcess
 
 CARRIED = ("roll", "pitch")  # readings carried to the sample's stamp by the model's own rate of change
 CARRY_WINDOW = 1.0    # [s] of the model's predictions that give that rate
@@ -114,11 +115,11 @@ class _Window:
 class MonitorEstimator:
     """The estimator of one stream of samples (a live node's, a replay's), with its model error and faults."""
 
-    def __init__(self, model: PlantModel, background: bool = False):
+    def __init__(self, model: PlantModel, background: UpdateProcess | None = None):
         self.base = model  # the plant file's; `model` is it with the tracked values in use
         self.tracker = ParameterTracker.of(model)
-        # the node works each window's update out in a thread of its own beside the samples (`background`)
-        self.background = ThreadPoolExecutor(1, thread_name_prefix="model error") if background else None
+        # the node works each window's update out in a process of its own beside the samples (`background`)
+        self.background = background
         # the last window's update (the model's error, the tracker's state), taken at the next window's end
         self.pending: Future[tuple[ErrorState, TrackState | None]] | tuple[ErrorState, TrackState | None] | None = None
         sigma_length = length_noise(model)
@@ -138,7 +139,7 @@ class MonitorEstimator:
 
     def __getstate__(self) -> dict[str, Any]:
         """What it has learnt, without the model (a user's effects need not pickle: whoever restores it gives
-        the model back) and without the node's update thread (its pending update taken)."""
+        the model back) and without the node's update process (its pending update taken)."""
         pending = self.pending.result() if isinstance(self.pending, Future) else self.pending
         return {**self.__dict__, "model": None, "base": None, "background": None, "pending": pending}
 
@@ -398,8 +399,8 @@ class MonitorEstimator:
         end = self.origin + (window.index + 1) * self.error.spec.period
         if self.pending is not None:
             self._apply(*(self.pending.result() if isinstance(self.pending, Future) else self.pending), end)
-        job = self._update(window, end)
-        self.pending = self.background.submit(job) if self.background is not None else job()
+        update = self._update(window, end)
+        self.pending = self.background.submit(update) if self.background is not None else update.run(self.base)
         if window.misfits:
             self.error.rescale(float(np.mean(window.misfits)) / 4.0)
         for sensor, count in window.rejected.items():
@@ -420,23 +421,13 @@ class MonitorEstimator:
                 self.error.shift(-tracked.signature @ moved)
                 self._use(self.tracker.model(self.base))
 
-    def _update(self, window: _Window, end: float) -> Callable[[], tuple[ErrorState, TrackState | None]]:
-        """The work of a window's update (the error's and the tracker's state as they are now read when it
-        runs)."""
+    def _update(self, window: _Window, end: float) -> WindowUpdate:
+        """The work of a window's update, with the error and the tracker as they are now."""
         states = [k for k, state in enumerate(window.states) if state is not None]
         solved = [k for k in states if not window.followed[k]]
         prior = self.error.white(np.array(window.stamps), np.array(window.lengths)) if states else None
         samples = self._tracked_samples(window, states, prior)
-        base, tracker, period = self.base, self.tracker, self.error.spec.period
-
-        def job() -> tuple[ErrorState, TrackState | None]:
-            if solved:
-                assert prior is not None  # the solved samples are among those with a state, which are weighed
-                error = self._updated(window, end, solved, prior)
-            else:
-                error = ErrorState(self.error.mean.copy(), self.error.covariance.copy(), self.error.reference)
-            return error, None if tracker is None else tracker.updated(base, samples, end, period)
-        return job
+        return WindowUpdate(window, end, solved, prior, samples, self.error, self.tracker, self.sigma_length)
 
     def _tracked_samples(self, window: _Window, solved: list[int], white: Prior | None) -> WindowSamples | None:
         """What the tracker learns from in a window: its estimated states and the readings they fused."""
@@ -446,17 +437,44 @@ class MonitorEstimator:
         return WindowSamples(np.array(window.reported), window.measured, window.conditions,
                              (np.array(solved), *_stacked(window, solved)), white, self.sigma_length)
 
-    def _updated(self, window: _Window, end: float, solved: list[int], white: Prior) -> ErrorState:
+
+@dataclass
+class WindowUpdate:
+    """What a window's update needs, and its work (`run`): a function of these alone and the plant file's model,
+    so that it can be worked out at once (replay) or in a process of its own beside the node's samples
+    (monitor.updates), and give the same update either way."""
+
+    window: _Window
+    end: float                            # [s] where the window ends
+    solved: list[int]                     # its samples whose estimate the model's error is learnt from
+    white: Prior | None                   # their weights (`ModelError.white`); None: no sample has a state
+    samples: WindowSamples | None         # what the tracker learns from (None: it tracks nothing, or no sample)
+    error: ModelError
+    tracker: ParameterTracker | None
+    sigma_length: float
+
+    def run(self, base: PlantModel) -> tuple[ErrorState, TrackState | None]:
+        """The model's error and the tracker after the window, with `base` the plant file's model."""
+        tracker = self.tracker
+        error = self._updated(base if tracker is None else tracker.model(base)) if self.solved else \
+            ErrorState(self.error.mean.copy(), self.error.covariance.copy(), self.error.reference)
+        return error, None if tracker is None else tracker.updated(base, self.samples, self.end, self.error.spec.period)
+
+    def _updated(self, model: PlantModel) -> ErrorState:
+        window, solved = self.window, self.solved
+        assert self.white is not None  # the solved samples are among those with a state, which are weighed
         lengths = np.array(window.lengths)
         names = sorted({name for row in window.measured for name in row})
         values = {name: np.array([row.get(name, np.nan) for row in window.measured]) for name in names}
-        observations = observations_for(self.model, values, window.conditions)
-        loads = np.array([self.model.load(c) for c in window.conditions])
-        problem = Problem.build(self.model.physical, lengths, self.sigma_length, observations, self.ropes, loads,
-                                prior=white)
+        observations = observations_for(model, values, window.conditions)
+        loads = np.array([model.load(c) for c in window.conditions])
+        law = model.rope_law
+        ropes = Ropes.of(law.EA, law.weight if law.EA is not None else 0.0)
+        problem = Problem.build(model.physical, lengths, self.sigma_length, observations, ropes, loads,
+                                prior=self.white)
         taut, rotation, position, tensions = _stacked(window, solved)
         rows = Rows(np.array(solved), taut, rotation, position, tensions / problem.scales[solved, None])
-        return self.error.updated(problem, rows, lengths, end)
+        return self.error.updated(problem, rows, lengths, self.end)
 
 
 def _stacked(window: _Window, rows: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

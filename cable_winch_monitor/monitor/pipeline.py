@@ -51,6 +51,7 @@ from .inputs import (
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import LatestReadings, PayoutHistory, StuckReadings, sensor_of
 from .tracking import ParameterView
+from .updates import UpdateProcess
 
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
 
@@ -199,7 +200,7 @@ class MonitorPipeline:
     """Merges inputs, estimates (or solves) each complete sample, and derives alarm and residuals."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
-                 stamp_window: StampWindow | None = None, background: bool = False):
+                 stamp_window: StampWindow | None = None, background: UpdateProcess | None = None):
         self.model = PlantModel.from_plant(plant, solver)  # the one solve path: effects, load, solver
         self.plant, self.solver = plant, solver
         self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
@@ -218,7 +219,8 @@ class MonitorPipeline:
         self.readings = LatestReadings(staleness)
         self.pins = StuckReadings()
         self.heard: dict[str, float] = {}  # load pin -> the stamp of its latest finite reading
-        self.estimator = MonitorEstimator(self.model, background) if self.fusing else None  # background: updates
+        # background: where the window updates are worked out (None: at once, as replay does)
+        self.estimator = MonitorEstimator(self.model, background) if self.fusing else None
         self.payouts = PayoutHistory()  # the recent complete samples' mean payouts, to carry readings by
 
     def _reject(self, topic: str, reason: str) -> None:

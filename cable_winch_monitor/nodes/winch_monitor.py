@@ -186,6 +186,7 @@ class WinchMonitorNode(Node):
     def destroy_node(self) -> None:
         self._stopping.set()
         self._worker.join(timeout=5.0)
+        self.live.close()
         super().destroy_node()
 
     def _work(self) -> None:

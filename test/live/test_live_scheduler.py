@@ -6,11 +6,14 @@ import threading
 
 import numpy as np
 from fusionbags import lowering_truths, noisy, sensed
+from simbags import simulated
 
 from cable_winch_monitor import channels
+from cable_winch_monitor.bagio.reader import BagReader
+from cable_winch_monitor.bench.plants import tracking_plant_file
 from cable_winch_monitor.live.scheduler import LiveScheduler
 from cable_winch_monitor.messages import fields
-from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant
 from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor.inputs import JointSample
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
@@ -164,3 +167,36 @@ def test_diagnostics_time_what_each_solved_sample_queued_and_took(plant):
     counters = scheduler.counters()
     assert counters["queued before the solve [ms], latest 4 samples"] == "p50 12.5, p99 14.0, max 14.0"
     assert counters["merged to outputs [ms], latest 4 samples"] == "p50 19.5, p99 21.0, max 21.0"
+
+
+def tracked_values(plant, bag, in_process: bool) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Each sample's tensions and tracked parameters (values, sigmas) from a live scheduler fed the recording in
+    log order, its window updates worked out in their process, or at once as replay does."""
+    now = [0.0]
+    scheduler = LiveScheduler(plant, backlog=1e9, wait=0.0, clock=lambda: now[0])
+    if not in_process:
+        scheduler.monitor.estimator.background = None
+    out = []
+    for item in BagReader(bag, fields.input_topics(())):
+        now[0] = item.log_time * 1e-9
+        if item.msgtype != channels.JOINT_STATE:
+            scheduler.on_measurement(item.topic, fields.message_seconds(item.message, item.log_time), item.message)
+        elif scheduler.offer(fields.joint_sample(item.message, item.topic, now[0])):
+            for output in scheduler.solve_all([s for _, s in scheduler.take(timeout=0.0)]):
+                out.append((output.solution.tensions, output.model.parameters.values, output.model.parameters.sigmas))
+    scheduler.close()
+    return out
+
+
+def test_window_updates_in_their_process_are_those_worked_out_at_once(tmp_path):
+    """The node works its window updates out in a process of its own (monitor.updates); they are the updates
+    replay works out at once, bit for bit, on every sample of a recording whose tracked values move."""
+    bag = simulated(tmp_path / "bag", "site_tracking", "duration=45.0")
+    plant = load_plant(tracking_plant_file(tmp_path / "stiff.yaml", 6.8e7 / 0.9))
+    apart, together = tracked_values(plant, bag, True), tracked_values(plant, bag, False)
+    assert len(apart) == len(together) > 400
+    for (tensions, values, sigmas), (tensions_at_once, values_at_once, sigmas_at_once) in zip(apart, together):
+        assert np.array_equal(tensions, tensions_at_once)
+        assert np.array_equal(values, values_at_once) and np.array_equal(sigmas, sigmas_at_once)
+    first, last = apart[0], apart[-1]
+    assert not np.array_equal(first[2], last[2]), "the windows' updates moved the tracked parameters' sigmas"
