@@ -13,6 +13,7 @@ from simbags import simulated
 from cable_winch_monitor import channels
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bench.plants import tracking_plant_file
+from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.live.scheduler import LiveScheduler
 from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant
@@ -80,16 +81,23 @@ def delivered(items: list, rng: np.random.Generator, late: float) -> list[tuple[
     return [(at, items[k]) for at, k in sorted(arrivals)]
 
 
-def fed(plant, arrivals: list[tuple[float, object]], wait: float) -> tuple[list, list, LiveScheduler]:
+def fed(plant, arrivals: list[tuple[float, object]], wait: float,
+        in_process: bool = True) -> tuple[list, list, LiveScheduler]:
     """The complete samples a live scheduler hands the worker, and their outputs, fed the items as they arrive
-    (its clock their arrival)."""
+    (its clock their arrival), its window updates worked out in their process (`in_process`) or at once as
+    replay does."""
     clock = [0.0]
     scheduler = LiveScheduler(plant, backlog=1e9, wait=wait, clock=lambda: clock[0])
+    if not in_process:
+        scheduler.monitor.estimator.background = None
+    inputs = {spec.topic: spec for spec in scheduler.monitor.model.inputs}  # what the plant's effects read
     samples, outputs = [], []
     for at, entry in arrivals:
         clock[0] = at
         msg = entry.message
-        if entry.msgtype == channels.JOINT_STATE:
+        if entry.topic in inputs:
+            scheduler.monitor.on_input(inputs[entry.topic], fields.seconds(msg.header.stamp), msg)
+        elif entry.msgtype == channels.JOINT_STATE:
             scheduler.offer(fields.joint_sample(msg, entry.topic, at))
         else:
             scheduler.on_measurement(entry.topic, fields.seconds(msg.header.stamp), msg)
@@ -98,7 +106,9 @@ def fed(plant, arrivals: list[tuple[float, object]], wait: float) -> tuple[list,
         outputs += scheduler.solve_all(taken)
     clock[0] += 1.0
     taken = [sample for _, sample in scheduler.take(timeout=0.0)]
-    return samples + taken, outputs + scheduler.solve_all(taken), scheduler
+    outputs += scheduler.solve_all(taken)
+    scheduler.close()
+    return samples + taken, outputs, scheduler
 
 
 def test_a_sample_waits_for_the_readings_stamped_before_it_that_its_winch_message_overtook(plant):
@@ -173,25 +183,12 @@ def test_diagnostics_time_what_each_solved_sample_queued_and_took(plant):
 
 def tracked_values(plant, bag, in_process: bool) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Each sample's tensions and tracked parameters (values, sigmas) from a live scheduler fed the recording in
-    log order, its window updates worked out in their process, or at once as replay does."""
-    now = [0.0]
-    scheduler = LiveScheduler(plant, backlog=1e9, wait=0.0, clock=lambda: now[0])
-    if not in_process:
-        scheduler.monitor.estimator.background = None
-    inputs = {spec.topic: spec for spec in scheduler.monitor.model.inputs}  # what the plant's effects read
-    out = []
-    for item in BagReader(bag, fields.input_topics(scheduler.monitor.model.inputs)):
-        now[0] = item.log_time * 1e-9
-        if item.topic in inputs:
-            scheduler.monitor.on_input(inputs[item.topic], fields.message_seconds(item.message, item.log_time),
-                                       item.message)
-        elif item.msgtype != channels.JOINT_STATE:
-            scheduler.on_measurement(item.topic, fields.message_seconds(item.message, item.log_time), item.message)
-        elif scheduler.offer(fields.joint_sample(item.message, item.topic, now[0])):
-            for output in scheduler.solve_all([s for _, s in scheduler.take(timeout=0.0)]):
-                out.append((output.solution.tensions, output.model.parameters.values, output.model.parameters.sigmas))
-    scheduler.close()
-    return out
+    log order (`fed`)."""
+    topics = fields.input_topics(PlantModel.from_plant(plant).inputs)
+    arrivals = [(item.log_time * 1e-9, item) for item in BagReader(bag, topics)]
+    _, outputs, _ = fed(plant, arrivals, wait=0.0, in_process=in_process)
+    return [(output.solution.tensions, output.model.parameters.values, output.model.parameters.sigmas)
+            for output in outputs]
 
 
 def test_window_updates_in_their_process_are_those_worked_out_at_once(tmp_path):
