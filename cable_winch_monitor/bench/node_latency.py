@@ -46,6 +46,7 @@ from cable_winch_monitor_msgs.msg import TensionDistribution
 from ..bagio.reader import BagReader
 from ..channels import TENSION_CHANNELS
 from ..effects import PlantModel
+from ..live.scheduler import PROCESSED, QUEUED
 from ..messages.fields import JOINT_STATE, input_topics
 from ..model.conditions import ConditionsTracker
 from ..model.plantfile.plant import CABLE_NAMES, load_plant
@@ -59,7 +60,7 @@ START_LENGTH = 20.0         # [m]
 CONNECT_TIMEOUT = 20.0      # [s]
 SETTLE = 2.0                # [s] of a recording played before the latencies count (the node's first samples)
 SOLVER_STATUS = "winch_monitor: solver"
-NODE_TIMES = ("queued before the solve", "merged to outputs")  # the node's own latency in its solver diagnostics
+NODE_TIMES = (QUEUED, PROCESSED)  # the node's own latency in its solver diagnostics
 
 
 def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None = None,

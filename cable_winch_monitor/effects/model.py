@@ -31,6 +31,7 @@ from ..model.plantfile.plant import Plant, PlantConfigError
 from ..model.solvers.batched import BatchSolution, solve_batch
 from ..model.solvers.batched_elastic import solve_batch_elastic
 from ..model.solvers.elastic import solve_elastic
+from ..model.solvers.ropes import Ropes
 from ..model.solvers.solve import METHODS, solve
 from ..model.statics.result import Solution, SolveStatus, failed
 from .base import Effect, EffectError, RopeLaw
@@ -197,6 +198,11 @@ class PlantModel:
         for effect in self.effects:
             law = _call(effect, "rope", law)
         return law
+
+    @cached_property
+    def ropes(self) -> Ropes:
+        """The rope law as the solvers and the estimator take it (rigid ropes carry no weight of their own)."""
+        return Ropes.of(self.rope_law.EA, self.rope_law.weight)
 
     @cached_property
     def _refiners(self) -> tuple[Effect, ...]:

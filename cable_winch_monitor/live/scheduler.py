@@ -39,6 +39,7 @@ from ..monitor.waiting import READING_WAIT, ReadingWait
 
 BACKLOG = 0.3  # [s] of sample stamps the worker may be behind the newest sample before the oldest are skipped
 TIMED = 500  # the latest samples whose queueing and processing time /diagnostics reports
+QUEUED, PROCESSED = "queued before the solve", "merged to outputs"  # their names there
 
 
 class LiveScheduler:
@@ -155,8 +156,8 @@ class LiveScheduler:
     def counters(self) -> dict[str, object]:
         """The node's own counts, and its latest samples' times, for /diagnostics."""
         return {**self._counts(), **{f"{name} [ms], latest {len(times)} samples": _percentiles(times)
-                                     for name, times in (("queued before the solve", self.queued),
-                                                         ("merged to outputs", self.processed)) if times}}
+                                     for name, times in ((QUEUED, self.queued), (PROCESSED, self.processed))
+                                     if times}}
 
     def _counts(self) -> dict[str, int]:
         return {"complete samples": self.complete, "skipped (behind by more than the backlog)": self.skipped,

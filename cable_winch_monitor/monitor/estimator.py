@@ -47,7 +47,6 @@ from ..model.estimator import (
     unfused,
 )
 from ..model.solvers.batched import BatchSolution
-from ..model.solvers.ropes import Ropes
 from ..model.statics.geometry import roll_pitch_yaw
 from ..model.statics.result import Solution
 from .sensitivity import WindowSamples
@@ -178,8 +177,7 @@ class MonitorEstimator:
     def _use(self, model: PlantModel) -> None:
         """Estimate with `model` (the plant file's, or it with tracked values in use) from now on."""
         self.model = model
-        law = model.rope_law
-        self.ropes = Ropes.of(law.EA, law.weight if law.EA is not None else 0.0)
+        self.ropes = model.ropes
 
     def run(self, samples: Sequence[SampleInput]) -> list[tuple[Estimated, int]]:
         """Estimate consecutive samples (in stamp order); returns, for each run of them in one update window,
@@ -450,8 +448,8 @@ class MonitorEstimator:
 
     def _update(self, window: _Window, end: float) -> WindowUpdate:
         """The work of a window's update, with the error and the tracker as they are now."""
-        states = [k for k, state in enumerate(window.states) if state is not None]
-        prior = self.error.white(np.array(window.stamps), np.array(window.lengths)) if states else None
+        estimated = any(state is not None for state in window.states)
+        prior = self.error.white(np.array(window.stamps), np.array(window.lengths)) if estimated else None
         return WindowUpdate(window, end, prior, self.error, self.tracker, self.sigma_length)
 
 
@@ -496,9 +494,7 @@ class WindowUpdate:
         values = {name: np.array([row.get(name, np.nan) for row in window.measured]) for name in names}
         observations = observations_for(model, values, window.conditions)
         loads = np.array([model.load(c) for c in window.conditions])
-        law = model.rope_law
-        ropes = Ropes.of(law.EA, law.weight if law.EA is not None else 0.0)
-        problem = Problem.build(model.physical, lengths, self.sigma_length, observations, ropes, loads,
+        problem = Problem.build(model.physical, lengths, self.sigma_length, observations, model.ropes, loads,
                                 prior=self.white)
         taut, rotation, position, tensions = _stacked(window, solved)
         rows = Rows(np.array(solved), taut, rotation, position, tensions / problem.scales[solved, None])

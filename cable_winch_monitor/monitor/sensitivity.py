@@ -44,7 +44,6 @@ from ..model.estimator import (
     residuals_and_balance,
 )
 from ..model.plantfile.error_spec import SIZE
-from ..model.solvers.ropes import Ropes
 
 MAX_ROWS = 50      # a window's estimated samples the parameters are learnt from, at most
 DERIVATIVE = 1e-3  # the numerical derivative's step, per max(|value|, the parameter's fit step)
@@ -127,7 +126,7 @@ class _Window:
     def problem(self, model: PlantModel) -> Problem:
         lengths, loads, _ = model.batch_inputs(self.samples.reported, self.samples.conditions)
         observations = observations_for(model, self.values, self.samples.conditions)
-        return Problem.build(model.physical, lengths, self.samples.sigma_length, observations, _ropes(model), loads,
+        return Problem.build(model.physical, lengths, self.samples.sigma_length, observations, model.ropes, loads,
                              prior=self.zero)
 
     def sensitivity(self, parameter: TrackedParameter, value: float) -> tuple[np.ndarray, np.ndarray]:
@@ -149,7 +148,7 @@ class _Window:
             change += np.einsum("nkj,nj->nk", per_length, (lengths - self.nominal.lengths)[self.rows.sample])
         if overrides(hooks, "rope"):
             implied = self._once("implied", lambda: implied_lengths(self.nominal, self.rows))
-            stretched = implied_lengths(replace(self.nominal, ropes=_ropes(moved)), self.rows)
+            stretched = implied_lengths(replace(self.nominal, ropes=moved.ropes), self.rows)
             change -= np.einsum("nkj,nj->nk", per_length, stretched - implied)
         if overrides(hooks, "measure") or overrides(hooks, "measure_states"):
             change += self._readings(moved, per_pin)
@@ -173,9 +172,4 @@ class _Window:
         if key not in self._cache:
             self._cache[key] = compute()
         return self._cache[key]
-
-
-def _ropes(model: PlantModel) -> Ropes:
-    law = model.rope_law
-    return Ropes.of(law.EA, law.weight if law.EA is not None else 0.0)
 
