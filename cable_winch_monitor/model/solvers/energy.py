@@ -239,23 +239,25 @@ def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
         levers = arms - arm_c
         mu = state.mu[idx]
         force = units[idx].T @ mu - pull
-        moment = cross(levers[idx], units[idx]).T @ mu / scale - turn
+        moments = cross(levers[idx], units[idx])
+        moment = moments.T @ mu / scale - turn
         length_error = norms[idx] - lengths[idx]
         residual = np.concatenate([force, moment, length_error])
         if np.abs(residual).max() < NEWTON_TOL * max(1.0, lengths.max() * 1e-2):
             return True
+        u, r, q, m = units[idx], arms[idx], levers[idx], mu[:, None, None]
+        projector = (np.eye(3) - u[:, :, None] * u[:, None, :]) / norms[idx, None, None]
+        sr, sq = skew(r), skew(q)
+        weighted = m * projector
         jacobian = np.zeros((6 + idx.size, 6 + idx.size))
-        for column, i in enumerate(idx):
-            u, r, q, m_i = units[i], arms[i], levers[i], state.mu[i]
-            projector = (np.eye(3) - np.outer(u, u)) / norms[i]
-            jacobian[0:3, 0:3] += m_i * projector
-            jacobian[0:3, 3:6] -= m_i * projector @ skew(r)
-            jacobian[3:6, 0:3] += m_i * skew(q) @ projector / scale
-            jacobian[3:6, 3:6] += m_i * (skew(u) @ skew(q) - skew(q) @ projector @ skew(r)) / scale
-            jacobian[0:3, 6 + column] = u
-            jacobian[3:6, 6 + column] = cross(q, u) / scale
-            jacobian[6 + column, 0:3] = u
-            jacobian[6 + column, 3:6] = cross(r, u)
+        jacobian[0:3, 0:3] = weighted.sum(axis=0)
+        jacobian[0:3, 3:6] = -(weighted @ sr).sum(axis=0)
+        jacobian[3:6, 0:3] = ((m * sq @ projector) / scale).sum(axis=0)
+        jacobian[3:6, 3:6] = ((m * (skew(u) @ sq - sq @ projector @ sr)) / scale).sum(axis=0)
+        jacobian[0:3, 6:] = u.T
+        jacobian[3:6, 6:] = moments.T / scale
+        jacobian[6:, 0:3] = u
+        jacobian[6:, 3:6] = cross(r, u)
         step = np.linalg.lstsq(jacobian, -residual, rcond=1e-13)[0]
         largest = max(np.abs(step[3:6]).max() / 0.2, np.abs(step[0:3]).max() / (0.2 * scale), 1.0)
         step /= largest
