@@ -40,6 +40,7 @@ from ..monitor.waiting import READING_WAIT, ReadingWait
 BACKLOG = 0.3  # [s] of sample stamps the worker may be behind the newest sample before the oldest are skipped
 TIMED = 500  # the latest samples whose queueing and processing time /diagnostics reports
 QUEUED, PROCESSED = "queued before the solve", "merged to outputs"  # their names there
+UPDATES_LOST = "update processes lost (their updates worked out in the node)"
 
 
 class LiveScheduler:
@@ -154,10 +155,13 @@ class LiveScheduler:
                 self.processed.append(done - merged)
 
     def counters(self) -> dict[str, object]:
-        """The node's own counts, and its latest samples' times, for /diagnostics."""
-        return {**self._counts(), **{f"{name} [ms], latest {len(times)} samples": _percentiles(times)
-                                     for name, times in ((QUEUED, self.queued), (PROCESSED, self.processed))
-                                     if times}}
+        """The node's own counts, the update process's losses, and its latest samples' times, for /diagnostics."""
+        lost: dict[str, object] = {UPDATES_LOST: self.updates.losses}
+        if self.updates.losses:
+            lost[f"{UPDATES_LOST}, the last"] = self.updates.last_loss
+        return {**self._counts(), **lost, **{f"{name} [ms], latest {len(times)} samples": _percentiles(times)
+                                             for name, times in ((QUEUED, self.queued), (PROCESSED, self.processed))
+                                             if times}}
 
     def _counts(self) -> dict[str, int]:
         return {"complete samples": self.complete, "skipped (behind by more than the backlog)": self.skipped,

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -52,7 +51,7 @@ from ..model.statics.result import Solution
 from .sensitivity import WindowSamples
 from .sensors import sensor_of
 from .tracking import ParameterTracker, ParameterView, TrackState
-from .updates import UpdateProcess
+from .updates import PendingUpdate, UpdateProcess
 
 CARRIED = ("roll", "pitch")  # readings carried to the sample's stamp by the model's own rate of change
 CARRY_WINDOW = 1.0    # [s] of the model's predictions that give that rate
@@ -147,7 +146,7 @@ class MonitorEstimator:
         # the node works each window's update out in a process of its own beside the samples (`background`)
         self.background = background
         # the last window's update (the model's error, the tracker's state), taken at the next window's end
-        self.pending: Future[tuple[ErrorState, TrackState | None]] | tuple[ErrorState, TrackState | None] | None = None
+        self.pending: PendingUpdate | tuple[ErrorState, TrackState | None] | None = None
         sigma_length = length_noise(model)
         if sigma_length is None:
             raise ValueError("the plant file gives the encoders no noise (noise.length): the lengths are taken "
@@ -166,7 +165,7 @@ class MonitorEstimator:
     def __getstate__(self) -> dict[str, Any]:
         """What it has learnt, without the model (a user's effects need not pickle: whoever restores it gives
         the model back) and without the node's update process (its pending update taken)."""
-        pending = self.pending.result() if isinstance(self.pending, Future) else self.pending
+        pending = self.pending.result(self.base) if isinstance(self.pending, PendingUpdate) else self.pending
         return {**self.__dict__, "model": None, "base": None, "background": None, "pending": pending}
 
     def attach(self, model: PlantModel) -> None:
@@ -423,7 +422,8 @@ class MonitorEstimator:
         assert window is not None and self.origin is not None  # `run` closes only a window it opened
         end = self.origin + (window.index + 1) * self.error.spec.period
         if self.pending is not None:
-            self._apply(*(self.pending.result() if isinstance(self.pending, Future) else self.pending), end)
+            error, tracked = self.pending.result(self.base) if isinstance(self.pending, PendingUpdate) else self.pending
+            self._apply(error, tracked, end)
         update = self._update(window, end)
         self.pending = self.background.submit(update) if self.background is not None else update.run(self.base)
         if window.misfits:

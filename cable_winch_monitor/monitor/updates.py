@@ -8,12 +8,18 @@ and the samples estimated meanwhile took twice as long. Here it runs in a proces
 on the other core. The update is a function of what it is sent and the plant file's model,
 which the process builds once from the plant (a user's effects are loaded there as the plant
 file names them; they need not pickle): the same update as worked out at once in replay.
+
+The process can be lost (killed by the kernel for memory, a user's effect crashing the
+interpreter). The node goes on: an update the process did not answer is worked out in the
+node's own process from what was sent (the same update), a new process is started for the
+next one, and /diagnostics counts the losses and says why the last one happened.
 """
 from __future__ import annotations
 
 import multiprocessing
 import pickle
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from ..effects import PlantModel
@@ -26,18 +32,59 @@ class UpdateProcess:
     """Window updates (anything with `run(base_model)`) worked out, one at a time, in a process of its own."""
 
     def __init__(self, plant: Plant, solver: str = "energy"):
+        self._plant, self._solver = plant, solver
+        self._pool = self._start()
+        self.losses = 0  # processes lost so far
+        self.last_loss = ""  # why the last one was lost
+        self._noted: ProcessPoolExecutor | None = None  # the last process whose loss was counted
+
+    def _start(self) -> ProcessPoolExecutor:
         # forkserver: the process is not forked from the node's, whose DDS threads may hold locks at the fork
         context = multiprocessing.get_context("forkserver")
-        self._pool = ProcessPoolExecutor(1, mp_context=context, initializer=_load,
-                                         initargs=(plant, solver))
+        return ProcessPoolExecutor(1, mp_context=context, initializer=_load, initargs=(self._plant, self._solver))
 
-    def submit(self, update: Any) -> Future:
-        """Work `update` out there; it is pickled now, so that it carries the state it was made with."""
-        return self._pool.submit(_run, pickle.dumps(update))
+    def submit(self, update: Any) -> PendingUpdate:
+        """Work `update` out there; it is pickled now, so that it carries the state it was made with. A process
+        lost since the last update is replaced first."""
+        sent = pickle.dumps(update)
+        try:
+            return PendingUpdate(self, self._pool, self._pool.submit(_run, sent), sent)
+        except BrokenProcessPool as lost:
+            self.note_lost(self._pool, lost)
+            self._pool.shutdown(wait=False)
+            self._pool = self._start()
+            return PendingUpdate(self, self._pool, self._pool.submit(_run, sent), sent)
+
+    def note_lost(self, pool: ProcessPoolExecutor, why: BrokenProcessPool) -> None:
+        """Count a lost process once, however many of its updates found it gone."""
+        if pool is not self._noted:
+            self._noted = pool
+            self.losses += 1
+            self.last_loss = str(why) or type(why).__name__
+
+    def process_ids(self) -> list[int]:
+        """The process's id, once started (for supervision: ps, kill)."""
+        return list(self._pool._processes or {})  # the executor keeps its processes by id
 
     def close(self) -> None:
         """Stop the process (an update under way is dropped)."""
         self._pool.shutdown(wait=False, cancel_futures=True)
+
+
+class PendingUpdate:
+    """An update sent to the process: its answer, or, where the process was lost before it answered, the same
+    update worked out here from what was sent."""
+
+    def __init__(self, process: UpdateProcess, pool: ProcessPoolExecutor, future: Future, sent: bytes):
+        self.process, self.pool, self.future, self.sent = process, pool, future, sent
+
+    def result(self, base: PlantModel) -> Any:
+        """The update's result (`base`: the plant file's model, for an update worked out here)."""
+        try:
+            return self.future.result()
+        except BrokenProcessPool as lost:
+            self.process.note_lost(self.pool, lost)
+            return pickle.loads(self.sent).run(base)
 
 
 def _load(plant: Plant, solver: str) -> None:

@@ -2,7 +2,11 @@
 solved together in order, and only those more than the backlog behind the newest are skipped."""
 from __future__ import annotations
 
+import os
+import signal
 import threading
+from collections.abc import Callable
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +18,13 @@ from cable_winch_monitor import channels
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bench.plants import tracking_plant_file
 from cable_winch_monitor.effects import PlantModel
-from cable_winch_monitor.live.scheduler import LiveScheduler
+from cable_winch_monitor.live.scheduler import UPDATES_LOST, LiveScheduler
 from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant
 from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor.inputs import JointSample
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
+from cable_winch_monitor.monitor.updates import PendingUpdate
 
 
 def sample(k: int, period: float = 1e-3) -> JointSample:
@@ -81,11 +86,11 @@ def delivered(items: list, rng: np.random.Generator, late: float) -> list[tuple[
     return [(at, items[k]) for at, k in sorted(arrivals)]
 
 
-def fed(plant, arrivals: list[tuple[float, object]], wait: float,
-        in_process: bool = True) -> tuple[list, list, LiveScheduler]:
+def fed(plant, arrivals: list[tuple[float, object]], wait: float, in_process: bool = True,
+        on_arrival: Callable[[float, LiveScheduler], None] | None = None) -> tuple[list, list, LiveScheduler]:
     """The complete samples a live scheduler hands the worker, and their outputs, fed the items as they arrive
     (its clock their arrival), its window updates worked out in their process (`in_process`) or at once as
-    replay does."""
+    replay does; `on_arrival(time, scheduler)` is called before each item is fed."""
     clock = [0.0]
     scheduler = LiveScheduler(plant, backlog=1e9, wait=wait, clock=lambda: clock[0])
     if not in_process:
@@ -94,6 +99,8 @@ def fed(plant, arrivals: list[tuple[float, object]], wait: float,
     samples, outputs = [], []
     for at, entry in arrivals:
         clock[0] = at
+        if on_arrival is not None:
+            on_arrival(at, scheduler)
         msg = entry.message
         if entry.topic in inputs:
             scheduler.monitor.on_input(inputs[entry.topic], fields.seconds(msg.header.stamp), msg)
@@ -181,12 +188,13 @@ def test_diagnostics_time_what_each_solved_sample_queued_and_took(plant):
     assert counters["merged to outputs [ms], latest 4 samples"] == "p50 19.5, p99 21.0, max 21.0"
 
 
-def tracked_values(plant, bag, in_process: bool) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def tracked_values(plant, bag, in_process: bool, on_arrival: Callable[[float, LiveScheduler], None] | None = None) \
+        -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Each sample's tensions and tracked parameters (values, sigmas) from a live scheduler fed the recording in
     log order (`fed`)."""
     topics = fields.input_topics(PlantModel.from_plant(plant).inputs)
     arrivals = [(item.log_time * 1e-9, item) for item in BagReader(bag, topics)]
-    _, outputs, _ = fed(plant, arrivals, wait=0.0, in_process=in_process)
+    _, outputs, _ = fed(plant, arrivals, wait=0.0, in_process=in_process, on_arrival=on_arrival)
     return [(output.solution.tensions, output.model.parameters.values, output.model.parameters.sigmas)
             for output in outputs]
 
@@ -203,6 +211,45 @@ def test_window_updates_in_their_process_are_those_worked_out_at_once(tmp_path):
         assert np.array_equal(values, values_at_once) and np.array_equal(sigmas, sigmas_at_once)
     first, last = apart[0], apart[-1]
     assert not np.array_equal(first[2], last[2]), "the windows' updates moved the tracked parameters' sigmas"
+
+
+def test_a_lost_update_process_costs_no_update_and_is_replaced(tmp_path):
+    """The update process killed twice (as the kernel kills a process for memory), once while it works an update
+    out and once while it waits for one: the node goes on, works the unanswered update out itself and starts a
+    new process, and every sample's tensions and tracked values are still those worked out at once, bit for
+    bit; /diagnostics counts the losses."""
+    bag = simulated(tmp_path / "bag", "site_tracking", "duration=45.0")
+    plant = load_plant(tracking_plant_file(tmp_path / "stiff.yaml", 6.8e7 / 0.9))
+    kills: list[int] = []
+    unanswered: list[PendingUpdate] = []
+    counters: list[dict[str, object]] = []
+    start: list[float] = []
+
+    def kill(at: float, scheduler: LiveScheduler) -> None:
+        pending, ids = scheduler.monitor.estimator.pending, scheduler.updates.process_ids()
+        start[:] = start or [at]
+        due = [t for t in (12.0, 31.0) if t <= at - start[0]]  # seconds into the recording; windows of 10 s
+        if len(due) > len(kills) and ids and isinstance(pending, PendingUpdate):
+            if not kills and not pending.future.done():  # lost while it works an update out
+                unanswered.append(pending)
+            elif kills:  # lost while it waits for one
+                pending.future.result()
+            else:
+                return
+            os.kill(ids[0], signal.SIGKILL)
+            kills.append(ids[0])
+        counters.append(scheduler.counters())
+
+    lost = tracked_values(plant, bag, True, kill)
+    together = tracked_values(plant, bag, False)
+    assert len(kills) == 2 and kills[0] != kills[1], "a new process replaced the first one lost"
+    assert isinstance(unanswered[0].future.exception(), BrokenProcessPool), "its update was worked out in the node"
+    assert len(lost) == len(together) > 400
+    for (tensions, values, sigmas), (tensions_at_once, values_at_once, sigmas_at_once) in zip(lost, together):
+        assert np.array_equal(tensions, tensions_at_once)
+        assert np.array_equal(values, values_at_once) and np.array_equal(sigmas, sigmas_at_once)
+    assert counters[-1][UPDATES_LOST] == 2
+    assert "terminated abruptly" in str(counters[-1][f"{UPDATES_LOST}, the last"])
 
 
 def test_a_users_effect_is_tracked_in_the_update_process_as_at_once(tmp_path):
