@@ -142,6 +142,14 @@ class Problem:
         return ropes, white[:, ropes][:, :, ropes], sigma[:, ropes], self.prior.pins[:, ropes]
 
     @cached_property
+    def pin_columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For the ropes with a load pin (as `pin_prior`): their pins' columns among the residuals (k,), the
+        pins' sigmas (k,) [N], and which pins each sample measured (N, k)."""
+        ropes = np.flatnonzero(self.pin_observations >= 0)
+        pins = self.pin_observations[ropes]
+        return 4 + pins, self.sigmas[pins], np.isfinite(self.values[:, pins])
+
+    @cached_property
     def _pins_measured(self) -> np.ndarray:
         ropes = np.flatnonzero(self.pin_observations >= 0)
         measured = np.zeros((len(self.lengths), 4), bool)
@@ -253,13 +261,13 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     for k in functional.tolist():
         predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
-    if prior is not None:
-        _whiten(problem, sample, residual, None)
 
     load = problem.loads[sample] / weight
     constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - load[:, :3],
                                  (np.einsum("nc,nci->ni", mu, moments) - load[:, 3:]) / scale], axis=1)
     if not with_jacobian:
+        if prior is not None:
+            _whiten(problem, sample, residual, None)
         return residual, None, constraint, None
 
     jacobian = np.zeros((n, 4 + m, 10))
@@ -275,7 +283,7 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     jacobian[:, 4:] *= measured[..., None]
     jacobian[:, :, 6:] *= taut[:, None, :]
     if prior is not None:
-        _whiten(problem, sample, None, jacobian)
+        _whiten(problem, sample, residual, jacobian)
 
     projector = (np.eye(3) - units[..., :, None] * units[..., None, :]) / norms[..., None, None]
     weighted = (mu * taut)[..., None, None] * projector
@@ -296,15 +304,12 @@ def _whiten(problem: Problem, sample: np.ndarray, residual: np.ndarray | None, j
     lengths' deviation from their expected correction by the corrections' covariance, the pins'
     readings beyond the model's prediction by the expected pin error and its covariance. The residuals
     come in as the lengths' deviations [m] and the pins' (predicted - measured) / sigma."""
-    ropes, white, _, expected = problem.pin_prior
-    white, expected = white[sample], expected[sample]
-    pins = 4 + problem.pin_observations[ropes]
-    scale = problem.sigmas[pins - 4]
-    length_white = problem.length_white[sample]
+    _, white, _, expected = problem.pin_prior
+    pins, scale, measured = problem.pin_columns
+    white, length_white = white[sample], problem.length_white[sample]
     if residual is not None:
         residual[:, :4] = np.einsum("nij,nj->ni", length_white, residual[:, :4])
-        measured = np.isfinite(problem.values[sample][:, pins - 4])
-        raw = residual[:, pins] * scale + np.where(measured, expected, 0.0)
+        raw = residual[:, pins] * scale + np.where(measured[sample], expected[sample], 0.0)
         residual[:, pins] = np.einsum("nij,nj->ni", white, raw)
     if jacobian is not None:
         jacobian[:, :4] = np.matmul(length_white, jacobian[:, :4])
