@@ -110,7 +110,6 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
     warm = None if warm_start is None else warm_start.solution
     if not fuses(model):
         return forward_estimate(model.solve(reported, warm, conditions), reported)
-    law = model.rope_law
     try:
         lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
         load = model.load(conditions)
@@ -124,8 +123,9 @@ def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapp
                                  live=True)[0]
     sigma = length_noise(model)
     assert sigma is not None  # the model fuses (above)
-    return estimate(model.physical, lengths, observations, sigma,
-                    law.EA, law.weight if law.EA is not None else 0.0, load, warm_start)
+    ropes = model.ropes
+    return estimate(model.physical, lengths, observations, sigma, ropes.axial_stiffness, ropes.weight, load,
+                    warm_start)
 
 
 def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
@@ -177,12 +177,11 @@ def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observ
            live: bool = False) -> BatchEstimate:
     """The estimator on true (or free) lengths (N, 4) with the model's rope law under each sample's load
     (N, 6) (`live`: the warm start is the previous sample's state)."""
-    law = model.rope_law
+    ropes = model.ropes
     sigma = length_noise(model)
     assert sigma is not None  # only a model that fuses is estimated in batches
-    return estimate_batch(model.physical, lengths, observations, sigma, law.EA,
-                          law.weight if law.EA is not None else 0.0, loads=loads, warm_starts=warm_starts,
-                          anchors=anchors, same_samples=not live)
+    return estimate_batch(model.physical, lengths, observations, sigma, ropes.axial_stiffness, ropes.weight,
+                          loads=loads, warm_starts=warm_starts, anchors=anchors, same_samples=not live)
 
 
 def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation], loads: np.ndarray,

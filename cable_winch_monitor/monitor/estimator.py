@@ -233,9 +233,8 @@ class MonitorEstimator:
         names = sorted({name for row in measured for name in row})
         values = {name: np.array([row.get(name, np.nan) for row in measured]) for name in names}
         observations = observations_for(self.model, values, conditions)
-        law = self.model.rope_law
-        return estimate_batch(self.model.physical, lengths, observations, self.sigma_length, law.EA,
-                              law.weight if law.EA is not None else 0.0, loads=loads, prior=prior, forward=forward)
+        return estimate_batch(self.model.physical, lengths, observations, self.sigma_length,
+                              self.ropes.axial_stiffness, self.ropes.weight, loads=loads, prior=prior, forward=forward)
 
     def _carried(self, samples: Sequence[SampleInput], forward: BatchSolution) -> list[dict[str, float]]:
         """Each sample's readings, the inclinometer's carried from its stamp to the sample's by the rate at
