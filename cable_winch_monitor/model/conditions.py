@@ -97,19 +97,29 @@ def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
 def line_slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray,
                 least: int = 2) -> np.ndarray:
     """Least-squares slopes (m, k) of values (n, k) against times (n,) over the rows start[j]:stop[j] of each
-    of m windows, from cumulative sums; NaN where a window has fewer than `least` rows (two at least: one row's
-    sums leave rounding errors for a slope) or its times do not spread."""
-    t = times - times[0] if len(times) else times
-    cumulative = [np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
-                  for a in (np.ones_like(t), t, t * t)]
-    count, sum_t, sum_tt = (c[stop] - c[start] for c in cumulative)
-    sum_v = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
-    sum_tv = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values * t[:, None]]), axis=0)
-    sv, stv = sum_v[stop] - sum_v[start], sum_tv[stop] - sum_tv[start]
+    of m windows; NaN where a window has fewer than `least` rows (two at least: one row's sums leave rounding
+    errors for a slope) or its times do not spread.
+
+    Each window's sums run over its own rows in order, about its first time, so that its slope does not
+    depend on the rows around it: the node, which fits the latest samples as they come, and replay, which
+    fits a window of them at once, get the same bits."""
+    count = np.asarray(stop) - np.asarray(start)
+    slope = np.full((len(count), values.shape[1]), np.nan)
+    width = int(count.max()) if count.size else 0
+    if width < max(least, 2):
+        return slope
+    rows = np.asarray(start)[None, :] + np.arange(width)[:, None]          # (width, m)
+    inside = rows < np.asarray(stop)[None, :]
+    rows = np.where(inside, rows, np.asarray(start)[None, :])
+    t = np.where(inside, times[rows] - times[rows[0]], 0.0)
+    v = np.where(inside[..., None], values[rows], 0.0)
+    last = -1  # cumulative sums add in row order whatever the windows' number (a sum may not)
+    sum_t, sum_tt = np.cumsum(t, axis=0)[last], np.cumsum(t * t, axis=0)[last]
+    sv, stv = np.cumsum(v, axis=0)[last], np.cumsum(v * t[..., None], axis=0)[last]
     denominator = count * sum_tt - sum_t ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
-        slope = (count[:, None] * stv - sum_t[:, None] * sv) / denominator[:, None]
-    return np.where(((count >= max(least, 2)) & (denominator > 0.0))[:, None], slope, np.nan)
+        fitted = (count[:, None] * stv - sum_t[:, None] * sv) / denominator[:, None]
+    return np.where(((count >= max(least, 2)) & (denominator > 0.0))[:, None], fitted, slope)
 
 
 def _slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:

@@ -159,7 +159,9 @@ class MonitorEstimator:
         self.window: _Window | None = None
         self.left_out: dict[str, float] = {}   # sensor -> the stamp from which it is left out
         self.last_rejected: tuple[str, ...] = ()  # the sensors rejected at the sample before
-        self.last_forward: Solution | None = None  # the model's prediction of the last sample it could solve
+        # every forward solve of a window starts from the first of its samples that solved alone (None: not yet),
+        # so that a sample's start does not depend on which samples the node or the replay solves with it
+        self.seed: Solution | None = None
         self.predictions: list[tuple[float, float, float]] = []  # the model's stamp, roll, pitch lately
 
     def __getstate__(self) -> dict[str, Any]:
@@ -192,7 +194,7 @@ class MonitorEstimator:
             if self.window is not None and index != self.window.index:
                 self._close(index)
             if self.window is None:
-                self.window = _Window(index)
+                self.window, self.seed = _Window(index), None
             stop = start + 1
             while stop < len(samples) and self.error.window(samples[stop].stamp, self.origin) == index:
                 stop += 1
@@ -208,9 +210,9 @@ class MonitorEstimator:
         lengths, loads, hooked = model.batch_inputs(reported, [s.conditions for s in samples])
         lengths[hooked] = reported[hooked]  # estimated as reported, published as the hook's failure (below)
         prior = self.error.prior(stamps, lengths)
-        forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.last_forward)
-        last = np.flatnonzero(forward.ok)
-        self.last_forward = forward.solution(int(last[-1])) if last.size else self.last_forward
+        forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.seed)
+        solved = np.flatnonzero(forward.ok)
+        self.seed = forward.solution(int(solved[0])) if self.seed is None and solved.size else self.seed
         measured = self._carried(samples, forward)
         left_out = tuple(sorted(self.left_out))
         kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured]

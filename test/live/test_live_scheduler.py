@@ -8,6 +8,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -20,11 +21,13 @@ from cable_winch_monitor.bench.plants import tracking_plant_file
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.live.scheduler import UPDATES_LOST, LiveScheduler
 from cable_winch_monitor.messages import fields
+from cable_winch_monitor.messages.records import ALARM, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant
 from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor.inputs import JointSample
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 from cable_winch_monitor.monitor.updates import PendingUpdate
+from cable_winch_monitor.replay.run import replay
 
 
 def sample(k: int, period: float = 1e-3) -> JointSample:
@@ -271,3 +274,67 @@ def test_a_users_effect_is_tracked_in_the_update_process_as_at_once(tmp_path):
     # the windows' updates were taken: 35 s of lowering do not excite alpha enough, so it is held and its sigma
     # grows by the drift the plant file allows
     assert apart[-1][2][0] > apart[0][2][0]
+
+
+def batched_outputs(plant, bag: Path, sizes: np.random.Generator) -> dict[int, tuple[np.ndarray, np.ndarray, int]]:
+    """Stamp [ns] -> tensions, position and alarm level of each sample, from a live scheduler fed the recording in
+    log order and solving its waiting samples whenever a random number of them (1 to 7) waits, as a node does
+    under a load it cannot foresee."""
+    clock = [0.0]
+    scheduler = LiveScheduler(plant, backlog=1e9, wait=1.0, clock=lambda: clock[0])
+    inputs = {spec.topic: spec for spec in scheduler.monitor.model.inputs}
+    out: dict[int, tuple[np.ndarray, np.ndarray, int]] = {}
+
+    def solve() -> None:
+        for output in scheduler.solve_all([sample for _, sample in scheduler.take(timeout=0.0)]):
+            out[round(output.stamp * 1e9)] = (output.solution.tensions, output.solution.position, output.alarm.level)
+
+    due = int(sizes.integers(1, 8))
+    for item in BagReader(bag, fields.input_topics(scheduler.monitor.model.inputs)):
+        clock[0] = item.log_time * 1e-9
+        stamp = fields.message_seconds(item.message, item.log_time)
+        if item.topic in inputs:
+            scheduler.monitor.on_input(inputs[item.topic], stamp, item.message)
+        elif item.msgtype == channels.JOINT_STATE:
+            scheduler.offer(fields.joint_sample(item.message, item.topic, clock[0]))
+        else:
+            scheduler.on_measurement(item.topic, stamp, item.message)
+        if scheduler.waiting >= due:
+            solve()
+            due = int(sizes.integers(1, 8))
+    clock[0] += 10.0
+    solve()
+    scheduler.close()
+    return out
+
+
+def replayed_outputs(plant, bag: Path, out: Path) -> dict[int, tuple[np.ndarray, np.ndarray, int]]:
+    """The same from `replay` (windows of samples solved at once, its output bag read back)."""
+    replay(bag, out, plant, progress=False)
+
+    def stamped(topic: str) -> dict[int, Any]:
+        return {round(fields.seconds(m.message.header.stamp) * 1e9): m.message
+                for m in BagReader(out, {topic: OUTPUT_TYPES[topic]})}
+    poses, levels = stamped(POSE), stamped(ALARM)
+    return {stamp: (np.array([c.tension for c in message.cables]),
+                    np.array([getattr(poses[stamp].pose.position, axis) for axis in "xyz"]), levels[stamp].level)
+            for stamp, message in stamped(TENSION).items()}
+
+
+def test_the_node_gives_replays_state_bit_for_bit_however_it_batches_its_samples(tmp_path):
+    """On elastic ropes replayed with the bundled rigid plant file (case (a): the model's taut set changes from
+    sample to sample) and with an elastic plant file that tracks EA, a live scheduler solving its samples in
+    batches of any size gives every sample the replay's tensions and pose to the last bit, and its alarm level:
+    every forward solve starts from a state that depends on the sample's own update window only, and every
+    fit over recent samples sums that window's own rows."""
+    bag = simulated(tmp_path / "bag", "site_elastic", "duration=40.0")
+    rigid = load_plant(None)
+    elastic = load_plant(tracking_plant_file(tmp_path / "elastic.yaml", 6.8e7 / 0.9))
+    for name, plant in (("rigid", rigid), ("elastic", elastic)):
+        live = batched_outputs(plant, bag, np.random.default_rng(7))
+        replayed = replayed_outputs(plant, bag, tmp_path / f"replayed_{name}")
+        assert len(live) == len(replayed) == 400, name
+        for stamp, (tensions, position, level) in replayed.items():
+            got = live[stamp]
+            assert np.array_equal(got[0], tensions) and np.array_equal(got[1], position), (name, stamp)
+            assert got[2] == level

@@ -52,3 +52,20 @@ def test_line_slopes_are_least_squares_lines_over_each_window(seed, count, least
             assert np.isnan(slopes[j]).all()
         else:
             np.testing.assert_allclose(slopes[j], np.polyfit(t[a:b], values[a:b], 1)[0], rtol=1e-6, atol=1e-6)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), count=st.integers(2, 60), before=st.integers(0, 30))
+def test_a_windows_slope_does_not_depend_on_the_rows_around_it(seed, count, before):
+    """A window's slope is the same to the last bit whether it is fitted alone, among other windows, or in an
+    array with `before` more rows ahead of it: the node fits its latest samples as they come, replay fits a
+    window of them at once, and the two must agree."""
+    rng = np.random.default_rng(seed)
+    t = 1e4 + np.cumsum(rng.uniform(0.01, 0.03, count + before))
+    values = rng.normal(0.0, 1e-3, (count + before, 2)) + np.outer(t - t[0], [0.3, -2.0])
+    stop = rng.integers(before + 2, count + before + 1, 8)
+    start = np.maximum(stop - rng.integers(2, 12, 8), before)
+    together = line_slopes(t, values, start, stop)
+    for j, (a, b) in enumerate(zip(start, stop)):
+        alone = line_slopes(t[a:b], values[a:b], np.array([0]), np.array([b - a]))[0]
+        np.testing.assert_array_equal(together[j], alone)

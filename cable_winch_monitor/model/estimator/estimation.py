@@ -263,24 +263,15 @@ def _forward_kinematics(problem: Problem, samples: np.ndarray) -> tuple[Rows, Ca
 
 
 def forward_kinematics(plant: Plant, lengths: np.ndarray, ropes: Ropes, loads: np.ndarray,
-                       warm_start: Solution | None = None) -> BatchSolution:
-    """The model's own equilibrium of N samples' lengths (N, 4) under their loads (N, 6), along a
-    trajectory from `warm_start` (a solution of the sample before, None: cold): batched, or the
-    per-sample solver of the same rope law for one sample; the same answers either way (to the
-    solvers' tolerance), so that a sample estimated alone starts where it starts in a batch."""
+                       seed: Solution | None = None) -> BatchSolution:
+    """The model's own equilibrium of N samples' lengths (N, 4) under their loads (N, 6), each from `seed`
+    (without one: the first sample that solves alone, cold), batched: a sample's answer does not depend on
+    the samples solved with it, so that the live node, which solves one or a few at a time, and replay,
+    which solves many, give the same bits."""
     effective = ropes.effective(np.asarray(lengths, dtype=float).reshape(-1, 4))
     loads = np.asarray(loads, dtype=float).reshape(-1, 6)
-    if len(effective) != 1:
-        return solve_batch(plant, effective, warm_start, loads) if ropes.rigid else \
-            solve_batch_elastic(plant, effective, ropes.axial_stiffness, warm_start, loads)
-    solution = solve_energy(plant, effective[0], warm_start=warm_start, load=loads[0]) if ropes.rigid else \
-        solve_elastic(plant, effective[0], ropes.axial_stiffness, warm_start=warm_start, load=loads[0])
-    posed = solution.ok
-    return BatchSolution(plant, effective, loads, np.array([solution.status.value], dtype=object),
-                         np.array([solution.taut]), np.array([solution.tensions if posed else np.zeros(4)]),
-                         np.array([solution.rotation if posed else np.eye(3)]),
-                         np.array([solution.position if posed else np.zeros(3)]), np.array([solution.iterations]),
-                         fallback={0: solution}, method=solution.method)
+    return solve_batch(plant, effective, seed, loads, follow=False) if ropes.rigid else \
+        solve_batch_elastic(plant, effective, ropes.axial_stiffness, seed, loads, follow=False)
 
 
 def _estimate(problem: Problem, warm: Rows | None, same_samples: bool = False,

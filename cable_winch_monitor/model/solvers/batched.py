@@ -88,12 +88,13 @@ class BatchSolution:
 
 
 def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None = None,
-                loads: np.ndarray | None = None) -> BatchSolution:
+                loads: np.ndarray | None = None, follow: bool = True) -> BatchSolution:
     """Equilibria for the rows of `lengths` (N, 4), in order along a trajectory, under `loads` (one
-    wrench per row (N, 6), one for all (6,), or None: gravity); never raises."""
+    wrench per row (N, 6), one for all (6,), or None: gravity), each start from the warm start
+    (`solve_chunks`, `follow`); never raises."""
     out = empty_batch(plant, lengths, loads)
     solve_chunks(out, warm_start, lambda rows, seed: _solve_checked_chunk(plant, out, rows, seed),
-                 lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]))
+                 lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]), follow)
     return out
 
 
@@ -112,9 +113,14 @@ SampleSolver = Callable[[int, "Solution | None"], Solution]  # (row, warm start)
 
 
 def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: ChunkSolver,
-                 solve_one: SampleSolver) -> None:
-    """Chunk by chunk along the trajectory: the valid rows batched from the previous chunk's last
-    solution, the rest (and the first row without a warm start) by the per-sample solver."""
+                 solve_one: SampleSolver, follow: bool = True) -> None:
+    """Chunk by chunk along the trajectory: the valid rows batched from a seed, the rest by the per-sample
+    solver. Following (`follow`), each chunk's seed is the previous chunk's last solution (the first
+    chunk's `warm_start`, or its first row solved alone) and a row left to the per-sample solver starts
+    from the last row solved before it. Not following, every row starts from `warm_start` (without one:
+    the first row that the per-sample solver solves cold), so that a row's answer does not depend on which
+    rows are solved with it: the live node, which solves its samples as they come, and replay, which
+    solves a window of them at once, give the same bits."""
     lengths, count = out.lengths, len(out.lengths)
     seed = warm_start if warm_start is not None and warm_start.ok else None
     for start in range(0, count, CHUNK):
@@ -122,15 +128,30 @@ def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: C
         usable = np.isfinite(lengths[rows]) & (lengths[rows] > 0.0) & (lengths[rows] <= out.plant.max_payout)
         valid = rows[np.all(usable, axis=1)
                      & np.all(np.isfinite(out.loads[rows]), axis=1) & (out.loads[rows, 2] < 0.0)]
+        alone = np.zeros(0, int)  # not following: the rows solved alone, cold, up to the first that solved
         if seed is None and valid.size:
-            seed = _fallback(out, int(valid[0]), None, solve_one)
+            if follow:
+                seed = _fallback(out, int(valid[0]), None, solve_one)
+            else:
+                seed, alone, valid = _first_solved(out, valid, solve_one)
         if seed is not None and seed.ok:
             with np.errstate(all="ignore"):
                 solve_chunk(valid, seed)
-        for i in rows[out.status[rows] != SolveStatus.SOLVED.value]:
-            _fallback(out, int(i), _previous(out, int(i), seed), solve_one)
+        for i in rows[(out.status[rows] != SolveStatus.SOLVED.value) & ~np.isin(rows, alone)]:
+            _fallback(out, int(i), _previous(out, int(i), seed) if follow else seed, solve_one)
         last = rows[out.ok[rows]]
-        seed = out.solution(int(last[-1])) if last.size else seed
+        seed = out.solution(int(last[-1])) if follow and last.size else seed
+
+
+def _first_solved(out: BatchSolution, valid: np.ndarray, solve_one: SampleSolver) \
+        -> tuple[Solution | None, np.ndarray, np.ndarray]:
+    """The valid rows solved alone, cold, in order until one solves: its solution (None if none did), the rows
+    so solved, and the valid rows after them."""
+    for k, i in enumerate(valid.tolist()):
+        solution = _fallback(out, i, None, solve_one)
+        if solution.ok:
+            return solution, valid[:k + 1], valid[k + 1:]
+    return None, valid, valid[:0]
 
 
 def _solve_checked_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:

@@ -3,11 +3,12 @@
 With elastic ropes the equilibrium is the zero of the force and moment balance on the
 platform's six coordinates alone (no taut set to choose: a rope pulls where it is
 stretched). A chunk of samples starts from the previous chunk's last solution, lowered
-by the change of the mean rope length (warm start along the trajectory); every sample
-takes the per-sample solver's Newton steps, with the same step limits and convergence
-tests, its (6, 6) Jacobian solved in one `np.linalg.solve` with the others'. A sample
-that does not converge (or whose system is singular, or whose input is bad) is handed
-to `solve_elastic`, warm-started from its predecessor. The answers are the same.
+by the change of the mean rope length (warm start along the trajectory; not following it,
+every sample from the seed); every sample takes the per-sample solver's Newton steps, with
+the same step limits and convergence tests, its (6, 6) Jacobian solved in one
+`np.linalg.solve` with the others'. A sample that does not converge (or whose system is
+singular, or whose input is bad) is handed to `solve_elastic`, warm-started from its
+predecessor (not following: from the seed). The answers are the same.
 """
 from __future__ import annotations
 
@@ -24,9 +25,12 @@ STEP_TURN = 0.05  # [rad] largest rotation of one Newton step (and 0.05 moment s
 
 
 def solve_batch_elastic(plant: Plant, lengths: np.ndarray, axial_stiffness: object,
-                        warm_start: Solution | None = None, loads: np.ndarray | None = None) -> BatchSolution:
+                        warm_start: Solution | None = None, loads: np.ndarray | None = None,
+                        follow: bool = True) -> BatchSolution:
     """Equilibria on ropes of axial stiffness EA [N] (scalar or 4) for the rows of the unstretched
-    `lengths` (N, 4), in order along a trajectory, under `loads` ((N, 6), (6,) or None: gravity); never raises."""
+    `lengths` (N, 4), in order along a trajectory, under `loads` ((N, 6), (6,) or None: gravity), each start
+    from the warm start (`batched.solve_chunks`, `follow`: not following, every row from the seed itself);
+    never raises."""
     out = empty_batch(plant, lengths, loads, METHOD)
     out.stretch = np.full((len(out), 4), np.nan)
     ea = np.broadcast_to(np.asarray(axial_stiffness, dtype=float), (4,))
@@ -34,22 +38,23 @@ def solve_batch_elastic(plant: Plant, lengths: np.ndarray, axial_stiffness: obje
 
     def solve_chunk(rows: np.ndarray, seed: Solution) -> None:
         if usable:
-            _solve_chunk(plant, out, rows, ea, seed)
+            _solve_chunk(plant, out, rows, ea, seed, STRIDE if follow else 1)
 
     solve_chunks(out, warm_start, solve_chunk,
-                 lambda i, warm: solve_elastic(plant, out.lengths[i], ea, warm_start=warm, load=out.loads[i]))
+                 lambda i, warm: solve_elastic(plant, out.lengths[i], ea, warm_start=warm, load=out.loads[i]), follow)
     return out
 
 
-def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, ea: np.ndarray, seed: Solution) -> None:
-    """Every STRIDE-th row of the chunk from the seed's pose, then each other row from the solved row
+def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, ea: np.ndarray, seed: Solution,
+                 stride: int) -> None:
+    """Every `stride`-th row of the chunk from the seed's pose, then each other row from the solved row
     before it (closer: fewer Newton steps); converged rows are stored in `out`."""
     assert seed.rotation is not None and seed.position is not None  # `solve_chunks` seeds with a solved sample
-    coarse = np.arange(0, rows.size, STRIDE)
+    coarse = np.arange(0, rows.size, stride)
     _newton(plant, out, rows[coarse], ea, np.broadcast_to(seed.rotation, (coarse.size, 3, 3)),
             np.broadcast_to(seed.position, (coarse.size, 3)), np.full(coarse.size, seed.lengths.mean()))
     fine = np.setdiff1d(np.arange(rows.size), coarse)
-    start = rows[fine - fine % STRIDE]
+    start = rows[fine - fine % stride]
     start = np.where(out.ok[start], start, -1)  # -1: the seed (stored in an extra row below)
     rotation = np.concatenate([out.rotation, seed.rotation[None]])[start]
     position = np.concatenate([out.position, seed.position[None]])[start]
