@@ -41,9 +41,7 @@ class UpdateProcess:
     def _start(self) -> ProcessPoolExecutor:
         # forkserver: the process is not forked from the node's, whose DDS threads may hold locks at the fork
         context = multiprocessing.get_context("forkserver")
-        pool = ProcessPoolExecutor(1, mp_context=context, initializer=_load, initargs=(self._plant, self._solver))
-        pool.submit(int)  # started now: at the first window's end it took 60 ms in the path of a sample
-        return pool
+        return ProcessPoolExecutor(1, mp_context=context, initializer=_load, initargs=(self._plant, self._solver))
 
     def submit(self, update: Any) -> PendingUpdate:
         """Work `update` out there; it is pickled now, so that it carries the state it was made with. A process
