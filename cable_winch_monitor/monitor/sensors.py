@@ -28,7 +28,11 @@ from ..model.estimator import Estimate
 
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 STUCK = 5  # a sensor repeating its reading to the bit this many times running is stuck
-HISTORY = 16  # readings kept per channel: those that came before a sample but are stamped after it, and one more
+# readings kept per channel: those that came before a sample but are stamped after it, and one more. A node behind its
+# inputs takes every reading queued (50 a sensor topic, nodes/winch_monitor.SENSOR_QOS) before the winch messages
+# queued with them: with 16 kept, a node 2.6 s behind at its start at ten times real time lost the inclinometer
+# readings its first samples fuse, and its first update of the model's error was not replay's
+HISTORY = 64
 LATE = 3.0  # [periods] a channel's reading is due at most this long after its latest: later, the sensor is late or silent
 PAYOUTS = 1024  # complete samples whose payout is kept: a staleness limit's worth at up to 2 kHz
 

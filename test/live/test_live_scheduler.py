@@ -141,6 +141,23 @@ def test_a_sample_waits_for_the_readings_stamped_before_it_that_its_winch_messag
     assert sum(unheld[k].taken != in_order[k].taken for k in known) >= 10
 
 
+def test_a_node_seconds_behind_its_inputs_fuses_the_readings_replay_fuses(plant):
+    """A node that falls 3 s behind (its start, a stall) finds 3 s of sensor readings queued before the winch
+    messages stamped among them, and keeps them all before it merges those: every sample still fuses the
+    readings it fuses in log order, and comes to the same state to the last bit. With 16 readings kept a
+    channel, the inclinometer's 30 newer ones pushed out those its samples needed."""
+    fused = noisy(plant)
+    items = sensed(lowering_truths(fused, 60, seed=3), seed=4)
+    in_order, want, _ = fed(fused, [(entry.log_time * 1e-9, entry) for entry in items], wait=1.0)
+    behind = sorted(((entry.log_time * 1e-9 + (3.0 if entry.msgtype == channels.JOINT_STATE else 0.0), k)
+                     for k, entry in enumerate(items)))
+    lagging, got, _ = fed(fused, [(at, items[k]) for at, k in behind], wait=1.0)
+    assert len(lagging) == len(in_order) == len(got) == len(want) == 60
+    for k in range(60):
+        assert lagging[k].taken == in_order[k].taken and lagging[k].sensors == in_order[k].sensors, k
+        assert np.array_equal(got[k].solution.tensions, want[k].solution.tensions)
+
+
 def test_a_sample_whose_reading_never_comes_goes_on_when_its_wait_is_over(plant):
     """The inclinometer falls silent: the sample at which its next reading was due waits `wait` seconds of the
     node's clock, then fuses what is in (the last reading, within the staleness limit), counted as released
