@@ -151,9 +151,8 @@ class Problem:
 
     @cached_property
     def _pins_measured(self) -> np.ndarray:
-        ropes = np.flatnonzero(self.pin_observations >= 0)
         measured = np.zeros((len(self.lengths), 4), bool)
-        measured[:, ropes] = np.isfinite(self.values[:, self.pin_observations[ropes]])
+        measured[:, self.pin_observations >= 0] = self.pin_columns[2]
         return measured
 
     @cached_property
@@ -348,9 +347,8 @@ def prior_jacobian(problem: Problem, rows: Rows) -> np.ndarray:
     out = np.zeros((live.size, 4 + len(problem.observations), 8))
     out[:, :4, :4] = -problem.length_white[rows.sample] * active[:, None, :]
     ropes, white, _, _ = problem.pin_prior
-    pins = 4 + problem.pin_observations[ropes]
-    measured = np.isfinite(problem.values[rows.sample][:, pins - 4])
-    out[:, pins[:, None], 4 + ropes[None, :]] = white[rows.sample] * measured[:, None, :]
+    pins, _, measured = problem.pin_columns
+    out[:, pins[:, None], 4 + ropes[None, :]] = white[rows.sample] * measured[rows.sample][:, None, :]
     return out
 
 
