@@ -1,7 +1,8 @@
 """ament_python package `cable_winch_monitor`: console entry points and the ROS share files."""
 from glob import glob
 
-from setuptools import find_packages, setup
+from Cython.Build import cythonize
+from setuptools import Extension, find_packages, setup
 
 PACKAGE = "cable_winch_monitor"
 
@@ -12,6 +13,8 @@ setup(
     license="Apache-2.0",
     python_requires=">=3.10",
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    # the solvers' inner loops in C: a sample solved alone costs numpy calls, not arithmetic
+    ext_modules=cythonize([Extension(f"{PACKAGE}.model.solvers.compiled", [f"{PACKAGE}/model/solvers/compiled.pyx"])]),
     install_requires=["numpy", "scipy", "pyyaml", "rosbags", "mcap", "mcap-ros2-support"],
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
@@ -22,7 +25,7 @@ setup(
         (f"share/{PACKAGE}/config/rviz", glob("config/rviz/*.rviz")),
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
     ],
-    zip_safe=True,
+    zip_safe=False,
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [

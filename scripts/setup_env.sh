@@ -139,13 +139,13 @@ build_interfaces msg_defs cable_winch_monitor_msgs 'cable_winch_monitor_msgs.msg
 build_interfaces third_party/tf2_msgs tf2_msgs tf2_msgs.msg
 
 # --- 4. this package, editable ---------------------------------------------------------
-# Code is linked, not copied; only metadata, entry points and data_files (copied to
-# .venv/share) need a reinstall when they change.
+# Code is linked, not copied; only metadata, entry points, data_files (copied to .venv/share)
+# and the compiled solvers (Cython, built in place) need a reinstall when they change.
 if [[ ! -f setup.py && ! -f pyproject.toml ]]; then
     log "no setup.py/pyproject.toml yet: skipping the editable install"
 else
     PKG_PATHS=()
-    for f in setup.py setup.cfg pyproject.toml package.xml resource config launch; do
+    for f in setup.py setup.cfg pyproject.toml package.xml resource config launch cable_winch_monitor/model/solvers/compiled.pyx; do
         [[ -e "$f" ]] && PKG_PATHS+=("$f")
     done
     PKG_HASH=$( { echo "$REQ_HASH"; find "${PKG_PATHS[@]}" -maxdepth 2 -type f | LC_ALL=C sort | xargs -r sha256sum; } \
@@ -153,6 +153,8 @@ else
     if ! stamp_ok editable "$PKG_HASH"; then
         log "pip install -e . (no deps: all pinned above)"
         quiet_pip install -q --no-deps --no-build-isolation -c "$CONSTRAINTS" -e .
+        "$VENV/bin/python" -c "import cable_winch_monitor.model.solvers.compiled" \
+            || die "the compiled solvers (cable_winch_monitor/model/solvers/compiled.pyx) did not build"
         stamp_set editable "$PKG_HASH"
     fi
 fi

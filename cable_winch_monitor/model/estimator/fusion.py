@@ -25,9 +25,10 @@ from functools import cached_property
 import numpy as np
 
 from ..plantfile.plant import CABLE_NAMES, Plant
+from ..solvers import compiled
 from ..solvers.ropes import Ropes
 from ..statics import load as loads
-from ..statics.geometry import cross, rotations_from_vectors, skew
+from ..statics.geometry import rotations_from_vectors
 from .observations import Observation, States
 from .prior import Prior, whitening
 
@@ -223,31 +224,33 @@ def residuals_and_balance(problem: Problem, rows: Rows) -> tuple[np.ndarray, np.
 
 
 def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bool):
-    """Normalised residuals r (n, 4+m), their Jacobian A (n, 4+m, 10), constraint c (n, 6) and C (n, 6, 10)."""
+    """Normalised residuals r (n, 4+m), their Jacobian A (n, 4+m, 10), constraint c (n, 6) and C (n, 6, 10).
+
+    The ropes' terms (lengths, balance) are `compiled.equilibrium_terms`, row by row; the observations'
+    are numpy calls over the rows, their prediction functions being the user's."""
     plant = problem.plant
-    scale = plant.moment_scale
-    weight = problem.scales[rows.sample[live], None]   # |f| of each row's load, (n, 1)
+    weight = problem.scales[rows.sample[live]]   # |f| of each row's load, (n,)
     rotation, position, mu, taut = rows.rotation[live], rows.position[live], rows.mu[live], rows.taut[live]
     sample = rows.sample[live]
     n, m = live.size, len(problem.observations)
-    arms = np.matmul(plant.attachments, np.swapaxes(rotation, 1, 2))           # R b_i: (n, 4, 3)
-    levers = arms - np.matmul(rotation, plant.cog)[:, None, :]
     anchors = problem.anchors_of(sample)
-    spans = position[:, None, :] + arms - (plant.anchors if anchors is None else anchors)
-    norms = np.sqrt(np.einsum("nci,nci->nc", spans, spans))
-    units = spans / norms[..., None]
-    moments = cross(levers, units)
-    lengths = problem.expected_lengths[sample]
     prior = problem.prior
-    sigma = problem.sigma_length if prior is None else 1.0
-    tensions = mu * weight
-
-    taut_length, d_span, d_tension = problem.ropes.unstretched(norms, tensions)
-    slack_length, d_slack_span, _ = problem.ropes.unstretched(norms, np.zeros_like(norms))
-    excess = slack_length - lengths
-    overstretched = ~taut & (excess > 0.0)
+    tensions = mu * weight[:, None]
     residual = np.empty((n, 4 + m))
-    residual[:, :4] = np.where(taut, taut_length - lengths, np.maximum(excess, 0.0)) / sigma
+    lengths_residual = np.empty((n, 4))
+    constraint = np.empty((n, 6))
+    jacobian = np.zeros((n, 4 + m, 10)) if with_jacobian else None
+    lengths_jacobian = np.empty((n, 4, 10)) if with_jacobian else np.empty((0, 4, 10))
+    balance = np.empty((n, 6, 10)) if with_jacobian else np.empty((0, 6, 10))
+    ropes = problem.ropes
+    compiled.equilibrium_terms(
+        rotation, position, mu, taut.view(np.uint8), weight, problem.expected_lengths[sample],
+        np.ascontiguousarray(np.broadcast_to(plant.anchors if anchors is None else anchors, (n, 4, 3))),
+        plant.attachments, plant.cog, problem.loads[sample] / weight[:, None],
+        np.zeros(4) if ropes.axial_stiffness is None else ropes.axial_stiffness, ropes.weight,
+        plant.moment_scale, problem.sigma_length if prior is None else 1.0, lengths_residual, constraint,
+        lengths_jacobian, balance, with_jacobian)
+    residual[:, :4] = lengths_residual
 
     values = problem.values[sample]
     measured = ~np.isnan(values)
@@ -260,41 +263,21 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     for k in functional.tolist():
         predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
-
-    load = problem.loads[sample] / weight
-    constraint = np.concatenate([np.einsum("nc,nci->ni", mu, units) - load[:, :3],
-                                 (np.einsum("nc,nci->ni", mu, moments) - load[:, 3:]) / scale], axis=1)
-    if not with_jacobian:
+    if jacobian is None:
         if prior is not None:
             _whiten(problem, sample, residual, None)
         return residual, None, constraint, None
 
-    jacobian = np.zeros((n, 4 + m, 10))
-    d_pose = np.where(taut, d_span, np.where(overstretched, d_slack_span, 0.0)) / sigma
-    jacobian[:, :4, :3] = d_pose[..., None] * units
-    jacobian[:, :4, 3:6] = d_pose[..., None] * cross(arms, units)
-    jacobian[:, np.arange(4), 6 + np.arange(4)] = np.where(taut, d_tension * weight / sigma, 0.0)
+    jacobian[:, :4] = lengths_jacobian
     if index.size:
         jacobian[:, 4 + index] = read_jacobian
     for k in functional.tolist():
         jacobian[:, 4 + k] = problem.observations[k].jacobian(states) / problem.sigmas[k]
-    jacobian[:, 4:, 6:] *= weight[:, :, None]   # per newton -> per unit of |f|
-    jacobian[:, 4:] *= measured[..., None]
-    jacobian[:, :, 6:] *= taut[:, None, :]
+    observed = jacobian[:, 4:]
+    observed[:, :, 6:] *= (weight[:, None] * taut)[:, None, :]   # per newton -> per unit of |f|; slack ropes' held
+    observed *= measured[..., None]
     if prior is not None:
         _whiten(problem, sample, residual, jacobian)
-
-    projector = (np.eye(3) - units[..., :, None] * units[..., None, :]) / norms[..., None, None]
-    weighted = (mu * taut)[..., None, None] * projector
-    sr, sq = skew(arms), skew(levers)
-    balance = np.empty((n, 6, 10))
-    balance[:, 0:3, 0:3] = weighted.sum(axis=1)
-    balance[:, 0:3, 3:6] = -np.matmul(weighted, sr).sum(axis=1)
-    balance[:, 3:6, 0:3] = np.matmul(sq, weighted).sum(axis=1) / scale
-    balance[:, 3:6, 3:6] = ((mu * taut)[..., None, None] * np.matmul(skew(units), sq)
-                            - np.matmul(np.matmul(sq, weighted), sr)).sum(axis=1) / scale
-    balance[:, 0:3, 6:] = np.swapaxes(units * taut[..., None], 1, 2)
-    balance[:, 3:6, 6:] = np.swapaxes(moments * taut[..., None], 1, 2) / scale
     return residual, jacobian, constraint, balance
 
 
@@ -318,19 +301,12 @@ def _whiten(problem: Problem, sample: np.ndarray, residual: np.ndarray | None, j
 def _kkt(jacobian: np.ndarray, residual: np.ndarray, balance: np.ndarray, slack: np.ndarray,
          mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rows' 16 x 16 KKT systems of the Gauss-Newton model with the balance linearised, and the cost's
-    gradient: a slack rope's tension held (an identity row, its gradient the tension, so a step sets it
-    to zero), a small Levenberg term EPS on the state."""
+    gradient (`compiled.kkt_systems`): a slack rope's tension held (an identity row, its gradient the
+    tension, so a step sets it to zero), a small Levenberg term EPS on the state."""
     n = len(jacobian)
-    system = np.zeros((n, 16, 16))
-    hessian = np.swapaxes(jacobian, 1, 2) @ jacobian + EPS * np.eye(10)
-    gradient = np.einsum("nki,nk->ni", jacobian, residual)
-    held = np.concatenate([np.zeros((n, 6), bool), slack], axis=1)
-    hessian = np.where(held[:, :, None] | held[:, None, :], 0.0, hessian)
-    hessian[:, np.arange(6, 10), np.arange(6, 10)] += slack
-    gradient = np.where(held, np.concatenate([np.zeros((n, 6)), mu], axis=1), gradient)
-    system[:, :10, :10] = hessian
-    system[:, :10, 10:] = np.swapaxes(balance, 1, 2)
-    system[:, 10:, :10] = balance
+    system, gradient = np.empty((n, 16, 16)), np.empty((n, 10))
+    compiled.kkt_systems(np.ascontiguousarray(jacobian), np.ascontiguousarray(residual), balance,
+                         np.ascontiguousarray(slack).view(np.uint8), np.ascontiguousarray(mu), EPS, system, gradient)
     return system, gradient
 
 

@@ -21,8 +21,8 @@ import numpy as np
 
 from ..plantfile.plant import Plant
 from ..statics import load as loads_
-from ..statics.geometry import rotations_from_vectors, skew
 from ..statics.result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
+from . import compiled
 from .energy import (
     ACTIVE_SET_ROUNDS,
     MAX_TURN,
@@ -252,51 +252,17 @@ def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
     """Newton steps on the group's taut set until every sample converges; True where converged.
 
     The equations, unknowns and step limits are those of `energy._newton`, with an exact
-    solve in place of least squares (two or three taut cables are never redundant).
+    solve in place of least squares (two or three taut cables are never redundant); each
+    sample is solved on its own (`compiled.newton_taut_set`), so its bits do not depend on
+    the samples solved with it.
     """
-    idx = np.flatnonzero(group.active)
-    k, scale = idx.size, plant.moment_scale
+    converged = np.zeros(len(lengths), np.uint8)
     tolerance = NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2)
-    converged = np.zeros(len(lengths), bool)
-    live = np.arange(len(lengths))
-    for _ in range(NEWTON_MAX_STEPS + 1):
-        arms, levers, units, norms = _geometry(plant, group.rotation[live], group.position[live])
-        r, q, u, mu = arms[:, idx], levers[:, idx], units[:, idx], group.mu[live][:, idx]
-        moments = np.cross(q, u)
-        pull = group.loads[live]
-        residual = np.concatenate([np.einsum("nc,nci->ni", mu, u) - pull[:, :3],
-                                   (np.einsum("nc,nci->ni", mu, moments) - pull[:, 3:]) / scale,
-                                   norms[:, idx] - lengths[live][:, idx]], axis=1)
-        ok = np.abs(residual).max(axis=1) < tolerance[live]
-        converged[live[ok]] = True
-        live, residual = live[~ok], residual[~ok]
-        if not live.size or _ == NEWTON_MAX_STEPS:
-            break
-        r, q, u, mu, moments, norms = r[~ok], q[~ok], u[~ok], mu[~ok], moments[~ok], norms[~ok][:, idx]
-        projector = (np.eye(3) - u[..., :, None] * u[..., None, :]) / norms[..., None, None]
-        sr, sq = skew(r), skew(q)
-        weight = mu[..., None, None]
-        jacobian = np.zeros((live.size, 6 + k, 6 + k))
-        jacobian[:, 0:3, 0:3] = np.sum(weight * projector, axis=1)
-        jacobian[:, 0:3, 3:6] = -np.sum(weight * projector @ sr, axis=1)
-        jacobian[:, 3:6, 0:3] = np.sum(weight * sq @ projector, axis=1) / scale
-        jacobian[:, 3:6, 3:6] = np.sum(weight * (skew(u) @ sq - sq @ projector @ sr), axis=1) / scale
-        jacobian[:, 0:3, 6:] = u.transpose(0, 2, 1)
-        jacobian[:, 3:6, 6:] = moments.transpose(0, 2, 1) / scale
-        jacobian[:, 6:, 0:3] = u
-        jacobian[:, 6:, 3:6] = np.cross(r, u)
-        try:
-            step = np.linalg.solve(jacobian, -residual[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            break  # a singular system in the stack: these samples go to the per-sample solver
-        largest = np.maximum.reduce([np.abs(step[:, 3:6]).max(axis=1) / 0.2,
-                                     np.abs(step[:, 0:3]).max(axis=1) / (0.2 * scale), np.ones(live.size)])
-        step /= largest[:, None]
-        group.position[live] += step[:, 0:3]
-        group.rotation[live] = rotations_from_vectors(step[:, 3:6]) @ group.rotation[live]
-        group.mu[live[:, None], idx] += step[:, 6:]
-        group.steps[live] += 1
-    return converged
+    compiled.newton_taut_set(np.ascontiguousarray(lengths, dtype=float), group.rotation, group.position, group.mu,
+                             np.ascontiguousarray(group.loads), group.steps, np.flatnonzero(group.active),
+                             plant.attachments, plant.cog, plant.anchors, plant.moment_scale, tolerance,
+                             NEWTON_MAX_STEPS, converged, 0.2, 0.2 * plant.moment_scale)
+    return converged.astype(bool)
 
 
 def _verdict(plant: Plant, lengths: np.ndarray, group: _Group, converged: np.ndarray,

@@ -1,0 +1,14 @@
+"""Types of the compiled solvers' inner loops (compiled.pyx)."""
+import numpy as np
+
+def newton_taut_set(lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray, mu: np.ndarray,
+                    loads: np.ndarray, steps: np.ndarray, taut: np.ndarray, attachments: np.ndarray,
+                    cog: np.ndarray, anchors: np.ndarray, scale: float, tolerance: np.ndarray, max_steps: int,
+                    converged: np.ndarray, turn_limit: float, shift_limit: float) -> None: ...
+def equilibrium_terms(rotation: np.ndarray, position: np.ndarray, mu: np.ndarray, taut: np.ndarray,
+                      weight: np.ndarray, lengths: np.ndarray, anchors: np.ndarray, attachments: np.ndarray,
+                      cog: np.ndarray, loads: np.ndarray, axial_stiffness: np.ndarray, rope_weight: float,
+                      scale: float, sigma: float, residual: np.ndarray, constraint: np.ndarray,
+                      jacobian: np.ndarray, balance: np.ndarray, with_jacobian: bool) -> None: ...
+def kkt_systems(jacobian: np.ndarray, residual: np.ndarray, balance: np.ndarray, slack: np.ndarray, mu: np.ndarray,
+                eps: float, system: np.ndarray, gradient: np.ndarray) -> None: ...

@@ -1,0 +1,380 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""The solvers' inner loops, compiled: Newton on one taut set's KKT conditions, row by row.
+
+The live node solves one sample at a time, where numpy's cost per call, not the arithmetic,
+is the time (a Newton step of one sample is some forty numpy calls on 3 x 3 arrays). Here each
+row is solved on its own, in C, so a row's answer is the same bits whichever rows are solved
+with it: the node, which solves its samples as they come, and replay, which solves a window of
+them at once, agree to the last bit.
+"""
+from libc.math cimport cos, fabs, sin, sqrt
+
+cdef enum:
+    MAX_SIZE = 10  # 6 pose unknowns and at most 4 tensions
+
+
+cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size) noexcept nogil:
+    """Gaussian elimination with partial pivoting of a (size x size) system; the solution in b.
+    Returns 0, or 1 where a pivot is exactly zero (LAPACK's gesv reports the same as singular)."""
+    cdef int i, j, k, pivot
+    cdef double largest, factor, swap
+    for k in range(size):
+        pivot = k
+        largest = fabs(a[k][k])
+        for i in range(k + 1, size):
+            if fabs(a[i][k]) > largest:
+                largest = fabs(a[i][k])
+                pivot = i
+        if largest == 0.0:
+            return 1
+        if pivot != k:
+            for j in range(size):
+                swap = a[k][j]
+                a[k][j] = a[pivot][j]
+                a[pivot][j] = swap
+            swap = b[k]
+            b[k] = b[pivot]
+            b[pivot] = swap
+        for i in range(k + 1, size):
+            factor = a[i][k] / a[k][k]
+            if factor != 0.0:
+                for j in range(k + 1, size):
+                    a[i][j] -= factor * a[k][j]
+                b[i] -= factor * b[k]
+    for k in range(size - 1, -1, -1):
+        for j in range(k + 1, size):
+            b[k] -= a[k][j] * b[j]
+        b[k] /= a[k][k]
+    return 0
+
+
+cdef void rotate_left(double[:, ::1] rotation, double w0, double w1, double w2) noexcept nogil:
+    """rotation <- exp([w]x) rotation (Rodrigues; I + [w]x below an angle of 1e-12, as
+    geometry.rotations_from_vectors)."""
+    cdef double angle = sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    cdef double k[3][3]
+    cdef double e[3][3]
+    cdef double out[3][3]
+    cdef double s, c
+    cdef int i, j, m
+    if angle < 1e-12:
+        k[0][0] = 0.0; k[0][1] = -w2; k[0][2] = w1
+        k[1][0] = w2; k[1][1] = 0.0; k[1][2] = -w0
+        k[2][0] = -w1; k[2][1] = w0; k[2][2] = 0.0
+        for i in range(3):
+            for j in range(3):
+                e[i][j] = k[i][j] + (1.0 if i == j else 0.0)
+    else:
+        k[0][0] = 0.0; k[0][1] = -w2 / angle; k[0][2] = w1 / angle
+        k[1][0] = w2 / angle; k[1][1] = 0.0; k[1][2] = -w0 / angle
+        k[2][0] = -w1 / angle; k[2][1] = w0 / angle; k[2][2] = 0.0
+        s = sin(angle)
+        c = 1.0 - cos(angle)
+        for i in range(3):
+            for j in range(3):
+                e[i][j] = (1.0 if i == j else 0.0) + s * k[i][j] + c * (k[i][0] * k[0][j] + k[i][1] * k[1][j]
+                                                                        + k[i][2] * k[2][j])
+    for i in range(3):
+        for j in range(3):
+            out[i][j] = 0.0
+            for m in range(3):
+                out[i][j] += e[i][m] * rotation[m, j]
+    for i in range(3):
+        for j in range(3):
+            rotation[i, j] = out[i][j]
+
+
+def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, double[:, ::1] position,
+                    double[:, ::1] mu, const double[:, ::1] loads, long[::1] steps, const long[::1] taut,
+                    const double[:, ::1] attachments, const double[::1] cog, const double[:, ::1] anchors,
+                    double scale, const double[::1] tolerance, int max_steps,
+                    unsigned char[::1] converged, double turn_limit, double shift_limit):
+    """Newton on the taut cables `taut` (k,) of every row until its force and moment balance about C
+    (per |f|, moments per `scale`) and its taut spans' lengths are within `tolerance` (n,) of zero,
+    at most `max_steps` steps: rotation (n, 3, 3), position (n, 3), mu (n, 4) and steps (n,) are
+    moved in place, converged (n,) set. A step is shortened to turn at most `turn_limit` [rad] and
+    shift at most `shift_limit` [m]; a row whose system is singular stops there, not converged."""
+    cdef Py_ssize_t n = lengths.shape[0], row
+    cdef int k = taut.shape[0], size = 6 + k, step, c, j, a, b, i
+    cdef double system[MAX_SIZE][MAX_SIZE]
+    cdef double rhs[MAX_SIZE]
+    cdef double arm[3]
+    cdef double lever[3]
+    cdef double unit[3]
+    cdef double moment[3]
+    cdef double rc[3]
+    cdef double p[3][3]
+    cdef double sr[3][3]
+    cdef double sq[3][3]
+    cdef double su[3][3]
+    cdef double pr[3][3]
+    cdef double qp[3][3]
+    cdef double rotated_cog[3]
+    cdef double norm, weight, worst, largest, value
+    if size > MAX_SIZE:
+        raise ValueError(f"{k} taut cables: at most 4")
+    with nogil:
+        for row in range(n):
+            for step in range(max_steps + 1):
+                for a in range(MAX_SIZE):
+                    rhs[a] = 0.0
+                    for b in range(MAX_SIZE):
+                        system[a][b] = 0.0
+                for a in range(3):
+                    rotated_cog[a] = (rotation[row, a, 0] * cog[0] + rotation[row, a, 1] * cog[1]
+                                      + rotation[row, a, 2] * cog[2])
+                for j in range(k):
+                    c = taut[j]
+                    for a in range(3):
+                        arm[a] = (rotation[row, a, 0] * attachments[c, 0] + rotation[row, a, 1] * attachments[c, 1]
+                                  + rotation[row, a, 2] * attachments[c, 2])
+                        lever[a] = arm[a] - rotated_cog[a]
+                        unit[a] = position[row, a] + arm[a] - anchors[c, a]
+                    norm = sqrt(unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2])
+                    for a in range(3):
+                        unit[a] /= norm
+                    moment[0] = lever[1] * unit[2] - lever[2] * unit[1]
+                    moment[1] = lever[2] * unit[0] - lever[0] * unit[2]
+                    moment[2] = lever[0] * unit[1] - lever[1] * unit[0]
+                    weight = mu[row, c]
+                    for a in range(3):
+                        rhs[a] += weight * unit[a]
+                        rhs[3 + a] += weight * moment[a]
+                    rhs[6 + j] = norm - lengths[row, c]
+                    # the Jacobian's row and column of this cable's tension, and of its length equation
+                    rc[0] = arm[1] * unit[2] - arm[2] * unit[1]
+                    rc[1] = arm[2] * unit[0] - arm[0] * unit[2]
+                    rc[2] = arm[0] * unit[1] - arm[1] * unit[0]
+                    for a in range(3):
+                        system[a][6 + j] = unit[a]
+                        system[3 + a][6 + j] = moment[a] / scale
+                        system[6 + j][a] = unit[a]
+                        system[6 + j][3 + a] = rc[a]
+                    # the pose block: mu (P, -P [r]x; [q]x P, [u]x [q]x - [q]x P [r]x), P = (I - u u^T) / |s|
+                    for a in range(3):
+                        for b in range(3):
+                            p[a][b] = ((1.0 if a == b else 0.0) - unit[a] * unit[b]) / norm
+                    sr[0][0] = 0.0; sr[0][1] = -arm[2]; sr[0][2] = arm[1]
+                    sr[1][0] = arm[2]; sr[1][1] = 0.0; sr[1][2] = -arm[0]
+                    sr[2][0] = -arm[1]; sr[2][1] = arm[0]; sr[2][2] = 0.0
+                    sq[0][0] = 0.0; sq[0][1] = -lever[2]; sq[0][2] = lever[1]
+                    sq[1][0] = lever[2]; sq[1][1] = 0.0; sq[1][2] = -lever[0]
+                    sq[2][0] = -lever[1]; sq[2][1] = lever[0]; sq[2][2] = 0.0
+                    su[0][0] = 0.0; su[0][1] = -unit[2]; su[0][2] = unit[1]
+                    su[1][0] = unit[2]; su[1][1] = 0.0; su[1][2] = -unit[0]
+                    su[2][0] = -unit[1]; su[2][1] = unit[0]; su[2][2] = 0.0
+                    for a in range(3):
+                        for b in range(3):
+                            pr[a][b] = p[a][0] * sr[0][b] + p[a][1] * sr[1][b] + p[a][2] * sr[2][b]
+                            qp[a][b] = sq[a][0] * p[0][b] + sq[a][1] * p[1][b] + sq[a][2] * p[2][b]
+                    for a in range(3):
+                        for b in range(3):
+                            system[a][b] += weight * p[a][b]
+                            system[a][3 + b] -= weight * pr[a][b]
+                            system[3 + a][b] += weight * qp[a][b] / scale
+                            value = 0.0
+                            for i in range(3):
+                                value += su[a][i] * sq[i][b] - qp[a][i] * sr[i][b]
+                            system[3 + a][3 + b] += weight * value / scale
+                for a in range(3):
+                    rhs[a] -= loads[row, a]
+                    rhs[3 + a] = (rhs[3 + a] - loads[row, 3 + a]) / scale
+                worst = 0.0
+                for a in range(size):
+                    if fabs(rhs[a]) > worst or rhs[a] != rhs[a]:  # NaN: never converged
+                        worst = fabs(rhs[a]) if worst == worst else worst
+                if worst < tolerance[row]:
+                    converged[row] = 1
+                    break
+                if step == max_steps:
+                    break
+                for a in range(size):
+                    rhs[a] = -rhs[a]
+                if solve_in_place(system, rhs, size):
+                    break
+                largest = 1.0
+                for a in range(3):
+                    if fabs(rhs[3 + a]) / turn_limit > largest:
+                        largest = fabs(rhs[3 + a]) / turn_limit
+                    if fabs(rhs[a]) / shift_limit > largest:
+                        largest = fabs(rhs[a]) / shift_limit
+                for a in range(size):
+                    rhs[a] /= largest
+                for a in range(3):
+                    position[row, a] += rhs[a]
+                rotate_left(rotation[row], rhs[3], rhs[4], rhs[5])
+                for j in range(k):
+                    mu[row, taut[j]] += rhs[6 + j]
+                steps[row] += 1
+
+
+cdef inline void cross3(const double *a, const double *b, double *out) noexcept nogil:
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+cdef inline void skew3(const double *v, double (*out)[3]) noexcept nogil:
+    out[0][0] = 0.0; out[0][1] = -v[2]; out[0][2] = v[1]
+    out[1][0] = v[2]; out[1][1] = 0.0; out[1][2] = -v[0]
+    out[2][0] = -v[1]; out[2][1] = v[0]; out[2][2] = 0.0
+
+
+cdef inline void unstretched(double span, double tension, double ea, double weight, double *length,
+                             double *d_span, double *d_tension) noexcept nogil:
+    """ropes.Ropes.unstretched of one rope (ea <= 0: rigid)."""
+    cdef double factor, effective, root, d_effective
+    if ea <= 0.0:
+        length[0] = span
+        d_span[0] = 1.0
+        d_tension[0] = 0.0
+        return
+    factor = 1.0 + tension / ea
+    effective = span / factor
+    if weight > 0.0:
+        root = sqrt(1.0 + 2.0 * weight * effective / ea)
+        length[0] = 2.0 * effective / (1.0 + root)
+        d_effective = 1.0 / (1.0 + weight * length[0] / ea)
+    else:
+        length[0] = effective
+        d_effective = 1.0
+    d_span[0] = d_effective / factor
+    d_tension[0] = -d_effective * effective / (ea * factor)
+
+
+def equilibrium_terms(const double[:, :, ::1] rotation, const double[:, ::1] position, const double[:, ::1] mu,
+                      const unsigned char[:, ::1] taut, const double[::1] weight, const double[:, ::1] lengths,
+                      const double[:, :, ::1] anchors, const double[:, ::1] attachments, const double[::1] cog,
+                      const double[:, ::1] loads, const double[::1] axial_stiffness, double rope_weight,
+                      double scale, double sigma, double[:, ::1] residual, double[:, ::1] constraint,
+                      double[:, :, ::1] jacobian, double[:, :, ::1] balance, bint with_jacobian):
+    """The fusion's rope terms of n rows of state (rotation, position, mu = tau / |f|, taut set; each row's
+    |f| `weight`, expected lengths, anchors (n, 4, 3) and load per |f|): each rope's length residual
+    (residual (n, 4): a taut rope's unstretched length through the rope law, a slack one's excess over its
+    expected length, per `sigma`), the force and moment imbalance (constraint (n, 6), moments per `scale`)
+    and, `with_jacobian`, the length rows' derivative (jacobian (n, 4, 10): position, rotation vector on
+    the left, mu) and the balance's (balance (n, 6, 10)). EA (4,) <= 0: rigid ropes of weight 0."""
+    cdef Py_ssize_t n = rotation.shape[0], row
+    cdef int c, a, b, i
+    cdef double arm[3]
+    cdef double lever[3]
+    cdef double unit[3]
+    cdef double moment[3]
+    cdef double arm_unit[3]
+    cdef double rotated_cog[3]
+    cdef double p[3][3]
+    cdef double sr[3][3]
+    cdef double sq[3][3]
+    cdef double su[3][3]
+    cdef double pr[3][3]
+    cdef double qp[3][3]
+    cdef double norm, m, held, length, d_span, d_tension, slack_length, d_slack, d_none, excess, d_pose, value
+    with nogil:
+        for row in range(n):
+            for a in range(6):
+                constraint[row, a] = 0.0
+                if with_jacobian:
+                    for b in range(10):
+                        balance[row, a, b] = 0.0
+            for a in range(3):
+                rotated_cog[a] = (rotation[row, a, 0] * cog[0] + rotation[row, a, 1] * cog[1]
+                                  + rotation[row, a, 2] * cog[2])
+            for c in range(4):
+                for a in range(3):
+                    arm[a] = (rotation[row, a, 0] * attachments[c, 0] + rotation[row, a, 1] * attachments[c, 1]
+                              + rotation[row, a, 2] * attachments[c, 2])
+                    lever[a] = arm[a] - rotated_cog[a]
+                    unit[a] = position[row, a] + arm[a] - anchors[row, c, a]
+                norm = sqrt(unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2])
+                for a in range(3):
+                    unit[a] /= norm
+                cross3(lever, unit, moment)
+                m = mu[row, c]
+                for a in range(3):
+                    constraint[row, a] += m * unit[a]
+                    constraint[row, 3 + a] += m * moment[a]
+                unstretched(norm, m * weight[row], axial_stiffness[c], rope_weight, &length, &d_span, &d_tension)
+                unstretched(norm, 0.0, axial_stiffness[c], rope_weight, &slack_length, &d_slack, &d_none)
+                excess = slack_length - lengths[row, c]
+                if taut[row, c]:
+                    residual[row, c] = (length - lengths[row, c]) / sigma
+                    d_pose = d_span / sigma
+                else:
+                    residual[row, c] = (excess if excess > 0.0 else 0.0) / sigma
+                    d_pose = d_slack / sigma if excess > 0.0 else 0.0
+                if not with_jacobian:
+                    continue
+                cross3(arm, unit, arm_unit)
+                for a in range(3):
+                    jacobian[row, c, a] = d_pose * unit[a]
+                    jacobian[row, c, 3 + a] = d_pose * arm_unit[a]
+                for a in range(4):
+                    jacobian[row, c, 6 + a] = 0.0
+                if taut[row, c]:
+                    jacobian[row, c, 6 + c] = d_tension * weight[row] / sigma
+                    for a in range(3):
+                        balance[row, a, 6 + c] = unit[a]
+                        balance[row, 3 + a, 6 + c] = moment[a] / scale
+                    held = m
+                else:
+                    held = 0.0
+                # d (mu u, mu q x u) / d pose with P = (I - u u^T) / |s|: (P, -P [r]x; [q]x P, [u]x [q]x - [q]x P [r]x)
+                for a in range(3):
+                    for b in range(3):
+                        p[a][b] = held * ((1.0 if a == b else 0.0) - unit[a] * unit[b]) / norm
+                skew3(arm, sr)
+                skew3(lever, sq)
+                skew3(unit, su)
+                for a in range(3):
+                    for b in range(3):
+                        pr[a][b] = p[a][0] * sr[0][b] + p[a][1] * sr[1][b] + p[a][2] * sr[2][b]
+                        qp[a][b] = sq[a][0] * p[0][b] + sq[a][1] * p[1][b] + sq[a][2] * p[2][b]
+                for a in range(3):
+                    for b in range(3):
+                        balance[row, a, b] += p[a][b]
+                        balance[row, a, 3 + b] -= pr[a][b]
+                        balance[row, 3 + a, b] += qp[a][b] / scale
+                        value = 0.0
+                        for i in range(3):
+                            value += held * su[a][i] * sq[i][b] - qp[a][i] * sr[i][b]
+                        balance[row, 3 + a, 3 + b] += value / scale
+            for a in range(3):
+                constraint[row, a] -= loads[row, a]
+                constraint[row, 3 + a] = (constraint[row, 3 + a] - loads[row, 3 + a]) / scale
+
+
+def kkt_systems(const double[:, :, ::1] jacobian, const double[:, ::1] residual, const double[:, :, ::1] balance,
+                const unsigned char[:, ::1] slack, const double[:, ::1] mu, double eps, double[:, :, ::1] system,
+                double[:, ::1] gradient):
+    """The rows' 16 x 16 KKT systems of the Gauss-Newton model (jacobian (n, M, 10), residual (n, M)) with
+    the balance (n, 6, 10) linearised, and the cost's gradient (n, 10): a slack rope's tension held (an
+    identity row, its gradient the tension, so a step sets it to zero), a Levenberg term `eps` on the state."""
+    cdef Py_ssize_t n = jacobian.shape[0], rows = jacobian.shape[1], row, r
+    cdef int a, b
+    cdef bint held_a
+    cdef double value
+    with nogil:
+        for row in range(n):
+            for a in range(16):
+                for b in range(16):
+                    system[row, a, b] = 0.0
+            for a in range(10):
+                held_a = a >= 6 and slack[row, a - 6]
+                for b in range(10):
+                    if held_a or (b >= 6 and slack[row, b - 6]):
+                        system[row, a, b] = 1.0 if (a == b and held_a) else 0.0
+                        continue
+                    value = 0.0
+                    for r in range(rows):
+                        value += jacobian[row, r, a] * jacobian[row, r, b]
+                    system[row, a, b] = value + (eps if a == b else 0.0)
+                if held_a:
+                    gradient[row, a] = mu[row, a - 6]
+                else:
+                    value = 0.0
+                    for r in range(rows):
+                        value += jacobian[row, r, a] * residual[row, r]
+                    gradient[row, a] = value
+                for b in range(6):
+                    system[row, a, 10 + b] = balance[row, b, a]
+                    system[row, 10 + b, a] = balance[row, b, a]
