@@ -1,0 +1,94 @@
+"""The compiled inner loops: their Jacobians are the derivatives of their residuals, and a row's answer does
+not depend on the rows solved with it (a singular or undefined row beside it included)."""
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cable_winch_monitor.model.solvers import compiled
+from cable_winch_monitor.model.statics.geometry import rotations_from_vectors
+
+EA = np.array([6.8e7, 7.0e7, 6.5e7, 7.2e7])
+H = 1e-5  # central-difference step [m, rad, mu]: smaller, rounding of 600 m spans shows
+
+
+def _terms(plant, state: np.ndarray, taut: np.ndarray, lengths: np.ndarray, ea: np.ndarray, rope_weight: float,
+           tilt: np.ndarray):
+    """Rope residuals (4,), imbalance (6,), their Jacobians (4, 10), (6, 10) at `state` (10,): position, a rotation
+    vector applied on the left of the rotation `tilt` (1, 3, 3), mu."""
+    rotation = rotations_from_vectors(state[None, 3:6]) @ tilt
+    residual, constraint = np.empty((1, 4)), np.empty((1, 6))
+    jacobian, balance = np.empty((1, 4, 10)), np.empty((1, 6, 10))
+    weight = 1e5
+    load = np.array([[0.0, 0.0, -1.0, 0.0, 0.0, 0.0]])
+    compiled.equilibrium_terms(rotation, state[None, :3].copy(), state[None, 6:].copy(), taut[None].view(np.uint8),
+                               np.array([weight]), lengths[None], np.ascontiguousarray(plant.anchors[None]),
+                               plant.attachments, plant.cog, load, ea, rope_weight, plant.moment_scale, 1e-3,
+                               residual, constraint, jacobian, balance, True)
+    return residual[0], constraint[0], jacobian[0], balance[0]
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2 ** 31 - 1), st.booleans(), st.sampled_from([0.0, 60.0]))
+def test_the_jacobians_are_the_residuals_derivatives(plant, seed, elastic, rope_weight):
+    rng = np.random.default_rng(seed)
+    depth = rng.uniform(50.0, 600.0)
+    taut = rng.random(4) < 0.75
+    tilt = rotations_from_vectors(rng.normal(0.0, 0.01, (1, 3)))
+    state = np.concatenate([rng.normal(0.0, 0.05, 3) + [0.0, 0.0, -depth], np.zeros(3),
+                            np.where(taut, rng.uniform(0.1, 0.4, 4), 0.0)])
+    ea = EA if elastic else np.zeros(4)
+    spans = _terms(plant, state, np.ones(4, bool), np.zeros(4), np.zeros(4), 0.0, tilt)[0] * 1e-3  # rigid: spans
+    lengths = spans + np.where(taut, rng.normal(0.0, 0.01, 4), -0.5)  # slack ropes overstretched by 0.5 m
+    residual, constraint, jacobian, balance = _terms(plant, state, taut, lengths, ea, rope_weight, tilt)
+    for k in range(10):
+        step = np.zeros(10)
+        step[k] = H
+        if k >= 6 and not taut[k - 6]:
+            continue  # a slack rope's tension is not a coordinate of its residuals
+        up, down = (_terms(plant, state + s, taut, lengths, ea, rope_weight, tilt) for s in (step, -step))
+        np.testing.assert_allclose(jacobian[:, k], (up[0] - down[0]) / (2 * H), rtol=1e-5, atol=1e-4)
+        np.testing.assert_allclose(balance[:, k], (up[1] - down[1]) / (2 * H), rtol=1e-5, atol=1e-7)
+    assert np.all(residual[~taut] > 0.0)  # an overstretched slack rope has a residual, a one-sided one
+
+
+def _newton(plant, lengths: np.ndarray, taut: np.ndarray):
+    n = len(lengths)
+    rotation = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    position = np.zeros((n, 3))
+    position[:, 2] = -lengths.mean(axis=1)
+    mu = np.zeros((n, 4))
+    mu[:, taut] = 1.0 / taut.size
+    steps, converged = np.zeros(n, np.int64), np.zeros(n, np.uint8)
+    loads = np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], (n, 1))
+    compiled.newton_taut_set(lengths, rotation, position, mu, loads, steps, taut, plant.attachments, plant.cog,
+                             plant.anchors, plant.moment_scale, np.full(n, 1e-12), 15, converged, 0.2,
+                             0.2 * plant.moment_scale)
+    return rotation, position, mu, converged.astype(bool)
+
+
+def test_a_rows_answer_does_not_depend_on_the_rows_beside_it(plant):
+    rng = np.random.default_rng(3)
+    lengths = 200.0 + rng.normal(0.0, 0.02, (6, 4))
+    lengths[2] = np.nan        # undefined
+    lengths[4] = 0.0           # no span can be this short: singular or not converging
+    taut = np.array([0, 1, 2], np.int64)
+    together = _newton(plant, lengths, taut)
+    for row in (0, 1, 3, 5):
+        alone = _newton(plant, lengths[row:row + 1].copy(), taut)
+        assert together[3][row] and alone[3][0]
+        for a, b in zip(together, alone):
+            assert np.array_equal(a[row], b[0])
+    assert not together[3][2]
+    rotation, position, mu, converged = together  # where converged: force and moment balance, spans = lengths
+    mask = np.zeros((len(mu), 4), bool)
+    mask[:, taut] = True
+    residual, constraint = np.empty((len(mu), 4)), np.empty((len(mu), 6))
+    compiled.equilibrium_terms(rotation, position, mu, mask.view(np.uint8), np.ones(len(mu)), lengths,
+                               np.ascontiguousarray(np.broadcast_to(plant.anchors, (len(mu), 4, 3))), plant.attachments,
+                               plant.cog, np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], (len(mu), 1)), np.zeros(4), 0.0,
+                               plant.moment_scale, 1.0, residual, constraint, np.empty((0, 4, 10)), np.empty((0, 6, 10)),
+                               False)
+    assert np.abs(constraint[converged]).max() < 1e-12
+    assert np.abs(residual[converged][:, taut]).max() < 1e-10
