@@ -160,11 +160,8 @@ class MonitorEstimator:
         self.left_out: dict[str, float] = {}   # sensor -> the stamp from which it is left out
         self.last_rejected: tuple[str, ...] = ()  # the sensors rejected at the sample before
         # every forward solve of a window starts from the first of its samples that solved alone (None: not yet),
-        # so that a sample's start does not depend on which samples the node or the replay solves with it; that
-        # one starts from the latest earlier window's (cold where there is none: a cold solve costs several
-        # warm ones)
+        # so that a sample's start does not depend on which samples the node or the replay solves with it
         self.seed: Solution | None = None
-        self.earlier_seed: Solution | None = None
         self.predictions: list[tuple[float, float, float]] = []  # the model's stamp, roll, pitch lately
 
     def __getstate__(self) -> dict[str, Any]:
@@ -197,7 +194,6 @@ class MonitorEstimator:
             if self.window is not None and index != self.window.index:
                 self._close(index)
             if self.window is None:
-                self.earlier_seed = self.seed if self.seed is not None else self.earlier_seed
                 self.window, self.seed = _Window(index), None
             stop = start + 1
             while stop < len(samples) and self.error.window(samples[stop].stamp, self.origin) == index:
@@ -214,8 +210,7 @@ class MonitorEstimator:
         lengths, loads, hooked = model.batch_inputs(reported, [s.conditions for s in samples])
         lengths[hooked] = reported[hooked]  # estimated as reported, published as the hook's failure (below)
         prior = self.error.prior(stamps, lengths)
-        forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.seed,
-                                     self.earlier_seed)
+        forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.seed)
         solved = np.flatnonzero(forward.ok)
         self.seed = forward.solution(int(solved[0])) if self.seed is None and solved.size else self.seed
         measured = self._carried(samples, forward)

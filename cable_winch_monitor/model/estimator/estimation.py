@@ -263,15 +263,15 @@ def _forward_kinematics(problem: Problem, samples: np.ndarray) -> tuple[Rows, Ca
 
 
 def forward_kinematics(plant: Plant, lengths: np.ndarray, ropes: Ropes, loads: np.ndarray,
-                       seed: Solution | None = None, first_start: Solution | None = None) -> BatchSolution:
+                       seed: Solution | None = None) -> BatchSolution:
     """The model's own equilibrium of N samples' lengths (N, 4) under their loads (N, 6), each from `seed`
-    (without one: the first sample that solves alone, from `first_start` or cold), batched: a sample's
-    answer does not depend on the samples solved with it, so that the live node, which solves one or a few
-    at a time, and replay, which solves many, give the same bits."""
+    (without one: the first sample that solves alone, cold), batched: a sample's answer does not depend on
+    the samples solved with it, so that the live node, which solves one or a few at a time, and replay,
+    which solves many, give the same bits."""
     effective = ropes.effective(np.asarray(lengths, dtype=float).reshape(-1, 4))
     loads = np.asarray(loads, dtype=float).reshape(-1, 6)
-    return solve_batch(plant, effective, seed, loads, False, first_start) if ropes.rigid else \
-        solve_batch_elastic(plant, effective, ropes.axial_stiffness, seed, loads, False, first_start)
+    return solve_batch(plant, effective, seed, loads, follow=False) if ropes.rigid else \
+        solve_batch_elastic(plant, effective, ropes.axial_stiffness, seed, loads, follow=False)
 
 
 def _estimate(problem: Problem, warm: Rows | None, same_samples: bool = False,

@@ -88,14 +88,13 @@ class BatchSolution:
 
 
 def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None = None,
-                loads: np.ndarray | None = None, follow: bool = True, first_start: Solution | None = None) -> BatchSolution:
+                loads: np.ndarray | None = None, follow: bool = True) -> BatchSolution:
     """Equilibria for the rows of `lengths` (N, 4), in order along a trajectory, under `loads` (one
     wrench per row (N, 6), one for all (6,), or None: gravity), each start from the warm start
-    (`solve_chunks`, `follow`, `first_start`); never raises."""
+    (`solve_chunks`, `follow`); never raises."""
     out = empty_batch(plant, lengths, loads)
     solve_chunks(out, warm_start, lambda rows, seed: _solve_checked_chunk(plant, out, rows, seed),
-                 lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]), follow,
-                 first_start)
+                 lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]), follow)
     return out
 
 
@@ -114,14 +113,14 @@ SampleSolver = Callable[[int, "Solution | None"], Solution]  # (row, warm start)
 
 
 def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: ChunkSolver,
-                 solve_one: SampleSolver, follow: bool = True, first_start: Solution | None = None) -> None:
+                 solve_one: SampleSolver, follow: bool = True) -> None:
     """Chunk by chunk along the trajectory: the valid rows batched from a seed, the rest by the per-sample
     solver. Following (`follow`), each chunk's seed is the previous chunk's last solution (the first
     chunk's `warm_start`, or its first row solved alone) and a row left to the per-sample solver starts
     from the last row solved before it. Not following, every row starts from `warm_start` (without one:
-    the first row that the per-sample solver solves alone, from `first_start`, else cold), so that a row's
-    answer does not depend on which rows are solved with it: the live node, which solves its samples as
-    they come, and replay, which solves a window of them at once, give the same bits."""
+    the first row that the per-sample solver solves cold), so that a row's answer does not depend on which
+    rows are solved with it: the live node, which solves its samples as they come, and replay, which
+    solves a window of them at once, give the same bits."""
     lengths, count = out.lengths, len(out.lengths)
     seed = warm_start if warm_start is not None and warm_start.ok else None
     for start in range(0, count, CHUNK):
@@ -134,7 +133,7 @@ def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: C
             if follow:
                 seed = _fallback(out, int(valid[0]), None, solve_one)
             else:
-                seed, alone, valid = _first_solved(out, valid, solve_one, first_start)
+                seed, alone, valid = _first_solved(out, valid, solve_one)
         if seed is not None and seed.ok:
             with np.errstate(all="ignore"):
                 solve_chunk(valid, seed)
@@ -144,12 +143,12 @@ def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: C
         seed = out.solution(int(last[-1])) if follow and last.size else seed
 
 
-def _first_solved(out: BatchSolution, valid: np.ndarray, solve_one: SampleSolver, start: Solution | None) \
+def _first_solved(out: BatchSolution, valid: np.ndarray, solve_one: SampleSolver) \
         -> tuple[Solution | None, np.ndarray, np.ndarray]:
-    """The valid rows solved alone from `start` (None: cold), in order until one solves: its solution (None if
-    none did), the rows so solved, and the valid rows after them."""
+    """The valid rows solved alone, cold, in order until one solves: its solution (None if none did), the rows
+    so solved, and the valid rows after them."""
     for k, i in enumerate(valid.tolist()):
-        solution = _fallback(out, i, start, solve_one)
+        solution = _fallback(out, i, None, solve_one)
         if solution.ok:
             return solution, valid[:k + 1], valid[k + 1:]
     return None, valid, valid[:0]

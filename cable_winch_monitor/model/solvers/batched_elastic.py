@@ -26,11 +26,11 @@ STEP_TURN = 0.05  # [rad] largest rotation of one Newton step (and 0.05 moment s
 
 def solve_batch_elastic(plant: Plant, lengths: np.ndarray, axial_stiffness: object,
                         warm_start: Solution | None = None, loads: np.ndarray | None = None,
-                        follow: bool = True, first_start: Solution | None = None) -> BatchSolution:
+                        follow: bool = True) -> BatchSolution:
     """Equilibria on ropes of axial stiffness EA [N] (scalar or 4) for the rows of the unstretched
     `lengths` (N, 4), in order along a trajectory, under `loads` ((N, 6), (6,) or None: gravity), each start
-    from the warm start (`batched.solve_chunks`, `follow`: not following, every row from the seed itself;
-    `first_start`); never raises."""
+    from the warm start (`batched.solve_chunks`, `follow`: not following, every row from the seed itself);
+    never raises."""
     out = empty_batch(plant, lengths, loads, METHOD)
     out.stretch = np.full((len(out), 4), np.nan)
     ea = np.broadcast_to(np.asarray(axial_stiffness, dtype=float), (4,))
@@ -41,8 +41,7 @@ def solve_batch_elastic(plant: Plant, lengths: np.ndarray, axial_stiffness: obje
             _solve_chunk(plant, out, rows, ea, seed, STRIDE if follow else 1)
 
     solve_chunks(out, warm_start, solve_chunk,
-                 lambda i, warm: solve_elastic(plant, out.lengths[i], ea, warm_start=warm, load=out.loads[i]), follow,
-                 first_start)
+                 lambda i, warm: solve_elastic(plant, out.lengths[i], ea, warm_start=warm, load=out.loads[i]), follow)
     return out
 
 
