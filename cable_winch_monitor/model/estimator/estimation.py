@@ -385,11 +385,10 @@ def _unloaded(problem: Problem, best: Rows) -> Rows:
     ropes = np.flatnonzero(problem.pin_observations >= 0)
     if not ropes.size:
         return best
-    pins = problem.pin_observations[ropes]
-    measured = np.isfinite(problem.values[best.sample][:, pins])
+    _, sigma, measured = problem.pin_columns
     tension = best.mu[:, ropes] * problem.scales[best.sample, None]
     weak = np.zeros_like(best.taut)
-    weak[:, ropes] = best.taut[:, ropes] & measured & (tension < SEARCH_SIGMA * problem.sigmas[pins])
+    weak[:, ropes] = best.taut[:, ropes] & measured[best.sample] & (tension < SEARCH_SIGMA * sigma)
     rows = np.flatnonzero(weak.any(axis=1) & ((best.taut & ~weak).sum(axis=1) >= 2) & _admissible(best))
     if not rows.size:
         return best
