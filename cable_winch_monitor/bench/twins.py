@@ -1,11 +1,14 @@
-"""Benchmark: why the per-sample twins of two stacked stages stay -- the live node's cost of one new sample
-with the twin against the stacked form asked for that same sample, on the same samples.
+"""Benchmark: what a per-sample twin of a stacked stage saves the live node on one new sample -- the twin
+against the stacked form asked for that same sample, on the same samples.
 
 - Conditions: `ConditionsTracker.update` (running sums over the last second of samples) against
   `derivatives` and `directions` over the samples of that second, their last row taken (the
-  stacked form cannot be asked for one sample alone: a speed's slope needs the window).
+  stacked form cannot be asked for one sample alone: a speed's slope needs the window). The twin
+  stays for speed.
 - Equilibrium: `solve` (the per-sample energy solve, warm-started) against `solve_batch` of one row
-  warm-started the same way.
+  warm-started the same way. The node takes the stacked form (its Newton is compiled, and its bits do
+  not depend on the rows solved with it); the per-sample solver stays for what the stacked one
+  leaves (a cold start, a single-cable state, four taut ropes), not for speed.
 
 Each pair is held to the same answers by a test (test/model/test_conditions.py,
 test/model/test_batched.py). Figures are ratios within one run, the best of three passes. Run
