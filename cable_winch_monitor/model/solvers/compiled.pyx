@@ -1,9 +1,10 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The solvers' inner loops, compiled: Newton on one taut set's KKT conditions, row by row.
+"""The solvers' inner loops, compiled: the batched Newton on one taut set's KKT conditions, and the fusion's
+rope terms (length residuals, balance and their Jacobians) and KKT systems, row by row.
 
 The live node solves one sample at a time, where numpy's cost per call, not the arithmetic,
 is the time (a Newton step of one sample is some forty numpy calls on 3 x 3 arrays). Here each
-row is solved on its own, in C, so a row's answer is the same bits whichever rows are solved
+row is worked out on its own, in C, so a row's answer is the same bits whichever rows are solved
 with it: the node, which solves its samples as they come, and replay, which solves a window of
 them at once, agree to the last bit.
 """
@@ -48,9 +49,9 @@ cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size) noexcept nog
     return 0
 
 
-cdef void rotate_left(double[:, ::1] rotation, double w0, double w1, double w2) noexcept nogil:
-    """rotation <- exp([w]x) rotation (Rodrigues; I + [w]x below an angle of 1e-12, as
-    geometry.rotations_from_vectors)."""
+cdef void rotate_left(double *rotation, double w0, double w1, double w2) noexcept nogil:
+    """rotation <- exp([w]x) rotation for a row-major 3 x 3 rotation (Rodrigues; I + [w]x below an angle of
+    1e-12, as geometry.rotations_from_vectors)."""
     cdef double angle = sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     cdef double k[3][3]
     cdef double e[3][3]
@@ -78,10 +79,81 @@ cdef void rotate_left(double[:, ::1] rotation, double w0, double w1, double w2) 
         for j in range(3):
             out[i][j] = 0.0
             for m in range(3):
-                out[i][j] += e[i][m] * rotation[m, j]
+                out[i][j] += e[i][m] * rotation[3 * m + j]
     for i in range(3):
         for j in range(3):
-            rotation[i, j] = out[i][j]
+            rotation[3 * i + j] = out[i][j]
+
+
+cdef inline void cross3(const double *a, const double *b, double *out) noexcept nogil:
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+cdef inline void skew3(const double *v, double (*out)[3]) noexcept nogil:
+    out[0][0] = 0.0; out[0][1] = -v[2]; out[0][2] = v[1]
+    out[1][0] = v[2]; out[1][1] = 0.0; out[1][2] = -v[0]
+    out[2][0] = -v[1]; out[2][1] = v[0]; out[2][2] = 0.0
+
+
+cdef inline void rotate(const double *rotation, const double *vector, double *out) noexcept nogil:
+    """out = R v for a row-major 3 x 3 R."""
+    cdef int a
+    for a in range(3):
+        out[a] = rotation[3 * a] * vector[0] + rotation[3 * a + 1] * vector[1] + rotation[3 * a + 2] * vector[2]
+
+
+cdef inline double cable_geometry(const double *rotation, const double *position, const double *attachment,
+                                  const double *anchor, const double *rotated_cog, double *arm, double *lever,
+                                  double *unit, double *moment) noexcept nogil:
+    """A cable at a pose: its arm R b, lever arm about C, unit span from anchor to attachment and moment
+    q x u about C; returns the span's length."""
+    cdef int a
+    cdef double norm
+    rotate(rotation, attachment, arm)
+    for a in range(3):
+        lever[a] = arm[a] - rotated_cog[a]
+        unit[a] = position[a] + arm[a] - anchor[a]
+    norm = sqrt(unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2])
+    for a in range(3):
+        unit[a] /= norm
+    cross3(lever, unit, moment)
+    return norm
+
+
+cdef inline void pose_block(const double *arm, const double *lever, const double *unit, double norm, double weight,
+                            double scale, double (*block)[6]) noexcept nogil:
+    """The derivative of a cable's pull weight u and moment weight q x u (per `scale`) with respect to the pose
+    (position, rotation vector on the left): weight (P, -P [r]x; [q]x P, [u]x [q]x - [q]x P [r]x), with
+    P = (I - u u^T) / |s|."""
+    cdef double p[3][3]
+    cdef double sr[3][3]
+    cdef double sq[3][3]
+    cdef double su[3][3]
+    cdef double pr[3][3]
+    cdef double qp[3][3]
+    cdef double value
+    cdef int a, b, i
+    for a in range(3):
+        for b in range(3):
+            p[a][b] = weight * ((1.0 if a == b else 0.0) - unit[a] * unit[b]) / norm
+    skew3(arm, sr)
+    skew3(lever, sq)
+    skew3(unit, su)
+    for a in range(3):
+        for b in range(3):
+            pr[a][b] = p[a][0] * sr[0][b] + p[a][1] * sr[1][b] + p[a][2] * sr[2][b]
+            qp[a][b] = sq[a][0] * p[0][b] + sq[a][1] * p[1][b] + sq[a][2] * p[2][b]
+    for a in range(3):
+        for b in range(3):
+            block[a][b] = p[a][b]
+            block[a][3 + b] = -pr[a][b]
+            block[3 + a][b] = qp[a][b] / scale
+            value = 0.0
+            for i in range(3):
+                value += weight * su[a][i] * sq[i][b] - qp[a][i] * sr[i][b]
+            block[3 + a][3 + b] = value / scale
 
 
 def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, double[:, ::1] position,
@@ -95,7 +167,7 @@ def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
     moved in place, converged (n,) set. A step is shortened to turn at most `turn_limit` [rad] and
     shift at most `shift_limit` [m]; a row whose system is singular stops there, not converged."""
     cdef Py_ssize_t n = lengths.shape[0], row
-    cdef int k = taut.shape[0], size = 6 + k, step, c, j, a, b, i
+    cdef int k = taut.shape[0], size = 6 + k, step, c, j, a, b
     cdef double system[MAX_SIZE][MAX_SIZE]
     cdef double rhs[MAX_SIZE]
     cdef double arm[3]
@@ -103,14 +175,9 @@ def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
     cdef double unit[3]
     cdef double moment[3]
     cdef double rc[3]
-    cdef double p[3][3]
-    cdef double sr[3][3]
-    cdef double sq[3][3]
-    cdef double su[3][3]
-    cdef double pr[3][3]
-    cdef double qp[3][3]
+    cdef double block[6][6]
     cdef double rotated_cog[3]
-    cdef double norm, weight, worst, largest, value
+    cdef double norm, weight, worst, largest
     if size > MAX_SIZE:
         raise ValueError(f"{k} taut cables: at most 4")
     with nogil:
@@ -120,62 +187,27 @@ def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
                     rhs[a] = 0.0
                     for b in range(MAX_SIZE):
                         system[a][b] = 0.0
-                for a in range(3):
-                    rotated_cog[a] = (rotation[row, a, 0] * cog[0] + rotation[row, a, 1] * cog[1]
-                                      + rotation[row, a, 2] * cog[2])
+                rotate(&rotation[row, 0, 0], &cog[0], rotated_cog)
                 for j in range(k):
                     c = taut[j]
-                    for a in range(3):
-                        arm[a] = (rotation[row, a, 0] * attachments[c, 0] + rotation[row, a, 1] * attachments[c, 1]
-                                  + rotation[row, a, 2] * attachments[c, 2])
-                        lever[a] = arm[a] - rotated_cog[a]
-                        unit[a] = position[row, a] + arm[a] - anchors[c, a]
-                    norm = sqrt(unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2])
-                    for a in range(3):
-                        unit[a] /= norm
-                    moment[0] = lever[1] * unit[2] - lever[2] * unit[1]
-                    moment[1] = lever[2] * unit[0] - lever[0] * unit[2]
-                    moment[2] = lever[0] * unit[1] - lever[1] * unit[0]
+                    norm = cable_geometry(&rotation[row, 0, 0], &position[row, 0], &attachments[c, 0], &anchors[c, 0],
+                                          rotated_cog, arm, lever, unit, moment)
                     weight = mu[row, c]
                     for a in range(3):
                         rhs[a] += weight * unit[a]
                         rhs[3 + a] += weight * moment[a]
                     rhs[6 + j] = norm - lengths[row, c]
                     # the Jacobian's row and column of this cable's tension, and of its length equation
-                    rc[0] = arm[1] * unit[2] - arm[2] * unit[1]
-                    rc[1] = arm[2] * unit[0] - arm[0] * unit[2]
-                    rc[2] = arm[0] * unit[1] - arm[1] * unit[0]
+                    cross3(arm, unit, rc)
                     for a in range(3):
                         system[a][6 + j] = unit[a]
                         system[3 + a][6 + j] = moment[a] / scale
                         system[6 + j][a] = unit[a]
                         system[6 + j][3 + a] = rc[a]
-                    # the pose block: mu (P, -P [r]x; [q]x P, [u]x [q]x - [q]x P [r]x), P = (I - u u^T) / |s|
-                    for a in range(3):
-                        for b in range(3):
-                            p[a][b] = ((1.0 if a == b else 0.0) - unit[a] * unit[b]) / norm
-                    sr[0][0] = 0.0; sr[0][1] = -arm[2]; sr[0][2] = arm[1]
-                    sr[1][0] = arm[2]; sr[1][1] = 0.0; sr[1][2] = -arm[0]
-                    sr[2][0] = -arm[1]; sr[2][1] = arm[0]; sr[2][2] = 0.0
-                    sq[0][0] = 0.0; sq[0][1] = -lever[2]; sq[0][2] = lever[1]
-                    sq[1][0] = lever[2]; sq[1][1] = 0.0; sq[1][2] = -lever[0]
-                    sq[2][0] = -lever[1]; sq[2][1] = lever[0]; sq[2][2] = 0.0
-                    su[0][0] = 0.0; su[0][1] = -unit[2]; su[0][2] = unit[1]
-                    su[1][0] = unit[2]; su[1][1] = 0.0; su[1][2] = -unit[0]
-                    su[2][0] = -unit[1]; su[2][1] = unit[0]; su[2][2] = 0.0
-                    for a in range(3):
-                        for b in range(3):
-                            pr[a][b] = p[a][0] * sr[0][b] + p[a][1] * sr[1][b] + p[a][2] * sr[2][b]
-                            qp[a][b] = sq[a][0] * p[0][b] + sq[a][1] * p[1][b] + sq[a][2] * p[2][b]
-                    for a in range(3):
-                        for b in range(3):
-                            system[a][b] += weight * p[a][b]
-                            system[a][3 + b] -= weight * pr[a][b]
-                            system[3 + a][b] += weight * qp[a][b] / scale
-                            value = 0.0
-                            for i in range(3):
-                                value += su[a][i] * sq[i][b] - qp[a][i] * sr[i][b]
-                            system[3 + a][3 + b] += weight * value / scale
+                    pose_block(arm, lever, unit, norm, weight, scale, block)
+                    for a in range(6):
+                        for b in range(6):
+                            system[a][b] += block[a][b]
                 for a in range(3):
                     rhs[a] -= loads[row, a]
                     rhs[3 + a] = (rhs[3 + a] - loads[row, 3 + a]) / scale
@@ -202,22 +234,10 @@ def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
                     rhs[a] /= largest
                 for a in range(3):
                     position[row, a] += rhs[a]
-                rotate_left(rotation[row], rhs[3], rhs[4], rhs[5])
+                rotate_left(&rotation[row, 0, 0], rhs[3], rhs[4], rhs[5])
                 for j in range(k):
                     mu[row, taut[j]] += rhs[6 + j]
                 steps[row] += 1
-
-
-cdef inline void cross3(const double *a, const double *b, double *out) noexcept nogil:
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-
-
-cdef inline void skew3(const double *v, double (*out)[3]) noexcept nogil:
-    out[0][0] = 0.0; out[0][1] = -v[2]; out[0][2] = v[1]
-    out[1][0] = v[2]; out[1][1] = 0.0; out[1][2] = -v[0]
-    out[2][0] = -v[1]; out[2][1] = v[0]; out[2][2] = 0.0
 
 
 cdef inline void unstretched(double span, double tension, double ea, double weight, double *length,
@@ -255,20 +275,15 @@ def equilibrium_terms(const double[:, :, ::1] rotation, const double[:, ::1] pos
     and, `with_jacobian`, the length rows' derivative (jacobian (n, 4, 10): position, rotation vector on
     the left, mu) and the balance's (balance (n, 6, 10)). EA (4,) <= 0: rigid ropes of weight 0."""
     cdef Py_ssize_t n = rotation.shape[0], row
-    cdef int c, a, b, i
+    cdef int c, a, b
     cdef double arm[3]
     cdef double lever[3]
     cdef double unit[3]
     cdef double moment[3]
     cdef double arm_unit[3]
     cdef double rotated_cog[3]
-    cdef double p[3][3]
-    cdef double sr[3][3]
-    cdef double sq[3][3]
-    cdef double su[3][3]
-    cdef double pr[3][3]
-    cdef double qp[3][3]
-    cdef double norm, m, held, length, d_span, d_tension, slack_length, d_slack, d_none, excess, d_pose, value
+    cdef double block[6][6]
+    cdef double norm, m, held, length, d_span, d_tension, slack_length, d_slack, d_none, excess, d_pose
     with nogil:
         for row in range(n):
             for a in range(6):
@@ -276,19 +291,10 @@ def equilibrium_terms(const double[:, :, ::1] rotation, const double[:, ::1] pos
                 if with_jacobian:
                     for b in range(10):
                         balance[row, a, b] = 0.0
-            for a in range(3):
-                rotated_cog[a] = (rotation[row, a, 0] * cog[0] + rotation[row, a, 1] * cog[1]
-                                  + rotation[row, a, 2] * cog[2])
+            rotate(&rotation[row, 0, 0], &cog[0], rotated_cog)
             for c in range(4):
-                for a in range(3):
-                    arm[a] = (rotation[row, a, 0] * attachments[c, 0] + rotation[row, a, 1] * attachments[c, 1]
-                              + rotation[row, a, 2] * attachments[c, 2])
-                    lever[a] = arm[a] - rotated_cog[a]
-                    unit[a] = position[row, a] + arm[a] - anchors[row, c, a]
-                norm = sqrt(unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2])
-                for a in range(3):
-                    unit[a] /= norm
-                cross3(lever, unit, moment)
+                norm = cable_geometry(&rotation[row, 0, 0], &position[row, 0], &attachments[c, 0], &anchors[row, c, 0],
+                                      rotated_cog, arm, lever, unit, moment)
                 m = mu[row, c]
                 for a in range(3):
                     constraint[row, a] += m * unit[a]
@@ -318,26 +324,10 @@ def equilibrium_terms(const double[:, :, ::1] rotation, const double[:, ::1] pos
                     held = m
                 else:
                     held = 0.0
-                # d (mu u, mu q x u) / d pose with P = (I - u u^T) / |s|: (P, -P [r]x; [q]x P, [u]x [q]x - [q]x P [r]x)
-                for a in range(3):
-                    for b in range(3):
-                        p[a][b] = held * ((1.0 if a == b else 0.0) - unit[a] * unit[b]) / norm
-                skew3(arm, sr)
-                skew3(lever, sq)
-                skew3(unit, su)
-                for a in range(3):
-                    for b in range(3):
-                        pr[a][b] = p[a][0] * sr[0][b] + p[a][1] * sr[1][b] + p[a][2] * sr[2][b]
-                        qp[a][b] = sq[a][0] * p[0][b] + sq[a][1] * p[1][b] + sq[a][2] * p[2][b]
-                for a in range(3):
-                    for b in range(3):
-                        balance[row, a, b] += p[a][b]
-                        balance[row, a, 3 + b] -= pr[a][b]
-                        balance[row, 3 + a, b] += qp[a][b] / scale
-                        value = 0.0
-                        for i in range(3):
-                            value += held * su[a][i] * sq[i][b] - qp[a][i] * sr[i][b]
-                        balance[row, 3 + a, 3 + b] += value / scale
+                pose_block(arm, lever, unit, norm, held, scale, block)
+                for a in range(6):
+                    for b in range(6):
+                        balance[row, a, b] += block[a][b]
             for a in range(3):
                 constraint[row, a] -= loads[row, a]
                 constraint[row, 3 + a] = (constraint[row, 3 + a] - loads[row, 3 + a]) / scale
