@@ -1,4 +1,5 @@
-"""The compiled inner loops: their Jacobians are the derivatives of their residuals, and a row's answer does
+"""The compiled inner loops: their Jacobians are the derivatives of their residuals, their weighing and moves the
+matrix products they stand for, and a row's answer does
 not depend on the rows solved with it (a singular or undefined row beside it included)."""
 from __future__ import annotations
 
@@ -92,3 +93,40 @@ def test_a_rows_answer_does_not_depend_on_the_rows_beside_it(plant):
                                False)
     assert np.abs(constraint[converged]).max() < 1e-12
     assert np.abs(residual[converged][:, taut]).max() < 1e-10
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2 ** 31 - 1), st.integers(0, 4))
+def test_the_whitening_and_the_move_are_the_matrix_products(seed, pin_count):
+    rng = np.random.default_rng(seed)
+    n, samples, m = 5, 3, 8
+    sample = rng.integers(0, samples, n)
+    residual, jacobian = rng.normal(size=(n, 4 + m)), rng.normal(size=(n, 4 + m, 10))
+    length_white, pin_white = rng.normal(size=(samples, 4, 4)), rng.normal(size=(samples, pin_count, pin_count))
+    pins = rng.choice(np.arange(4, 4 + m), pin_count, replace=False)
+    scale, expected = rng.uniform(100.0, 200.0, pin_count), rng.normal(size=(samples, pin_count))
+    measured = rng.random((samples, pin_count)) < 0.7
+    out_residual, out_jacobian = residual.copy(), jacobian.copy()
+    compiled.whiten_rows(sample, out_residual, out_jacobian, True, length_white, pin_white, pins, scale,
+                         measured.view(np.uint8), expected)
+    want = residual.copy()
+    want[:, :4] = np.einsum("nij,nj->ni", length_white[sample], residual[:, :4])
+    raw = residual[:, pins] * scale + np.where(measured[sample], expected[sample], 0.0)
+    want[:, pins] = np.einsum("nij,nj->ni", pin_white[sample], raw)
+    np.testing.assert_allclose(out_residual, want, rtol=1e-12, atol=1e-12)
+    want_jacobian = jacobian.copy()
+    want_jacobian[:, :4] = length_white[sample] @ jacobian[:, :4]
+    want_jacobian[:, pins] = pin_white[sample] @ (jacobian[:, pins] * scale[:, None])
+    np.testing.assert_allclose(out_jacobian, want_jacobian, rtol=1e-12, atol=1e-12)
+
+    rotation = rotations_from_vectors(rng.normal(0.0, 0.3, (n, 3)))
+    position, mu, step = rng.normal(size=(n, 3)), rng.normal(size=(n, 4)), rng.normal(0.0, 0.1, (2, 10))
+    step[1, 3:6] = 1e-13  # below the angle where the rotation is taken as I + [w]x
+    index = np.array([3, 1])
+    moved = (rotation.copy(), position.copy(), mu.copy())
+    compiled.move_rows(index, step, *moved)
+    np.testing.assert_allclose(moved[0][index], rotations_from_vectors(step[:, 3:6]) @ rotation[index], atol=1e-14)
+    np.testing.assert_allclose(moved[1][index], position[index] + step[:, :3], atol=1e-15)
+    np.testing.assert_allclose(moved[2][index], mu[index] + step[:, 6:], atol=1e-15)
+    others = np.setdiff1d(np.arange(n), index)
+    assert np.array_equal(moved[0][others], rotation[others]) and np.array_equal(moved[2][others], mu[others])

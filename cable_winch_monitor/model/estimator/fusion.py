@@ -28,7 +28,6 @@ from ..plantfile.plant import CABLE_NAMES, Plant
 from ..solvers import compiled
 from ..solvers.ropes import Ropes
 from ..statics import load as loads
-from ..statics.geometry import rotations_from_vectors
 from .observations import Observation, States
 from .prior import Prior, whitening
 
@@ -281,21 +280,16 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     return residual, jacobian, constraint, balance
 
 
-def _whiten(problem: Problem, sample: np.ndarray, residual: np.ndarray | None, jacobian: np.ndarray | None) -> None:
-    """Weigh the rows' length and load-pin residuals (or their Jacobian rows) by the prior, in place: the
-    lengths' deviation from their expected correction by the corrections' covariance, the pins'
-    readings beyond the model's prediction by the expected pin error and its covariance. The residuals
-    come in as the lengths' deviations [m] and the pins' (predicted - measured) / sigma."""
+def _whiten(problem: Problem, sample: np.ndarray, residual: np.ndarray, jacobian: np.ndarray | None) -> None:
+    """Weigh the rows' length and load-pin residuals (and their Jacobian rows) by the prior, in place
+    (`compiled.whiten_rows`): the lengths' deviation from their expected correction by the corrections'
+    covariance, the pins' readings beyond the model's prediction by the expected pin error and its
+    covariance. The residuals come in as the lengths' deviations [m] and the pins' (predicted - measured) / sigma."""
     _, white, _, expected = problem.pin_prior
     pins, scale, measured = problem.pin_columns
-    white, length_white = white[sample], problem.length_white[sample]
-    if residual is not None:
-        residual[:, :4] = np.einsum("nij,nj->ni", length_white, residual[:, :4])
-        raw = residual[:, pins] * scale + np.where(measured[sample], expected[sample], 0.0)
-        residual[:, pins] = np.einsum("nij,nj->ni", white, raw)
-    if jacobian is not None:
-        jacobian[:, :4] = np.matmul(length_white, jacobian[:, :4])
-        jacobian[:, pins] = np.matmul(white, jacobian[:, pins] * scale[:, None])
+    compiled.whiten_rows(sample, residual, np.empty((0, 0, 0)) if jacobian is None else jacobian, jacobian is not None,
+                         np.ascontiguousarray(problem.length_white), np.ascontiguousarray(white), pins, scale,
+                         np.ascontiguousarray(measured).view(np.uint8), np.ascontiguousarray(expected))
 
 
 def _kkt(jacobian: np.ndarray, residual: np.ndarray, balance: np.ndarray, slack: np.ndarray,
@@ -355,10 +349,9 @@ def _size(step: np.ndarray, reach: np.ndarray) -> np.ndarray:
 
 
 def _move(rows: Rows, index: np.ndarray, step: np.ndarray) -> None:
-    """Move the rows `index` by `step` (n, 10): translation, rotation vector on the left, tensions."""
-    rows.position[index] += step[:, 0:3]
-    rows.rotation[index] = rotations_from_vectors(step[:, 3:6]) @ rows.rotation[index]
-    rows.mu[index] += step[:, 6:]
+    """Move the rows `index` by `step` (n, 10): translation, rotation vector on the left, tensions
+    (`compiled.move_rows`)."""
+    compiled.move_rows(index, np.ascontiguousarray(step), rows.rotation, rows.position, rows.mu)
 
 
 def solve_rows(problem: Problem, rows: Rows) -> Rows:

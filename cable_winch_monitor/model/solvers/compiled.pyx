@@ -368,3 +368,68 @@ def kkt_systems(const double[:, :, ::1] jacobian, const double[:, ::1] residual,
                 for b in range(6):
                     system[row, a, 10 + b] = balance[row, b, a]
                     system[row, 10 + b, a] = balance[row, b, a]
+
+
+def whiten_rows(const long[::1] sample, double[:, ::1] residual, double[:, :, ::1] jacobian, bint with_jacobian,
+                const double[:, :, ::1] length_white, const double[:, :, ::1] pin_white, const long[::1] pins,
+                const double[::1] pin_scale, const unsigned char[:, ::1] measured, const double[:, ::1] expected):
+    """Weigh each row's length and load-pin residuals (and, `with_jacobian`, their Jacobian rows) by its sample's
+    prior, in place: the lengths' deviations [m] by the whitening (N, 4, 4) of the corrections' covariance; the
+    pins' columns `pins` (k,), read as (predicted - measured) / `pin_scale`, as what the pins read beyond the
+    model's prediction and their `expected` error (N, k) where `measured` (N, k), by the pins' whitening
+    (N, k, k)."""
+    cdef Py_ssize_t n = residual.shape[0], row
+    cdef int k = pins.shape[0], a, b, col, s
+    cdef double out[4]
+    cdef double raw[4]
+    cdef double value
+    if k > 4:
+        raise ValueError(f"{k} load pins: at most 4")
+    with nogil:
+        for row in range(n):
+            s = sample[row]
+            for a in range(4):
+                out[a] = 0.0
+                for b in range(4):
+                    out[a] += length_white[s, a, b] * residual[row, b]
+            for a in range(4):
+                residual[row, a] = out[a]
+            for a in range(k):
+                raw[a] = residual[row, pins[a]] * pin_scale[a] + (expected[s, a] if measured[s, a] else 0.0)
+            for a in range(k):
+                value = 0.0
+                for b in range(k):
+                    value += pin_white[s, a, b] * raw[b]
+                residual[row, pins[a]] = value
+            if not with_jacobian:
+                continue
+            for col in range(jacobian.shape[2]):
+                for a in range(4):
+                    out[a] = 0.0
+                    for b in range(4):
+                        out[a] += length_white[s, a, b] * jacobian[row, b, col]
+                for a in range(4):
+                    jacobian[row, a, col] = out[a]
+                for a in range(k):
+                    raw[a] = jacobian[row, pins[a], col] * pin_scale[a]
+                for a in range(k):
+                    value = 0.0
+                    for b in range(k):
+                        value += pin_white[s, a, b] * raw[b]
+                    jacobian[row, pins[a], col] = value
+
+
+def move_rows(const long[::1] index, const double[:, ::1] step, double[:, :, ::1] rotation, double[:, ::1] position,
+              double[:, ::1] mu):
+    """Move the rows `index` of a state by `step` (n, 10), in place: translation, rotation vector applied on the
+    left, tensions."""
+    cdef Py_ssize_t n = index.shape[0], row, i
+    cdef int a
+    with nogil:
+        for row in range(n):
+            i = index[row]
+            for a in range(3):
+                position[i, a] += step[row, a]
+            rotate_left(&rotation[i, 0, 0], step[row, 3], step[row, 4], step[row, 5])
+            for a in range(4):
+                mu[i, a] += step[row, 6 + a]
