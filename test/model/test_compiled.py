@@ -1,6 +1,6 @@
 """The compiled inner loops: their Jacobians are the derivatives of their residuals, their weighing and moves the
-matrix products they stand for, and a row's answer does
-not depend on the rows solved with it (a singular or undefined row beside it included)."""
+matrix products they stand for, and a row's answer does not depend on the rows solved with it (a singular or
+undefined row beside it included)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,6 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """The solvers' inner loops, compiled: the batched Newton on one taut set's KKT conditions, and the fusion's
-rope terms (length residuals, balance and their Jacobians) and KKT systems, row by row.
+rope terms (length residuals, balance and their Jacobians), weighing by the prior, KKT systems and moves, row
+by row.
 
 The live node solves one sample at a time, where numpy's cost per call, not the arithmetic,
 is the time (a Newton step of one sample is some forty numpy calls on 3 x 3 arrays). Here each
