@@ -216,9 +216,9 @@ def node_tracked(case: Case, domain: int, until: float, rate: float, directory: 
     # a stall of this busy machine skips no sample, and refuses none as ahead of a /clock it has not read yet (at ten
     # times real time, a node slow at its start saw winch stamps 2.9 s ahead of its clock; one whose first update
     # process took 0.6 s to start, beside the test suite, fell 6 s of stamps behind and skipped 9 samples with a
-    # backlog of 5 s)
+    # backlog of 5 s: the backlog's largest allowed value, 10 s, is given)
     node = ros_harness.NodeProcess(domain, {"use_sim_time": True, "plant_file": str(case.plant), "stamp_behind": 1e10,
-                                            "stamp_ahead": 1e10, "backlog": 1e10})
+                                            "stamp_ahead": 1e10, "backlog": 10.0})
     recorded = directory / "recorded"
     recorder = subprocess.Popen([str(CLI), "record", "--out", str(recorded), "/model/parameters", "/diagnostics"],
                                 env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
