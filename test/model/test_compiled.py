@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cable_winch_monitor.model.solvers import compiled
+from cable_winch_monitor.model.solvers.ropes import Ropes
 from cable_winch_monitor.model.statics.geometry import rotations_from_vectors
 
 EA = np.array([6.8e7, 7.0e7, 6.5e7, 7.2e7])
@@ -130,3 +131,14 @@ def test_the_whitening_and_the_move_are_the_matrix_products(seed, pin_count):
     np.testing.assert_allclose(moved[2][index], mu[index] + step[:, 6:], atol=1e-15)
     others = np.setdiff1d(np.arange(n), index)
     assert np.array_equal(moved[0][others], rotation[others]) and np.array_equal(moved[2][others], mu[others])
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.floats(50.0, 650.0), st.floats(0.0, 4e5), st.sampled_from([0.0, 60.0]))
+def test_the_compiled_rope_law_is_the_ropes(plant, depth, tension, rope_weight):
+    """`compiled.equilibrium_terms` reads a taut rope's unstretched length through the same law as `Ropes`."""
+    ropes = Ropes.of(EA, rope_weight)
+    state = np.concatenate([[0.0, 0.0, -depth], np.zeros(3), np.full(4, tension / 1e5)])
+    spans = _terms(plant, state, np.ones(4, bool), np.zeros(4), np.zeros(4), 0.0, np.eye(3)[None])[0] * 1e-3
+    residual = _terms(plant, state, np.ones(4, bool), np.zeros(4), EA, rope_weight, np.eye(3)[None])[0] * 1e-3
+    np.testing.assert_allclose(residual, ropes.unstretched(spans, np.full(4, tension))[0], rtol=1e-14)
