@@ -28,6 +28,7 @@ from ..statics import load as loads
 from ..statics.geometry import cross, rotation_from_vector, skew, structure_matrix
 from ..statics.result import Solution, SolveStatus, failed, guarded_solve, single_cable_result, solved
 from ..statics.tensions import balance_tensions
+from . import compiled
 
 METHOD = "energy"
 NEWTON_MAX_STEPS = 15
@@ -231,6 +232,8 @@ def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
     pose; its tensions are settled afterwards by `balance_tensions`.
     """
     idx = np.flatnonzero(state.active)
+    if idx.size in (2, 3):
+        return _newton_exact(plant, lengths, state, idx)
     scale = plant.moment_scale
     pull, turn = state.load[:3] / state.scale, state.load[3:] / (state.scale * scale)
     for _ in range(NEWTON_MAX_STEPS):
@@ -266,6 +269,21 @@ def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
         state.mu[idx] = mu + step[6:]
         state.steps += 1
     return False
+
+
+def _newton_exact(plant: Plant, lengths: np.ndarray, state: _State, idx: np.ndarray) -> bool:
+    """`_newton` for two or three taut cables, whose system is square and regular: the same equations, steps
+    and limits, solved exactly in C (`compiled.newton_taut_set`, the batched solver's, on one row)."""
+    rotation, position = state.rotation[None].copy(), state.position[None].copy()
+    mu, steps, converged = state.mu[None].copy(), np.zeros(1, np.int64), np.zeros(1, np.uint8)
+    tolerance = np.array([NEWTON_TOL * max(1.0, lengths.max() * 1e-2)])
+    compiled.newton_taut_set(np.ascontiguousarray(lengths, dtype=float)[None], rotation, position, mu,
+                             (state.load / state.scale)[None], steps, idx.astype(np.int64), plant.attachments, plant.cog,
+                             plant.anchors, plant.moment_scale, tolerance, NEWTON_MAX_STEPS, converged, 0.2,
+                             0.2 * plant.moment_scale)
+    state.rotation, state.position, state.mu = rotation[0], position[0], mu[0]
+    state.steps += int(steps[0])
+    return bool(converged[0])
 
 
 def _admissible(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
