@@ -96,6 +96,52 @@ def test_a_rows_answer_does_not_depend_on_the_rows_beside_it(plant):
     assert np.abs(residual[converged][:, taut]).max() < 1e-10
 
 
+def _active_set(plant, lengths: np.ndarray, start: np.ndarray):
+    """The compiled search over taut sets from the level pose at each row's mean length, with the taut set `start`."""
+    n = len(lengths)
+    rotation = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    position = np.zeros((n, 3))
+    position[:, 2] = -np.nan_to_num(lengths).mean(axis=1)
+    active = np.tile(start.astype(np.uint8), (n, 1))
+    mu = np.tile(start / start.sum(), (n, 1))
+    steps, done = np.zeros(n, np.int64), np.zeros(n, np.uint8)
+    loads = np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], (n, 1))
+    compiled.active_set_rows(lengths, rotation, position, mu, active, loads, steps, done, plant.attachments, plant.cog,
+                             plant.anchors, plant.moment_scale, np.full(n, 1e-12), 15, 12, 0.3, np.full(n, 1e-10),
+                             1e-9, 0.2, 0.2 * plant.moment_scale)
+    return rotation, position, mu, active.astype(bool), done.astype(bool)
+
+
+def test_the_search_over_taut_sets_settles_each_row_on_its_own(plant):
+    """Rows whose winches paid out unevenly, started on the wrong taut set: each is done on an admissible set
+    (balanced, taut tensions not negative, slack ropes not longer than their lengths), with the same bits
+    alone as beside an undefined and a degenerate row."""
+    rng = np.random.default_rng(5)
+    lengths = 300.0 + rng.normal(0.0, 0.05, (7, 4))
+    lengths[2] = np.nan
+    lengths[5] = 0.0
+    start = np.array([True, True, False, False])
+    together = _active_set(plant, lengths, start)
+    rotation, position, mu, taut, done = together
+    good = np.array([0, 1, 3, 4, 6])
+    assert done[good].all() and not done[2]
+    for row in good:
+        alone = _active_set(plant, lengths[row:row + 1].copy(), start)
+        for a, b in zip(together, alone):
+            assert np.array_equal(a[row], b[0])
+    assert any(not np.array_equal(taut[row], start) for row in good)  # the search moved off the start's set
+    residual, constraint = np.empty((len(mu), 4)), np.empty((len(mu), 6))
+    compiled.equilibrium_terms(rotation, position, mu, taut.view(np.uint8), np.ones(len(mu)), lengths,
+                               np.ascontiguousarray(np.broadcast_to(plant.anchors, (len(mu), 4, 3))), plant.attachments,
+                               plant.cog, np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], (len(mu), 1)), np.zeros(4), 0.0,
+                               plant.moment_scale, 1.0, residual, constraint, np.empty((0, 4, 10)), np.empty((0, 6, 10)),
+                               False)
+    assert np.abs(constraint[good]).max() < 1e-12                        # force and moment balance
+    assert np.abs(residual[good][taut[good]]).max() < 1e-10             # taut spans at their lengths
+    assert (mu[good][taut[good]] >= -1e-9).all()                        # no rope pushes
+    assert (residual[good][~taut[good]] <= 1e-10).all()                 # a slack rope's span within its length
+
+
 @settings(max_examples=20, deadline=None)
 @given(st.integers(0, 2 ** 31 - 1), st.integers(0, 4))
 def test_the_whitening_and_the_move_are_the_matrix_products(seed, pin_count):

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..plantfile.plant import Plant
-from ..solvers.batched import BatchSolution, solve_batch
+from ..solvers.batched import BITS, BatchSolution, solve_batch
 from ..solvers.batched_elastic import solve_batch_elastic
 from ..solvers.elastic import solve_elastic
 from ..solvers.energy import TENSION_TOL, solve_energy
@@ -60,7 +60,6 @@ def _neighbour_table() -> list[list[int]]:
 
 NEIGHBOURS = _neighbour_table()
 ALL_SETS = [[c for c in range(16) if bin(c).count("1") >= 2]] * 16
-BITS = 1 << np.arange(4)
 
 
 @dataclass(frozen=True)

@@ -95,6 +95,16 @@ class Problem:
         return np.linalg.norm(self.loads[:, :3], axis=1)
 
     @cached_property
+    def rope_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the compiled rope terms read of each sample, contiguous: its anchors (N, 4, 3) (the plant's where
+        they do not move), its load per |f| (N, 6), and the ropes' axial stiffness (4,) (zeros: rigid)."""
+        anchors = np.broadcast_to(self.plant.anchors, (len(self.lengths), 4, 3)) if self.anchors is None \
+            else self.anchors
+        stiffness = self.ropes.axial_stiffness
+        return (np.ascontiguousarray(anchors, dtype=float), np.ascontiguousarray(self.loads / self.scales[:, None]),
+                np.zeros(4) if stiffness is None else np.ascontiguousarray(stiffness, dtype=float))
+
+    @cached_property
     def sigmas(self) -> np.ndarray:
         return np.array([o.sigma for o in self.observations])
 
@@ -241,14 +251,12 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     jacobian = np.zeros((n, 4 + m, 10)) if with_jacobian else None
     lengths_jacobian = np.empty((n, 4, 10)) if with_jacobian else np.empty((0, 4, 10))
     balance = np.empty((n, 6, 10)) if with_jacobian else np.empty((0, 6, 10))
-    ropes = problem.ropes
+    row_anchors, unit_loads, stiffness = problem.rope_rows
     compiled.equilibrium_terms(
-        rotation, position, mu, taut.view(np.uint8), weight, problem.expected_lengths[sample],
-        np.ascontiguousarray(np.broadcast_to(plant.anchors if anchors is None else anchors, (n, 4, 3))),
-        plant.attachments, plant.cog, problem.loads[sample] / weight[:, None],
-        np.zeros(4) if ropes.axial_stiffness is None else ropes.axial_stiffness, ropes.weight,
-        plant.moment_scale, problem.sigma_length if prior is None else 1.0, lengths_residual, constraint,
-        lengths_jacobian, balance, with_jacobian)
+        rotation, position, mu, taut.view(np.uint8), weight, problem.expected_lengths[sample], row_anchors[sample],
+        plant.attachments, plant.cog, unit_loads[sample], stiffness, problem.ropes.weight, plant.moment_scale,
+        problem.sigma_length if prior is None else 1.0, lengths_residual, constraint, lengths_jacobian, balance,
+        with_jacobian)
     residual[:, :4] = lengths_residual
 
     values = problem.values[sample]

@@ -1,12 +1,12 @@
-"""Many equilibria at once: Newton on the KKT conditions with numpy batched linear algebra.
+"""Many equilibria at once: Newton on the KKT conditions, row by row in C.
 
 Replay and fitting solve thousands of samples whose answers are known to the monitor's
 per-sample solver (`energy.py`); here the same KKT system, force and moment balance
 about C and |A_i B_i| = l_i on the taut cables, is solved for a whole chunk of samples
-per numpy call: samples are grouped by taut set, each group's stacked (n, 6+k, 6+k)
-Jacobians go to one `np.linalg.solve`. A chunk starts from the previous chunk's last
+in one call (`compiled.active_set_rows`), each row on its own so that its bits do not
+depend on the rows solved with it. A chunk starts from the previous chunk's last
 solution (warm start along the trajectory). The taut set is changed by the per-sample
-solver's rules, batched; a sample that does not settle on an admissible set of two or
+solver's rules; a sample that does not settle on an admissible set of two or
 three taut cables (no convergence, four taut, single cable, bad input) is handed to
 `solve_energy`, warm-started from its predecessor; so is a sample whose batched answer
 fails the physics check. The answers are the same.
@@ -108,6 +108,7 @@ def empty_batch(plant: Plant, lengths: np.ndarray, loads: np.ndarray | None, met
                          np.zeros(count, int), method=method)
 
 
+BITS = 1 << np.arange(4)   # a taut set's code: bit i for rope i (the estimator's search codes sets so too)
 ChunkSolver = Callable[[np.ndarray, Solution], None]   # (valid rows of a chunk, seed) -> rows solved in `out`
 SampleSolver = Callable[[int, "Solution | None"], Solution]  # (row, warm start) -> the per-sample solver's answer
 
@@ -190,53 +191,31 @@ def _fallback(out: BatchSolution, i: int, warm: Solution | None, solve_one: Samp
     return solution
 
 
-@dataclass
-class _Group:
-    """Samples being solved on one taut set: pose, multipliers mu = tau / |f| under each sample's
-    load (normalised: `loads` / |f|), steps."""
-
-    rows: np.ndarray
-    active: np.ndarray   # (4,) bool, the taut set
-    rotation: np.ndarray
-    position: np.ndarray
-    mu: np.ndarray       # (n, 4)
-    steps: np.ndarray
-    loads: np.ndarray    # (n, 6) load / |f|
-
-
 def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:
-    """Batched Newton on the rows of one chunk, every taut set from the same start pose (as `energy`)."""
+    """Batched Newton on the rows of one chunk, every taut set from the same start pose (as `energy`), the
+    search over taut sets row by row in C (`compiled.active_set_rows`): a row's bits do not depend on the
+    rows solved with it.
+
+    Next after a set that is not admissible, as `energy._next_active_sets` ranks first: a negative tension
+    releases the least loaded cable; an overstretched slack cable is taken up, in exchange for the taut cable
+    whose set balances the weight best at this pose (added when fewer than three are taut). Four taut cables
+    (nearly singular) and one (the single-cable test) are left to the per-sample solver."""
     assert seed.rotation is not None and seed.taut is not None  # `solve_chunks` seeds with a solved sample
     lengths = out.lengths[rows]
     scales = np.linalg.norm(out.loads[rows, :3], axis=1)
-    unit_loads = out.loads[rows] / scales[:, None]
-    start_rotation = np.broadcast_to(seed.rotation, (rows.size, 3, 3)).copy()
-    start_position = seed.position + np.outer(seed.lengths.mean() - lengths.mean(axis=1), [0.0, 0.0, 1.0])
-    active = np.broadcast_to(seed.taut, (rows.size, 4)).copy()
+    rotation = np.broadcast_to(seed.rotation, (rows.size, 3, 3)).copy()
+    position = seed.position + np.outer(seed.lengths.mean() - lengths.mean(axis=1), [0.0, 0.0, 1.0])
+    active = np.tile(seed.taut.astype(np.uint8), (rows.size, 1))
     mu = seed.tensions / scales[:, None]
-    pending = np.arange(rows.size)
-    steps = np.zeros(rows.size, int)
-    tried: list[np.ndarray] = []
-    for _ in range(ACTIVE_SET_ROUNDS):
-        tried.append(active.copy())
-        for pattern in np.unique(active[pending], axis=0):
-            local = pending[np.all(active[pending] == pattern, axis=1)]
-            if pattern.sum() not in (2, 3):
-                continue  # four taut (nearly singular) or one taut (single-cable test): per sample
-            group = _Group(local, pattern, start_rotation[local], start_position[local], mu[local], steps[local],
-                           unit_loads[local])
-            converged = _newton(plant, lengths[local], group)
-            steps[local] = group.steps
-            mu[local] = group.mu
-            done, nxt = _verdict(plant, lengths[local], group, converged, start_rotation[local])
-            _store(out, rows[local[done]], group, done, scales[local[done]])
-            active[local[~done]] = nxt[~done]
-            mu[local[~done]] = np.where(nxt[~done], mu[local[~done]], 0.0)
-        pending = pending[out.status[rows[pending]] != SolveStatus.SOLVED.value]
-        repeated = np.any([np.all(active[pending] == t[pending], axis=1) for t in tried], axis=0)
-        pending = pending[~repeated & (active[pending].sum(axis=1) > 0)]
-        if not pending.size:
-            return
+    steps, done = np.zeros(rows.size, np.int64), np.zeros(rows.size, np.uint8)
+    compiled.active_set_rows(lengths, rotation, position, mu, active, out.loads[rows] / scales[:, None], steps, done,
+                             plant.attachments, plant.cog, plant.anchors, plant.moment_scale,
+                             NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2), NEWTON_MAX_STEPS,
+                             ACTIVE_SET_ROUNDS, MAX_TURN, SLACK_TOL * np.maximum(lengths.max(axis=1), plant.moment_scale),
+                             TENSION_TOL, 0.2, 0.2 * plant.moment_scale)
+    solved = np.flatnonzero(done)
+    _store(out, rows[solved], active[solved].astype(bool), rotation[solved], position[solved], mu[solved],
+           steps[solved], scales[solved])
 
 
 def _geometry(plant: Plant, rotation: np.ndarray, position: np.ndarray):
@@ -248,80 +227,17 @@ def _geometry(plant: Plant, rotation: np.ndarray, position: np.ndarray):
     return arms, levers, spans / norms[..., None], norms
 
 
-def _newton(plant: Plant, lengths: np.ndarray, group: _Group) -> np.ndarray:
-    """Newton steps on the group's taut set until every sample converges; True where converged.
-
-    The equations, unknowns and step limits are those of `energy._newton`, with an exact
-    solve in place of least squares (two or three taut cables are never redundant); each
-    sample is solved on its own (`compiled.newton_taut_set`), so its bits do not depend on
-    the samples solved with it.
-    """
-    converged = np.zeros(len(lengths), np.uint8)
-    tolerance = NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2)
-    compiled.newton_taut_set(np.ascontiguousarray(lengths, dtype=float), group.rotation, group.position, group.mu,
-                             np.ascontiguousarray(group.loads), group.steps, np.flatnonzero(group.active),
-                             plant.attachments, plant.cog, plant.anchors, plant.moment_scale, tolerance,
-                             NEWTON_MAX_STEPS, converged, 0.2, 0.2 * plant.moment_scale)
-    return converged.astype(bool)
-
-
-def _verdict(plant: Plant, lengths: np.ndarray, group: _Group, converged: np.ndarray,
-             start_rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Which samples are done (converged, admissible, not turned away), and the taut set to try next.
-
-    Next, as `energy._next_active_sets` ranks first: a negative tension releases the least
-    loaded cable; an overstretched slack cable is taken up, in exchange for the taut cable
-    whose set balances the weight best at this pose (added when fewer than three are taut).
-    """
-    _, _, units, norms = _geometry(plant, group.rotation, group.position)
-    active, mu = group.active, group.mu
-    cosine = (np.einsum("nij,nij->n", group.rotation, start_rotation) - 1.0) / 2.0
-    turned = np.arccos(np.clip(cosine, -1.0, 1.0)) >= MAX_TURN
-    rounding = SLACK_TOL * np.maximum(lengths.max(axis=1), plant.moment_scale)
-    overstretch = np.where(active, -np.inf, norms - lengths)
-    negative = mu[:, active].min(axis=1) < -TENSION_TOL
-    stretched = overstretch.max(axis=1) > rounding
-    done = converged & ~turned & ~negative & ~stretched
-    nxt = np.broadcast_to(active, mu.shape).copy()
-    taut = np.flatnonzero(active)
-    loaded = np.where(active, mu, np.inf)
-    release = converged & negative
-    nxt[release, np.argmin(loaded[release], axis=1)] = False
-    take = converged & ~negative & (overstretch.max(axis=1) > 0.0) & ~done
-    cable = np.argmax(overstretch, axis=1)
-    nxt[take, cable[take]] = True
-    if taut.size >= 3 and take.any():
-        nxt[take, _best_exchange(plant, group, units, take, cable, taut)] = False
-    nxt[~converged] = False  # no convergence: left to the per-sample solver
-    return done, nxt
-
-
-def _best_exchange(plant: Plant, group: _Group, units: np.ndarray, rows: np.ndarray, cable: np.ndarray,
-                   taut: np.ndarray) -> np.ndarray:
-    """For each row, the taut cable to release so that the set with `cable` best holds the weight."""
-    arms = np.einsum("nij,cj->nci", group.rotation[rows], plant.attachments)
-    levers = arms - np.einsum("nij,j->ni", group.rotation[rows], plant.cog)[:, None, :]
-    structure = np.concatenate([units[rows], np.cross(levers, units[rows])], axis=2)  # (n, 4, 6)
-    wrench = group.loads[rows]  # per unit force: the misfits are relative
-    misfits = []
-    for out in taut:
-        keep = np.stack([np.where(c == out, cable[rows], c) for c in taut], axis=1)  # (n, k)
-        columns = np.take_along_axis(structure, keep[..., None], axis=1).transpose(0, 2, 1)  # (n, 6, k)
-        tensions = np.einsum("nij,nj->ni", np.linalg.pinv(columns), wrench)
-        residual = np.linalg.norm(np.einsum("nij,nj->ni", columns, tensions) - wrench, axis=1)
-        misfits.append(residual + np.maximum(0.0, -tensions.min(axis=1)))
-    return taut[np.argmin(np.stack(misfits, axis=1), axis=1)]
-
-
-def _store(out: BatchSolution, rows: np.ndarray, group: _Group, done: np.ndarray, scales: np.ndarray) -> None:
-    """Record the admissible samples as `energy._result` does (tensions below TENSION_TOL |f| are zero)."""
-    tensions = np.where(group.active, group.mu[done], 0.0) * scales[:, None]
+def _store(out: BatchSolution, rows: np.ndarray, active: np.ndarray, rotation: np.ndarray, position: np.ndarray,
+           mu: np.ndarray, steps: np.ndarray, scales: np.ndarray) -> None:
+    """Record the admissible rows (their taut sets `active`, poses, mu and steps) as `energy._result` does
+    (tensions below TENSION_TOL |f| are zero)."""
+    tensions = np.where(active, mu, 0.0) * scales[:, None]
     taut = tensions > TENSION_TOL * scales[:, None]
     few = taut.sum(axis=1) < 2  # one taut cable: the single-cable test of the per-sample solver decides
     rows, tensions, taut = rows[~few], tensions[~few], taut[~few]
     out.status[rows] = SolveStatus.SOLVED.value
     out.taut[rows] = taut
     out.tensions[rows] = np.where(taut, tensions, 0.0)
-    out.rotation[rows] = group.rotation[done][~few]
-    out.position[rows] = group.position[done][~few]
-    out.iterations[rows] = group.steps[done][~few]
+    out.rotation[rows] = rotation[~few]
+    out.position[rows] = position[~few]
+    out.iterations[rows] = steps[~few]

@@ -1,7 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The solvers' inner loops, compiled: the batched Newton on one taut set's KKT conditions, and the fusion's
-rope terms (length residuals, balance and their Jacobians), weighing by the prior, KKT systems and moves, row
-by row.
+"""The solvers' inner loops, compiled: the batched Newton on one taut set's KKT conditions and the search over
+taut sets around it, and the fusion's rope terms (length residuals, balance and their Jacobians), weighing by
+the prior, KKT systems and moves, row by row.
 
 The live node solves one sample at a time, where numpy's cost per call, not the arithmetic,
 is the time (a Newton step of one sample is some forty numpy calls on 3 x 3 arrays). Here each
@@ -9,7 +9,7 @@ row is worked out on its own, in C, so a row's answer is the same bits whichever
 with it: the node, which solves its samples as they come, and replay, which solves a window of
 them at once, agree to the last bit.
 """
-from libc.math cimport cos, fabs, sin, sqrt
+from libc.math cimport INFINITY, acos, cos, fabs, fmax, fmin, sin, sqrt
 
 cdef enum:
     MAX_SIZE = 10  # 6 pose unknowns and at most 4 tensions
@@ -157,6 +157,81 @@ cdef inline void pose_block(const double *arm, const double *lever, const double
             block[3 + a][3 + b] = value / scale
 
 
+cdef int newton_row(const double *lengths, double *rotation, double *position, double *mu, const double *loads,
+                    long *steps, const long *taut, int k, const double *attachments, const double *cog,
+                    const double *anchors, double scale, double tolerance, int max_steps, double turn_limit,
+                    double shift_limit) noexcept nogil:
+    """`newton_taut_set` of one row (its (4,) lengths and mu, (3, 3) rotation, (3,) position, (6,) load, the
+    plant's (4, 3) attachments and anchors, row-major); returns 1 where converged."""
+    cdef int size = 6 + k, step, c, j, a, b
+    cdef double system[MAX_SIZE][MAX_SIZE]
+    cdef double rhs[MAX_SIZE]
+    cdef double arm[3]
+    cdef double lever[3]
+    cdef double unit[3]
+    cdef double moment[3]
+    cdef double rc[3]
+    cdef double block[6][6]
+    cdef double rotated_cog[3]
+    cdef double norm, weight, worst, largest
+    for step in range(max_steps + 1):
+        for a in range(MAX_SIZE):
+            rhs[a] = 0.0
+            for b in range(MAX_SIZE):
+                system[a][b] = 0.0
+        rotate(rotation, cog, rotated_cog)
+        for j in range(k):
+            c = taut[j]
+            norm = cable_geometry(rotation, position, &attachments[3 * c], &anchors[3 * c], rotated_cog, arm, lever,
+                                  unit, moment)
+            weight = mu[c]
+            for a in range(3):
+                rhs[a] += weight * unit[a]
+                rhs[3 + a] += weight * moment[a]
+            rhs[6 + j] = norm - lengths[c]
+            # the Jacobian's row and column of this cable's tension, and of its length equation
+            cross3(arm, unit, rc)
+            for a in range(3):
+                system[a][6 + j] = unit[a]
+                system[3 + a][6 + j] = moment[a] / scale
+                system[6 + j][a] = unit[a]
+                system[6 + j][3 + a] = rc[a]
+            pose_block(arm, lever, unit, norm, weight, scale, block)
+            for a in range(6):
+                for b in range(6):
+                    system[a][b] += block[a][b]
+        for a in range(3):
+            rhs[a] -= loads[a]
+            rhs[3 + a] = (rhs[3 + a] - loads[3 + a]) / scale
+        worst = 0.0
+        for a in range(size):
+            if fabs(rhs[a]) > worst or rhs[a] != rhs[a]:  # NaN: never converged
+                worst = fabs(rhs[a]) if worst == worst else worst
+        if worst < tolerance:
+            return 1
+        if step == max_steps:
+            return 0
+        for a in range(size):
+            rhs[a] = -rhs[a]
+        if solve_in_place(system, rhs, size):
+            return 0
+        largest = 1.0
+        for a in range(3):
+            if fabs(rhs[3 + a]) / turn_limit > largest:
+                largest = fabs(rhs[3 + a]) / turn_limit
+            if fabs(rhs[a]) / shift_limit > largest:
+                largest = fabs(rhs[a]) / shift_limit
+        for a in range(size):
+            rhs[a] /= largest
+        for a in range(3):
+            position[a] += rhs[a]
+        rotate_left(rotation, rhs[3], rhs[4], rhs[5])
+        for j in range(k):
+            mu[taut[j]] += rhs[6 + j]
+        steps[0] += 1
+    return 0
+
+
 def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, double[:, ::1] position,
                     double[:, ::1] mu, const double[:, ::1] loads, long[::1] steps, const long[::1] taut,
                     const double[:, ::1] attachments, const double[::1] cog, const double[:, ::1] anchors,
@@ -168,77 +243,159 @@ def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
     moved in place, converged (n,) set. A step is shortened to turn at most `turn_limit` [rad] and
     shift at most `shift_limit` [m]; a row whose system is singular stops there, not converged."""
     cdef Py_ssize_t n = lengths.shape[0], row
-    cdef int k = taut.shape[0], size = 6 + k, step, c, j, a, b
-    cdef double system[MAX_SIZE][MAX_SIZE]
-    cdef double rhs[MAX_SIZE]
-    cdef double arm[3]
-    cdef double lever[3]
-    cdef double unit[3]
-    cdef double moment[3]
-    cdef double rc[3]
-    cdef double block[6][6]
-    cdef double rotated_cog[3]
-    cdef double norm, weight, worst, largest
-    if size > MAX_SIZE:
+    cdef int k = taut.shape[0]
+    if 6 + k > MAX_SIZE:
         raise ValueError(f"{k} taut cables: at most 4")
     with nogil:
         for row in range(n):
-            for step in range(max_steps + 1):
-                for a in range(MAX_SIZE):
-                    rhs[a] = 0.0
-                    for b in range(MAX_SIZE):
-                        system[a][b] = 0.0
+            converged[row] = newton_row(&lengths[row, 0], &rotation[row, 0, 0], &position[row, 0], &mu[row, 0],
+                                        &loads[row, 0], &steps[row], &taut[0], k, &attachments[0, 0], &cog[0],
+                                        &anchors[0, 0], scale, tolerance[row], max_steps, turn_limit, shift_limit)
+
+
+cdef int best_exchange(double (*unit)[3], double (*moment)[3], const double *wrench, const long *taut, int k,
+                       int cable) noexcept nogil:
+    """The taut cable to release so that the set with `cable` instead best holds the (6,) `wrench` (per |f|):
+    for each choice the least-squares tensions of its cables' pulls (unit, moment about C), ranked by the
+    misfit of the balance plus the most negative tension; the first of equals."""
+    cdef double normal[MAX_SIZE][MAX_SIZE]
+    cdef double tensions[MAX_SIZE]
+    cdef double column[4][6]
+    cdef double misfit, best_misfit = INFINITY, residual, value, lowest
+    cdef int best = taut[0], o, i, j, r, c
+    for o in range(k):
+        for j in range(k):
+            c = cable if taut[j] == taut[o] else taut[j]
+            for r in range(3):
+                column[j][r] = unit[c][r]
+                column[j][3 + r] = moment[c][r]
+        for i in range(k):
+            tensions[i] = 0.0
+            for r in range(6):
+                tensions[i] += column[i][r] * wrench[r]
+            for j in range(k):
+                normal[i][j] = 0.0
+                for r in range(6):
+                    normal[i][j] += column[i][r] * column[j][r]
+        if solve_in_place(normal, tensions, k):
+            continue
+        residual = 0.0
+        lowest = 0.0
+        for r in range(6):
+            value = -wrench[r]
+            for j in range(k):
+                value += column[j][r] * tensions[j]
+            residual += value * value
+        for j in range(k):
+            lowest = fmin(lowest, tensions[j])
+        misfit = sqrt(residual) - lowest
+        if misfit < best_misfit:
+            best_misfit = misfit
+            best = taut[o]
+    return best
+
+
+def active_set_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation, double[:, ::1] position,
+                    double[:, ::1] mu, unsigned char[:, ::1] active, const double[:, ::1] loads, long[::1] steps,
+                    unsigned char[::1] done, const double[:, ::1] attachments, const double[::1] cog,
+                    const double[:, ::1] anchors, double scale, const double[::1] tolerance, int max_steps,
+                    int rounds, double max_turn, const double[::1] rounding, double tension_tol, double turn_limit,
+                    double shift_limit):
+    """The batched solver's search over taut sets, row by row: Newton (`newton_row`) on the row's set from its
+    start pose (rotation, position), then the verdict -- done where converged, turned less than `max_turn`
+    from the start, no taut tension below -`tension_tol` and no slack cable longer than its length by more
+    than `rounding` (n,); else the next set: a negative tension releases the least loaded cable, an
+    overstretched slack cable is taken up (in exchange for the taut cable whose set best holds the load,
+    `best_exchange`, when three are taut) -- for at most `rounds` sets, none twice, each of two or three
+    cables. In place: a done row's pose, mu, taut set (`active`) and steps; done (n,) set."""
+    cdef Py_ssize_t n = lengths.shape[0], row
+    cdef int tried[32]
+    cdef int count, round_, k, c, j, code, converged, turned, negative, release, cable
+    cdef long taut[4]
+    cdef unsigned char nxt[4]
+    cdef double start_rotation[9]
+    cdef double start_position[3]
+    cdef double rotated_cog[3]
+    cdef double arm[4][3]
+    cdef double lever[4][3]
+    cdef double unit[4][3]
+    cdef double moment[4][3]
+    cdef double over[4]
+    cdef double norm, cosine, lowest, largest
+    if rounds > 32:
+        raise ValueError(f"{rounds} rounds: at most 32")
+    with nogil:
+        for row in range(n):
+            for j in range(9):
+                start_rotation[j] = (&rotation[row, 0, 0])[j]
+            for j in range(3):
+                start_position[j] = position[row, j]
+            count = 0
+            for round_ in range(rounds):
+                code = 0
+                k = 0
+                for c in range(4):
+                    if active[row, c]:
+                        code |= 1 << c
+                        taut[k] = c
+                        k += 1
+                tried[count] = code
+                count += 1
+                if k != 2 and k != 3:  # four taut (nearly singular) or one taut (single-cable test): per sample
+                    break
+                for j in range(9):
+                    (&rotation[row, 0, 0])[j] = start_rotation[j]
+                for j in range(3):
+                    position[row, j] = start_position[j]
+                converged = newton_row(&lengths[row, 0], &rotation[row, 0, 0], &position[row, 0], &mu[row, 0],
+                                       &loads[row, 0], &steps[row], taut, k, &attachments[0, 0], &cog[0],
+                                       &anchors[0, 0], scale, tolerance[row], max_steps, turn_limit, shift_limit)
                 rotate(&rotation[row, 0, 0], &cog[0], rotated_cog)
+                cable = 0
+                largest = -INFINITY
+                for c in range(4):
+                    norm = cable_geometry(&rotation[row, 0, 0], &position[row, 0], &attachments[c, 0],
+                                          &anchors[c, 0], rotated_cog, arm[c], lever[c], unit[c], moment[c])
+                    over[c] = -INFINITY if active[row, c] else norm - lengths[row, c]
+                    if over[c] > largest:
+                        largest = over[c]
+                        cable = c
+                cosine = -1.0
+                for j in range(9):
+                    cosine += (&rotation[row, 0, 0])[j] * start_rotation[j]
+                turned = acos(fmin(fmax(cosine / 2.0, -1.0), 1.0)) >= max_turn
+                lowest = INFINITY
+                release = taut[0]
                 for j in range(k):
-                    c = taut[j]
-                    norm = cable_geometry(&rotation[row, 0, 0], &position[row, 0], &attachments[c, 0], &anchors[c, 0],
-                                          rotated_cog, arm, lever, unit, moment)
-                    weight = mu[row, c]
-                    for a in range(3):
-                        rhs[a] += weight * unit[a]
-                        rhs[3 + a] += weight * moment[a]
-                    rhs[6 + j] = norm - lengths[row, c]
-                    # the Jacobian's row and column of this cable's tension, and of its length equation
-                    cross3(arm, unit, rc)
-                    for a in range(3):
-                        system[a][6 + j] = unit[a]
-                        system[3 + a][6 + j] = moment[a] / scale
-                        system[6 + j][a] = unit[a]
-                        system[6 + j][3 + a] = rc[a]
-                    pose_block(arm, lever, unit, norm, weight, scale, block)
-                    for a in range(6):
-                        for b in range(6):
-                            system[a][b] += block[a][b]
-                for a in range(3):
-                    rhs[a] -= loads[row, a]
-                    rhs[3 + a] = (rhs[3 + a] - loads[row, 3 + a]) / scale
-                worst = 0.0
-                for a in range(size):
-                    if fabs(rhs[a]) > worst or rhs[a] != rhs[a]:  # NaN: never converged
-                        worst = fabs(rhs[a]) if worst == worst else worst
-                if worst < tolerance[row]:
-                    converged[row] = 1
+                    if mu[row, taut[j]] < lowest:
+                        lowest = mu[row, taut[j]]
+                        release = taut[j]
+                negative = lowest < -tension_tol
+                if converged and not turned and not negative and not largest > rounding[row]:
+                    done[row] = 1
                     break
-                if step == max_steps:
+                for c in range(4):
+                    nxt[c] = active[row, c] if converged else 0
+                if converged and negative:
+                    nxt[release] = 0
+                elif converged and largest > 0.0:
+                    nxt[cable] = 1
+                    if k >= 3:
+                        nxt[best_exchange(unit, moment, &loads[row, 0], taut, k, cable)] = 0
+                code = 0
+                for c in range(4):
+                    active[row, c] = nxt[c]
+                    if not nxt[c]:
+                        mu[row, c] = 0.0
+                    else:
+                        code |= 1 << c
+                if code == 0:
                     break
-                for a in range(size):
-                    rhs[a] = -rhs[a]
-                if solve_in_place(system, rhs, size):
+                for j in range(count):
+                    if tried[j] == code:
+                        code = 0
+                if code == 0:
                     break
-                largest = 1.0
-                for a in range(3):
-                    if fabs(rhs[3 + a]) / turn_limit > largest:
-                        largest = fabs(rhs[3 + a]) / turn_limit
-                    if fabs(rhs[a]) / shift_limit > largest:
-                        largest = fabs(rhs[a]) / shift_limit
-                for a in range(size):
-                    rhs[a] /= largest
-                for a in range(3):
-                    position[row, a] += rhs[a]
-                rotate_left(&rotation[row, 0, 0], rhs[3], rhs[4], rhs[5])
-                for j in range(k):
-                    mu[row, taut[j]] += rhs[6 + j]
-                steps[row] += 1
 
 
 cdef inline void unstretched(double span, double tension, double ea, double weight, double *length,
