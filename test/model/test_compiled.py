@@ -1,6 +1,6 @@
-"""The compiled inner loops: their Jacobians are the derivatives of their residuals, their weighing and moves the
-matrix products they stand for, and a row's answer does not depend on the rows solved with it (a singular or
-undefined row beside it included)."""
+"""The compiled inner loops: their Jacobians are the derivatives of their residuals, their weighing, moves and
+slack pins' bounds the matrix products they stand for, and a row's answer does not depend on the rows solved with
+it (a singular or undefined row beside it included)."""
 from __future__ import annotations
 
 import numpy as np
@@ -188,3 +188,25 @@ def test_the_compiled_rope_law_is_the_ropes(plant, depth, tension, rope_weight):
     spans = _terms(plant, state, np.ones(4, bool), np.zeros(4), np.zeros(4), 0.0, np.eye(3)[None])[0] * 1e-3
     residual = _terms(plant, state, np.ones(4, bool), np.zeros(4), EA, rope_weight, np.eye(3)[None])[0] * 1e-3
     np.testing.assert_allclose(residual, ropes.unstretched(spans, np.full(4, tension))[0], rtol=1e-14)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2 ** 31 - 1), st.integers(0, 4))
+def test_the_slack_pins_bound_is_their_quadratic_form(seed, pin_count):
+    """The bound of a candidate is d^T C^-1 d over the pins on the ropes it leaves slack and read at its sample,
+    the pins not read left out."""
+    rng = np.random.default_rng(seed)
+    ropes = np.sort(rng.choice(4, pin_count, replace=False)).astype(np.int64)
+    factor = rng.normal(0.0, 1.0, (3, 4, 4))
+    covariance = factor @ np.swapaxes(factor, 1, 2) + 0.1 * np.eye(4)
+    deviation = rng.normal(0.0, 3.0, (3, pin_count))
+    deviation[rng.random((3, pin_count)) < 0.25] = np.nan
+    samples = rng.integers(0, 3, 40).astype(np.int64)
+    codes = rng.integers(0, 16, 40).astype(np.int64)
+    bound = np.empty(40)
+    compiled.slack_pin_bounds(samples, codes, ropes, deviation, covariance, bound)
+    for i, (sample, code) in enumerate(zip(samples, codes)):
+        slack = [a for a, rope in enumerate(ropes) if not code >> rope & 1 and np.isfinite(deviation[sample, a])]
+        d = deviation[sample, slack]
+        block = covariance[sample][np.ix_(ropes[slack], ropes[slack])]
+        assert np.isclose(bound[i], d @ np.linalg.solve(block, d) if slack else 0.0, rtol=1e-9, atol=1e-12)

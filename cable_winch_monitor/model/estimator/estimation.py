@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..plantfile.plant import Plant
+from ..solvers import compiled
 from ..solvers.batched import BITS, BatchSolution, solve_batch
 from ..solvers.batched_elastic import solve_batch_elastic
 from ..solvers.elastic import solve_elastic
@@ -467,21 +468,9 @@ def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np
             slack = (codes >> rope & 1) == 0
             bound += np.where(slack, np.nan_to_num((problem.values[samples, k] / problem.sigmas[k]) ** 2), 0.0)
         return bound
-    ropes = np.array([rope for _, rope in problem.pins], dtype=int)
-    values = problem.values[samples][:, [k for k, _ in problem.pins]]
-    deviation = problem.prior.pins[samples][:, ropes] - values
-    covariance = problem.prior.pin_covariance[samples][:, ropes][:, :, ropes]
-    for code in np.unique(codes).tolist():
-        rows = np.flatnonzero(codes == code)
-        slack = ((code >> ropes) & 1) == 0
-        if not slack.any():
-            continue
-        d = deviation[rows][:, slack]
-        read = np.isfinite(d)
-        d = np.where(read, d, 0.0)
-        c = covariance[rows][:, slack][:, :, slack]
-        c = np.where(read[:, :, None] & read[:, None, :], c, np.eye(int(slack.sum())))
-        bound[rows] = np.einsum("ni,ni->n", d, np.linalg.solve(c, d[..., None])[..., 0])
+    ropes, deviation, covariance = problem.pin_deviation
+    compiled.slack_pin_bounds(np.ascontiguousarray(samples, dtype=np.int64),
+                              np.ascontiguousarray(codes, dtype=np.int64), ropes, deviation, covariance, bound)
     return bound
 
 

@@ -152,6 +152,17 @@ class Problem:
         return ropes, white[:, ropes][:, :, ropes], sigma[:, ropes], self.prior.pins[:, ropes]
 
     @cached_property
+    def pin_deviation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For the load pins read off the state (as `pins`): their ropes (k,), each sample's readings' deviation
+        from the prior's expected pin error (N, k) [N] (NaN where not read), and the prior's pin covariance
+        (N, 4, 4) [N^2], contiguous for `compiled.slack_pin_bounds` (needs a prior)."""
+        assert self.prior is not None  # asked only of a problem weighed by a prior
+        ropes = np.array([rope for _, rope in self.pins], dtype=np.int64)
+        values = self.values[:, [k for k, _ in self.pins]]
+        return ropes, np.ascontiguousarray(self.prior.pins[:, ropes] - values), \
+            np.ascontiguousarray(self.prior.pin_covariance, dtype=float)
+
+    @cached_property
     def pin_columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For the ropes with a load pin (as `pin_prior`): their pins' columns among the residuals (k,), the
         pins' sigmas (k,) [N], and which pins each sample measured (N, k)."""

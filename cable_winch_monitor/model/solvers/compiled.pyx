@@ -398,6 +398,50 @@ def active_set_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
                     break
 
 
+def slack_pin_bounds(const long[::1] samples, const long[::1] codes, const long[::1] ropes,
+                     const double[:, ::1] deviation, const double[:, :, ::1] covariance, double[::1] bound):
+    """For each candidate (its sample and taut-set code, bit i for rope i), the quadratic form d^T C^-1 d of the
+    load pins on the ropes it leaves slack: d their readings' deviation from the pins' expected error
+    (`deviation` (N, k) for the ropes with a pin, `ropes` (k,); NaN where not read, left out), C their block of
+    the sample's pin covariance (N, 4, 4). Zero where it leaves no pinned rope slack."""
+    cdef Py_ssize_t n = samples.shape[0], i
+    cdef int k = ropes.shape[0], m, a, b, s
+    cdef int picked[4]
+    cdef double system[MAX_SIZE][MAX_SIZE]
+    cdef double d[MAX_SIZE]
+    cdef double x[MAX_SIZE]
+    cdef double value
+    if k > 4:
+        raise ValueError(f"{k} load pins: at most 4")
+    with nogil:
+        for i in range(n):
+            s = samples[i]
+            m = 0
+            for a in range(k):
+                if not (codes[i] >> ropes[a]) & 1:
+                    picked[m] = a
+                    m += 1
+            bound[i] = 0.0
+            if m == 0:
+                continue
+            for a in range(m):
+                value = deviation[s, picked[a]]
+                d[a] = value if value == value else 0.0
+                x[a] = d[a]
+                for b in range(m):
+                    if value == value and deviation[s, picked[b]] == deviation[s, picked[b]]:
+                        system[a][b] = covariance[s, ropes[picked[a]], ropes[picked[b]]]
+                    else:
+                        system[a][b] = 1.0 if a == b else 0.0
+            if solve_in_place(system, x, m):
+                bound[i] = INFINITY
+                continue
+            value = 0.0
+            for a in range(m):
+                value += d[a] * x[a]
+            bound[i] = value
+
+
 cdef inline void unstretched(double span, double tension, double ea, double weight, double *length,
                              double *d_span, double *d_tension) noexcept nogil:
     """ropes.Ropes.unstretched of one rope (ea <= 0: rigid)."""
