@@ -15,6 +15,7 @@ from cable_winch_monitor.bench.node_latency import lowering
 from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.model.estimator import estimate, estimate_batch, estimation
 from cable_winch_monitor.model.estimator import observations as obs
+from cable_winch_monitor.model.estimator.prior import Prior
 from cable_winch_monitor.model.solvers.elastic import solve_elastic
 from cable_winch_monitor.model.solvers.energy import solve_energy
 from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
@@ -254,3 +255,16 @@ def test_bad_input_is_a_status(plant):
     assert "'gauge'" in message and "one value per state" in message
     two = estimate(plant, [20.0] * 4, [obs.roll(np.zeros(2), 1e-4)])
     assert two.solution.status is SolveStatus.INVALID_INPUT and "2 values for 1 samples" in two.solution.message
+
+
+@pytest.mark.parametrize("covariance, message", [
+    (np.array([[1.0, 0.1, 0.0, 0.0], [0.2, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]), "symmetric"),
+    (-np.eye(4), "positive definite"),
+    (np.diag([1.0, 1.0, 0.0, 1.0]), "positive definite"),
+    (np.full((4, 4), np.nan), "finite"),
+])
+def test_a_prior_that_is_no_covariance_is_refused_by_name(plant, covariance, message):
+    good = Prior.noise_only(2, 1e-3, 150.0)
+    bad = Prior(good.lengths, np.array(good.length_covariance), good.pins, np.stack([np.eye(4), covariance]))
+    with pytest.raises(ValueError, match=f"prior pin_covariance must be {message}"):
+        estimate_batch(plant, np.full((2, 4), 200.0), prior=bad)

@@ -58,10 +58,13 @@ class Prior:
                 raise ValueError(f"prior {name} must be finite")
         for name in ("length_covariance", "pin_covariance"):
             value = getattr(self, name)
-            if not np.allclose(value, np.swapaxes(value, 1, 2), rtol=1e-9, atol=0.0):
+            transposed = np.swapaxes(value, 1, 2)
+            if not np.all(np.abs(value - transposed) <= 1e-9 * np.abs(transposed)):  # np.allclose's test, rtol 1e-9
                 raise ValueError(f"prior {name} must be symmetric")
-            if np.any(np.linalg.eigvalsh(value)[:, 0] <= 0.0):
-                raise ValueError(f"prior {name} must be positive definite")
+            try:
+                np.linalg.cholesky(value)  # a Cholesky factor exists for a positive definite matrix only
+            except np.linalg.LinAlgError:
+                raise ValueError(f"prior {name} must be positive definite") from None
 
 
 def whitening(covariance: np.ndarray, measured: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
