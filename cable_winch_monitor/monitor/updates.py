@@ -17,6 +17,7 @@ next one, and /diagnostics counts the losses and says why the last one happened.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import pickle
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -33,6 +34,9 @@ class UpdateProcess:
 
     def __init__(self, plant: Plant, solver: str = "energy"):
         self._plant, self._solver = plant, solver
+        self._context = multiprocessing.get_context("forkserver")
+        self._started = self._context.Queue()  # each process puts its id there when it has started
+        self._pid: int | None = None
         self._pool = self._start()
         self.losses = 0  # processes lost so far
         self.last_loss = ""  # why the last one was lost
@@ -40,8 +44,9 @@ class UpdateProcess:
 
     def _start(self) -> ProcessPoolExecutor:
         # forkserver: the process is not forked from the node's, whose DDS threads may hold locks at the fork
-        context = multiprocessing.get_context("forkserver")
-        return ProcessPoolExecutor(1, mp_context=context, initializer=_load, initargs=(self._plant, self._solver))
+        self._pid = None
+        return ProcessPoolExecutor(1, mp_context=self._context, initializer=_load,
+                                   initargs=(self._plant, self._solver, self._started))
 
     def submit(self, update: Any) -> PendingUpdate:
         """Work `update` out there; it is pickled now, so that it carries the state it was made with. A process
@@ -64,11 +69,14 @@ class UpdateProcess:
 
     def process_ids(self) -> list[int]:
         """The process's id, once started (for supervision: ps, kill)."""
-        return list(self._pool._processes or {})  # the executor keeps its processes by id
+        while not self._started.empty():
+            self._pid = self._started.get()
+        return [] if self._pid is None else [self._pid]
 
     def close(self) -> None:
         """Stop the process (an update under way is dropped)."""
         self._pool.shutdown(wait=False, cancel_futures=True)
+        self._started.close()
 
 
 class PendingUpdate:
@@ -87,9 +95,10 @@ class PendingUpdate:
             return pickle.loads(self.sent).run(base)
 
 
-def _load(plant: Plant, solver: str) -> None:
+def _load(plant: Plant, solver: str, started: Any) -> None:
     global _base
     _base = PlantModel.from_plant(plant, solver)
+    started.put(os.getpid())
 
 
 def _run(update: bytes) -> Any:

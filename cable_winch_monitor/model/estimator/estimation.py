@@ -525,8 +525,8 @@ def _marginal(problem: Problem, rows: Rows) -> np.ndarray:
     out = rows.residuals[:, 4:].copy()
     if problem.prior is None or not rows.sample.size:
         return out
-    ropes, white, sigma, _ = problem.pin_prior
-    pins = problem.pin_observations[ropes]
+    _, white, sigma, _ = problem.pin_prior
+    pins = problem.pin_columns[0] - 4   # the pins' columns among the observations
     raw = np.linalg.solve(white[rows.sample], out[:, pins][..., None])[..., 0]
     out[:, pins] = raw / sigma[rows.sample]
     return out
