@@ -70,6 +70,19 @@ def _newton(plant, lengths: np.ndarray, taut: np.ndarray):
     return rotation, position, mu, converged.astype(bool)
 
 
+def _spans_and_balance(plant, rotation, position, mu, taut, lengths):
+    """Each rigid row's span minus length per rope (4,) (a slack rope's only where overstretched) and its force
+    and moment imbalance under gravity (6,), per |f|."""
+    n = len(mu)
+    residual, constraint = np.empty((n, 4)), np.empty((n, 6))
+    compiled.equilibrium_terms(rotation, position, mu, taut.view(np.uint8), np.ones(n), lengths,
+                               np.ascontiguousarray(np.broadcast_to(plant.anchors, (n, 4, 3))), plant.attachments,
+                               plant.cog, np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros(4), 0.0,
+                               plant.moment_scale, 1.0, residual, constraint, np.empty((0, 4, 10)), np.empty((0, 6, 10)),
+                               False)
+    return residual, constraint
+
+
 def test_a_rows_answer_does_not_depend_on_the_rows_beside_it(plant):
     rng = np.random.default_rng(3)
     lengths = 200.0 + rng.normal(0.0, 0.02, (6, 4))
@@ -86,12 +99,7 @@ def test_a_rows_answer_does_not_depend_on_the_rows_beside_it(plant):
     rotation, position, mu, converged = together  # where converged: force and moment balance, spans = lengths
     mask = np.zeros((len(mu), 4), bool)
     mask[:, taut] = True
-    residual, constraint = np.empty((len(mu), 4)), np.empty((len(mu), 6))
-    compiled.equilibrium_terms(rotation, position, mu, mask.view(np.uint8), np.ones(len(mu)), lengths,
-                               np.ascontiguousarray(np.broadcast_to(plant.anchors, (len(mu), 4, 3))), plant.attachments,
-                               plant.cog, np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], (len(mu), 1)), np.zeros(4), 0.0,
-                               plant.moment_scale, 1.0, residual, constraint, np.empty((0, 4, 10)), np.empty((0, 6, 10)),
-                               False)
+    residual, constraint = _spans_and_balance(plant, rotation, position, mu, mask, lengths)
     assert np.abs(constraint[converged]).max() < 1e-12
     assert np.abs(residual[converged][:, taut]).max() < 1e-10
 
@@ -130,12 +138,7 @@ def test_the_search_over_taut_sets_settles_each_row_on_its_own(plant):
         for a, b in zip(together, alone):
             assert np.array_equal(a[row], b[0])
     assert any(not np.array_equal(taut[row], start) for row in good)  # the search moved off the start's set
-    residual, constraint = np.empty((len(mu), 4)), np.empty((len(mu), 6))
-    compiled.equilibrium_terms(rotation, position, mu, taut.view(np.uint8), np.ones(len(mu)), lengths,
-                               np.ascontiguousarray(np.broadcast_to(plant.anchors, (len(mu), 4, 3))), plant.attachments,
-                               plant.cog, np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], (len(mu), 1)), np.zeros(4), 0.0,
-                               plant.moment_scale, 1.0, residual, constraint, np.empty((0, 4, 10)), np.empty((0, 6, 10)),
-                               False)
+    residual, constraint = _spans_and_balance(plant, rotation, position, mu, taut, lengths)
     assert np.abs(constraint[good]).max() < 1e-12                        # force and moment balance
     assert np.abs(residual[good][taut[good]]).max() < 1e-10             # taut spans at their lengths
     assert (mu[good][taut[good]] >= -1e-9).all()                        # no rope pushes
