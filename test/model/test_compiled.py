@@ -147,7 +147,7 @@ def test_the_search_over_taut_sets_settles_each_row_on_its_own(plant):
 
 @settings(max_examples=20, deadline=None)
 @given(st.integers(0, 2 ** 31 - 1), st.integers(0, 4))
-def test_the_whitening_and_the_move_are_the_matrix_products(seed, pin_count):
+def test_the_whitening_and_the_step_are_the_matrix_products(seed, pin_count):
     rng = np.random.default_rng(seed)
     n, samples, m = 5, 3, 8
     sample = rng.integers(0, samples, n)
@@ -170,16 +170,48 @@ def test_the_whitening_and_the_move_are_the_matrix_products(seed, pin_count):
     np.testing.assert_allclose(out_jacobian, want_jacobian, rtol=1e-12, atol=1e-12)
 
     rotation = rotations_from_vectors(rng.normal(0.0, 0.3, (n, 3)))
-    position, mu, step = rng.normal(size=(n, 3)), rng.normal(size=(n, 4)), rng.normal(0.0, 0.1, (2, 10))
+    position, mu, step = rng.normal(size=(n, 3)), rng.normal(size=(n, 4)), rng.normal(0.0, 0.01, (2, 16))
     step[1, 3:6] = 1e-13  # below the angle where the rotation is taken as I + [w]x
-    index = np.array([3, 1])
-    moved = (rotation.copy(), position.copy(), mu.copy())
-    compiled.move_rows(index, step, *moved)
+    index = np.array([3, 1], np.int64)
+    moved, last, steps = (rotation.copy(), position.copy(), mu.copy()), np.zeros((n, 10)), np.zeros(n, np.int64)
+    settled, out = np.zeros(n, np.uint8), np.empty(2, np.int64)
+    count = compiled.gauss_newton_advance(index, step, np.zeros(0, np.int64), np.ones(n), np.ones(n), last, steps,
+                                          settled, *moved, 0.2, 0.2, 1e-6, out)
     np.testing.assert_allclose(moved[0][index], rotations_from_vectors(step[:, 3:6]) @ rotation[index], atol=1e-14)
     np.testing.assert_allclose(moved[1][index], position[index] + step[:, :3], atol=1e-15)
-    np.testing.assert_allclose(moved[2][index], mu[index] + step[:, 6:], atol=1e-15)
+    np.testing.assert_allclose(moved[2][index], mu[index] + step[:, 6:10], atol=1e-15)
+    assert np.array_equal(last[index], step[:, :10]) and np.array_equal(steps[index], [1, 1])
+    assert count == 2 and np.array_equal(out, index) and not settled.any()  # steps above the tolerance: moving
     others = np.setdiff1d(np.arange(n), index)
     assert np.array_equal(moved[0][others], rotation[others]) and np.array_equal(moved[2][others], mu[others])
+
+
+def test_a_gauss_newton_step_is_shortened_and_a_row_whose_cost_rose_steps_half_back(plant):
+    """A step that would turn 1 rad is shortened to the turn limit; the next evaluation finds the cost risen:
+    the row takes half its step back and is retried with its scale halved; a row whose cost stopped falling
+    after going too far is settled; a row whose step is below the tolerance is settled after it."""
+    rotation, position, mu = np.broadcast_to(np.eye(3), (3, 3, 3)).copy(), np.zeros((3, 3)), np.zeros((3, 4))
+    live, reach, scale = np.arange(3, dtype=np.int64), np.ones(3), np.ones(3)
+    last, steps, settled, out = np.zeros((3, 10)), np.zeros(3, np.int64), np.zeros(3, np.uint8), np.empty(3, np.int64)
+    step = np.zeros((3, 16))
+    step[0, 3] = 1.0          # a turn of 1 rad: shortened to 0.2
+    step[1, 0] = 0.05         # a shift within the limits
+    step[2, 6] = 1e-9         # below the tolerance
+    count = compiled.gauss_newton_advance(live, step, np.zeros(0, np.int64), reach, scale, last, steps, settled,
+                                          rotation, position, mu, 0.2, 10.0, 1e-6, out)
+    assert count == 2 and list(out[:2]) == [0, 1] and list(settled) == [0, 0, 1]
+    np.testing.assert_allclose(last[0, 3], 0.2) and np.testing.assert_allclose(last[1, 0], 0.05)
+    turned = rotation[0].copy()
+    previous = np.array([1.0, 1.0, np.inf])
+    scale[1] = 0.5  # row 1 went too far before
+    kept, retry = np.empty(2, np.int64), np.empty(2, np.int64)
+    going, retried = compiled.gauss_newton_verdict(
+        live[:2], np.array([2.0, 1.0 - 1e-6]), np.zeros((2, 6)), reach, previous, last, scale, settled, rotation,
+        position, mu, 1e-9, 1e-4, 1e-6, kept, retry)
+    assert (going, retried) == (0, 1) and retry[0] == 0 and settled[1] == 1
+    assert scale[0] == 0.5 and last[0, 3] == 0.1
+    np.testing.assert_allclose(rotation[0], rotations_from_vectors(np.array([[-0.1, 0.0, 0.0]]))[0] @ turned,
+                               atol=1e-15)
 
 
 @settings(max_examples=20, deadline=None)

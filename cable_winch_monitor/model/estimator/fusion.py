@@ -361,70 +361,43 @@ def reduced_normal(problem: Problem, rows: Rows, jacobian: np.ndarray,
     return np.swapaxes(left, 1, 2) @ projected, np.einsum("nki,nk->ni", projected, residual)
 
 
-def _size(step: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """The size of steps (n, 10) against STEP_TOL: translation per `reach`, rotation, tension per |f|."""
-    return np.maximum.reduce([np.abs(step[:, 0:3]).max(axis=1) / reach, np.abs(step[:, 3:6]).max(axis=1),
-                              np.abs(step[:, 6:]).max(axis=1)])
-
-
-def _move(rows: Rows, index: np.ndarray, step: np.ndarray) -> None:
-    """Move the rows `index` by `step` (n, 10): translation, rotation vector on the left, tensions
-    (`compiled.move_rows`)."""
-    compiled.move_rows(index, np.ascontiguousarray(step), rows.rotation, rows.position, rows.mu)
-
-
 def solve_rows(problem: Problem, rows: Rows) -> Rows:
-    """Gauss-Newton SQP on every row from its start; sets converged, cost, residuals and steps."""
+    """Gauss-Newton SQP on every row from its start; sets converged, cost, residuals and steps.
+
+    Each step: the rows' residuals and their Jacobians (`_residuals`); the step control in C
+    (`compiled.gauss_newton_verdict`: a row whose cost rose on the balance takes half its last step back --
+    a slack rope's one-sided residual has a kink where it meets its length -- and one that went too far and
+    has stopped falling is settled); the KKT systems of the others solved; their steps, shortened to at most
+    MAX_TURN_STEP and MAX_SHIFT_STEP, taken (`compiled.gauss_newton_advance`) until below STEP_TOL."""
     plant = problem.plant
+    count = len(rows.sample)
     reach = np.maximum(1.0, problem.lengths[rows.sample].max(axis=1) * 1e-2)
-    live = np.arange(len(rows.sample))
-    settled = np.zeros(len(rows.sample), bool)
-    previous = np.full(len(rows.sample), np.inf)
-    last = np.zeros((len(rows.sample), 10))
-    scale = np.ones(len(rows.sample))  # of the Gauss-Newton step: halved each time one went too far
+    live = np.arange(count)
+    settled = np.zeros(count, bool)
+    previous = np.full(count, np.inf)
+    last = np.zeros((count, 10))
+    scale = np.ones(count)  # of the Gauss-Newton step: halved each time one went too far
+    state = (rows.rotation, rows.position, rows.mu)
     for _ in range(MAX_STEPS):
         residual, jacobian, constraint, balance = _residuals(problem, rows, live, True)
-        balanced = np.abs(constraint).max(axis=1) < BALANCE_TOL * reach[live]
-        cost = np.where(balanced, np.einsum("nk,nk->n", residual, residual), np.inf)  # on the balance only
-        worse = balanced & (cost > previous[live] * (1.0 + 1e-12) + 1e-12)
-        if worse.any():  # the last step went past the minimum (a slack rope's one-sided residual has a kink where
-            back = live[worse]  # it meets its length): take half of it back, and try again from there
-            _move(rows, back, -0.5 * last[back])
-            last[back] *= 0.5
-            scale[back] *= 0.5
-            small = _size(last[back], reach[back]) < STEP_TOL
-            settled[back[small]] = True
-            retry = back[~small]
-            keep = ~worse
-            live, residual, jacobian, constraint, balance, cost = (live[keep], residual[keep], jacobian[keep],
-                                                                   constraint[keep], balance[keep], cost[keep])
-            balanced = balanced[keep]
-        else:
-            retry = np.zeros(0, int)
-        flat = balanced & (scale[live] < 1.0) & (np.abs(previous[live] - cost) <= COST_TOL * (1.0 + cost))
-        previous[live] = cost
-        if flat.any():  # a row that went too far has stopped falling on the balance (to far below the noise)
-            settled[live[flat]] = True
-            keep = ~flat
-            live, residual, jacobian, constraint, balance = (live[keep], residual[keep], jacobian[keep],
-                                                             constraint[keep], balance[keep])
-        n = live.size
+        kept, retry = np.empty(live.size, np.int64), np.empty(live.size, np.int64)
+        going, retried = compiled.gauss_newton_verdict(
+            live, np.einsum("nk,nk->n", residual, residual), constraint, reach, previous, last, scale,
+            settled.view(np.uint8), *state, BALANCE_TOL, COST_TOL, STEP_TOL, kept, retry)
+        if going < live.size:
+            kept = kept[:going]
+            live, residual, jacobian, constraint, balance = (live[kept], residual[kept], jacobian[kept],
+                                                             constraint[kept], balance[kept])
         system, gradient = _kkt(jacobian, residual, balance, ~rows.taut[live], rows.mu[live])
         rhs = -np.concatenate([gradient, constraint], axis=1)
         try:
-            step = np.linalg.solve(system, rhs[..., None])[..., 0][:, :10]
+            step = np.linalg.solve(system, rhs[..., None])[..., 0]
         except np.linalg.LinAlgError:
-            step = np.stack([np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(system, rhs)])[:, :10]
-        size = _size(step, reach[live])
-        largest = np.maximum.reduce([np.abs(step[:, 3:6]).max(axis=1) / MAX_TURN_STEP,
-                                     np.abs(step[:, 0:3]).max(axis=1) / (MAX_SHIFT_STEP * plant.moment_scale),
-                                     np.ones(n)])
-        step *= (scale[live] / largest)[:, None]
-        _move(rows, live, step)
-        last[live] = step
-        rows.steps[live] += 1
-        settled[live[size < STEP_TOL]] = True
-        live = np.concatenate([live[size >= STEP_TOL], retry])
+            step = np.stack([np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(system, rhs)]).reshape(-1, 16)
+        moving = np.empty(live.size + retried, np.int64)
+        live = moving[:compiled.gauss_newton_advance(
+            live, np.ascontiguousarray(step), retry[:retried], reach, scale, last, rows.steps, settled.view(np.uint8),
+            *state, MAX_TURN_STEP, MAX_SHIFT_STEP * plant.moment_scale, STEP_TOL, moving)]
         if not live.size:
             break
     everything = np.arange(len(rows.sample))  # residuals and balance where the last steps left the rows

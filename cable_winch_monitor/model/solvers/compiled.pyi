@@ -15,7 +15,14 @@ def kkt_systems(jacobian: np.ndarray, residual: np.ndarray, balance: np.ndarray,
 def whiten_rows(sample: np.ndarray, residual: np.ndarray, jacobian: np.ndarray, with_jacobian: bool,
                 length_white: np.ndarray, pin_white: np.ndarray, pins: np.ndarray, pin_scale: np.ndarray,
                 measured: np.ndarray, expected: np.ndarray) -> None: ...
-def move_rows(index: np.ndarray, step: np.ndarray, rotation: np.ndarray, position: np.ndarray, mu: np.ndarray) -> None: ...
+def gauss_newton_verdict(live: np.ndarray, cost: np.ndarray, constraint: np.ndarray, reach: np.ndarray,
+                         previous: np.ndarray, last: np.ndarray, scale: np.ndarray, settled: np.ndarray,
+                         rotation: np.ndarray, position: np.ndarray, mu: np.ndarray, balance_tol: float,
+                         cost_tol: float, step_tol: float, kept: np.ndarray, retry: np.ndarray) -> tuple[int, int]: ...
+def gauss_newton_advance(live: np.ndarray, step: np.ndarray, retry: np.ndarray, reach: np.ndarray, scale: np.ndarray,
+                         last: np.ndarray, steps: np.ndarray, settled: np.ndarray, rotation: np.ndarray,
+                         position: np.ndarray, mu: np.ndarray, turn_limit: float, shift_limit: float, step_tol: float,
+                         out: np.ndarray) -> int: ...
 def active_set_rows(lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray, mu: np.ndarray,
                     active: np.ndarray, loads: np.ndarray, steps: np.ndarray, done: np.ndarray,
                     attachments: np.ndarray, cog: np.ndarray, anchors: np.ndarray, scale: float,

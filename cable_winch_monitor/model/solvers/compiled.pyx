@@ -621,17 +621,115 @@ def whiten_rows(const long[::1] sample, double[:, ::1] residual, double[:, :, ::
                     jacobian[row, pins[a], col] = value
 
 
-def move_rows(const long[::1] index, const double[:, ::1] step, double[:, :, ::1] rotation, double[:, ::1] position,
-              double[:, ::1] mu):
-    """Move the rows `index` of a state by `step` (n, 10), in place: translation, rotation vector applied on the
-    left, tensions."""
-    cdef Py_ssize_t n = index.shape[0], row, i
+cdef inline void move_row(const double *step, double *rotation, double *position, double *mu) noexcept nogil:
+    """Move one row of a state by `step` (10,), in place: translation, rotation vector applied on the left,
+    tensions."""
     cdef int a
+    for a in range(3):
+        position[a] += step[a]
+    rotate_left(rotation, step[3], step[4], step[5])
+    for a in range(4):
+        mu[a] += step[6 + a]
+
+
+cdef inline double nan_max(double a, double b) noexcept nogil:
+    """np.maximum's: NaN where either is."""
+    if a != a or b != b:
+        return a + b
+    return a if a > b else b
+
+
+cdef inline double largest_of(const double *values, int count) noexcept nogil:
+    """The largest |value| (NaN where any is)."""
+    cdef double out = 0.0
+    cdef int a
+    for a in range(count):
+        out = nan_max(out, fabs(values[a]))
+    return out
+
+
+cdef inline double step_size(const double *step, double reach) noexcept nogil:
+    """A step's size against the convergence tolerance: translation per `reach`, rotation, tension per |f|."""
+    return nan_max(nan_max(largest_of(step, 3) / reach, largest_of(&step[3], 3)), largest_of(&step[6], 4))
+
+
+def gauss_newton_verdict(const long[::1] live, const double[::1] cost, const double[:, ::1] constraint,
+                         const double[::1] reach, double[::1] previous, double[:, ::1] last, double[::1] scale,
+                         unsigned char[::1] settled, double[:, :, ::1] rotation, double[:, ::1] position,
+                         double[:, ::1] mu, double balance_tol, double cost_tol, double step_tol, long[::1] kept,
+                         long[::1] retry):
+    """The fusion's Gauss-Newton, after its rows `live` were evaluated (their cost, the sum of squared residuals,
+    and their imbalance `constraint` (n, 6)): a balanced row whose cost rose takes half its last step back
+    (its step scale halved; settled where that half is below `step_tol`, else retried); a balanced row that
+    went too far before and whose cost has stopped falling is settled; the others go on to a step. Their
+    positions among `live` go to `kept`, the rows retried to `retry`; returns how many of each."""
+    cdef Py_ssize_t n = live.shape[0], j
+    cdef long row, count = 0, retried = 0
+    cdef int a
+    cdef double worst, value
+    cdef bint balanced
+    cdef double back[10]
     with nogil:
-        for row in range(n):
-            i = index[row]
-            for a in range(3):
-                position[i, a] += step[row, a]
-            rotate_left(&rotation[i, 0, 0], step[row, 3], step[row, 4], step[row, 5])
-            for a in range(4):
-                mu[i, a] += step[row, 6 + a]
+        for j in range(n):
+            row = live[j]
+            worst = 0.0
+            for a in range(6):
+                worst = nan_max(worst, fabs(constraint[j, a]))
+            balanced = worst < balance_tol * reach[row]
+            value = cost[j] if balanced else INFINITY
+            if balanced and value > previous[row] * (1.0 + 1e-12) + 1e-12:  # past the minimum: half back
+                for a in range(10):
+                    back[a] = -0.5 * last[row, a]
+                move_row(back, &rotation[row, 0, 0], &position[row, 0], &mu[row, 0])
+                for a in range(10):
+                    last[row, a] *= 0.5
+                scale[row] *= 0.5
+                if step_size(&last[row, 0], reach[row]) < step_tol:
+                    settled[row] = 1
+                else:
+                    retry[retried] = row
+                    retried += 1
+                continue
+            balanced = balanced and scale[row] < 1.0 and fabs(previous[row] - value) <= cost_tol * (1.0 + value)
+            previous[row] = value
+            if balanced:  # went too far before, and has stopped falling on the balance
+                settled[row] = 1
+                continue
+            kept[count] = j
+            count += 1
+    return count, retried
+
+
+def gauss_newton_advance(const long[::1] live, const double[:, ::1] step, const long[::1] retry,
+                         const double[::1] reach, const double[::1] scale, double[:, ::1] last, long[::1] steps,
+                         unsigned char[::1] settled, double[:, :, ::1] rotation, double[:, ::1] position,
+                         double[:, ::1] mu, double turn_limit, double shift_limit, double step_tol, long[::1] out):
+    """Take each row's Gauss-Newton step (the first ten columns of `step`, (n, >= 10)), shortened to turn at most
+    `turn_limit` [rad] and shift at most `shift_limit` [m] and scaled by the row's step scale; a row whose step
+    was below `step_tol` is settled. The rows still moving, then those retried, go to `out`; returns how many."""
+    cdef Py_ssize_t n = live.shape[0], j
+    cdef long row, count = 0
+    cdef int a
+    cdef double size, largest, factor
+    cdef double moved[10]
+    with nogil:
+        for j in range(n):
+            row = live[j]
+            size = step_size(&step[j, 0], reach[row])
+            largest = nan_max(nan_max(largest_of(&step[j, 3], 3) / turn_limit, largest_of(&step[j, 0], 3) / shift_limit),
+                              1.0)
+            factor = scale[row] / largest
+            for a in range(10):
+                moved[a] = step[j, a] * factor
+                last[row, a] = moved[a]
+            move_row(moved, &rotation[row, 0, 0], &position[row, 0], &mu[row, 0])
+            steps[row] += 1
+            if size < step_tol:
+                settled[row] = 1
+            elif size >= step_tol:
+                out[count] = row
+                count += 1
+        for j in range(retry.shape[0]):
+            out[count] = retry[j]
+            count += 1
+    return count
