@@ -73,3 +73,25 @@ def test_bad_stiffness_is_the_per_sample_error(plant, stiffness):
     batch = solve_batch_elastic(plant, lowering_samples(5), stiffness)
     assert set(batch.status) == {SolveStatus.INVALID_INPUT.value}
     assert "EA" in batch.solution(0).message
+
+
+def test_not_following_a_rows_answer_does_not_depend_on_the_rows_solved_with_it(plant):
+    """Every row from the seed: its bits are the same solved alone as beside the others, one of which hangs on a
+    single rope (left to the per-sample solver, which calls it indeterminate) and one of which is not a number;
+    each solved row obeys Hooke's law in balance. (A row whose Newton meets a system with one rope pulling stops
+    there: the random lengths above have such rows.)"""
+    lengths = unstretched(lowering_samples(40, seed=21))
+    lengths[7] = [303.4, 305.0, 305.0, 305.0]   # one rope 1.6 m shorter than the others: a plumb hang
+    lengths[12] = np.nan
+    seed = solve_elastic(plant, lengths[0], EA)
+    together = solve_batch_elastic(plant, lengths, EA, seed, follow=False)
+    assert together.status[7] == SolveStatus.SINGLE_CABLE_INDETERMINATE.value and 7 in together.fallback
+    assert together.status[12] == SolveStatus.INVALID_INPUT.value
+    good = [i for i in range(len(lengths)) if i not in (7, 12)]
+    assert together.ok[good].all()
+    for i in (1, 7, 20, 39):
+        alone = solve_batch_elastic(plant, lengths[i:i + 1], EA, seed, follow=False)
+        assert alone.status[0] == together.status[i]
+        for name in ("tensions", "rotation", "position"):
+            assert np.array_equal(getattr(alone, name)[0], getattr(together, name)[i], equal_nan=True)
+    assert all(hooke(plant, together.solution(i)) for i in good)

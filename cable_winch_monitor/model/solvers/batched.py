@@ -218,15 +218,6 @@ def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solut
            steps[solved], scales[solved])
 
 
-def _geometry(plant: Plant, rotation: np.ndarray, position: np.ndarray):
-    """Arms R b_i (n, 4, 3), lever arms about C, unit spans and span lengths (n, 4)."""
-    arms = np.einsum("nij,cj->nci", rotation, plant.attachments)
-    levers = arms - np.einsum("nij,j->ni", rotation, plant.cog)[:, None, :]
-    spans = position[:, None, :] + arms - plant.anchors
-    norms = np.linalg.norm(spans, axis=2)
-    return arms, levers, spans / norms[..., None], norms
-
-
 def _store(out: BatchSolution, rows: np.ndarray, active: np.ndarray, rotation: np.ndarray, position: np.ndarray,
            mu: np.ndarray, steps: np.ndarray, scales: np.ndarray) -> None:
     """Record the admissible rows (their taut sets `active`, poses, mu and steps) as `energy._result` does

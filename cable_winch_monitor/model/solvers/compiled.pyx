@@ -15,9 +15,10 @@ cdef enum:
     MAX_SIZE = 10  # 6 pose unknowns and at most 4 tensions
 
 
-cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size) noexcept nogil:
+cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size, double tiny=0.0) noexcept nogil:
     """Gaussian elimination with partial pivoting of a (size x size) system; the solution in b.
-    Returns 0, or 1 where a pivot is exactly zero (LAPACK's gesv reports the same as singular)."""
+    Returns 0, or 1 where a pivot is no larger than `tiny` (zero: exactly zero, as LAPACK's gesv reports a
+    singular system)."""
     cdef int i, j, k, pivot
     cdef double largest, factor, swap
     for k in range(size):
@@ -27,7 +28,7 @@ cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size) noexcept nog
             if fabs(a[i][k]) > largest:
                 largest = fabs(a[i][k])
                 pivot = i
-        if largest == 0.0:
+        if largest <= tiny:
             return 1
         if pivot != k:
             for j in range(size):
@@ -440,6 +441,141 @@ def slack_pin_bounds(const long[::1] samples, const long[::1] codes, const long[
             for a in range(m):
                 value += d[a] * x[a]
             bound[i] = value
+
+
+def elastic_newton_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation, double[:, ::1] position,
+                        const double[:, ::1] loads, const double[:, ::1] stiffness, const double[::1] weight,
+                        const double[:, ::1] attachments, const double[::1] cog, const double[:, ::1] anchors,
+                        double scale, int max_steps, double tol, double rounding_tol, double step_turn,
+                        double[:, ::1] tensions, double[:, ::1] stretch, long[::1] steps, unsigned char[::1] done):
+    """Newton on the force and moment balance of every row on elastic ropes (`stiffness` EA / l (n, 4) [N/m]; a
+    rope pulls where its span exceeds its unstretched length), from the row's pose, until the balance per
+    `weight` |f| (moments per `scale`) is within `tol` (or within `rounding_tol` after a step below 1e-13):
+    the pose, tensions, stretch and steps of each converged row, done (n,) set. A step is shortened to turn at
+    most `step_turn` [rad] and shift at most `step_turn` moment scales; a platform on no stretched rope is
+    lowered by a thousandth of its shortest rope. A row whose system is singular (a pivot below 1e-14 of its
+    largest entry, as the per-sample solver's least squares cuts: one rope pulling leaves the turn about it
+    free) stops there, not done."""
+    cdef Py_ssize_t n = lengths.shape[0], row
+    cdef int it, c, a, b, pulling
+    cdef double system[MAX_SIZE][MAX_SIZE]
+    cdef double delta[MAX_SIZE]
+    cdef double arm[4][3]
+    cdef double lever[4][3]
+    cdef double unit[4][3]
+    cdef double moment[4][3]
+    cdef double twist[4][3]
+    cdef double norm[4]
+    cdef double rotated_cog[3]
+    cdef double sum_arm[3]
+    cdef double sum_lever[3]
+    cdef double left[6]
+    cdef double right[6]
+    cdef double residual[6]
+    cdef double tension[4]
+    cdef double turn, along, largest, last_step, shortest, longest, diagonal, biggest
+    with nogil:
+        for row in range(n):
+            last_step = INFINITY
+            shortest = lengths[row, 0]
+            longest = lengths[row, 0]
+            for c in range(1, 4):
+                shortest = fmin(shortest, lengths[row, c])
+                longest = fmax(longest, lengths[row, c])
+            for it in range(max_steps):
+                rotate(&rotation[row, 0, 0], &cog[0], rotated_cog)
+                for a in range(6):
+                    residual[a] = 0.0
+                pulling = 0
+                for c in range(4):
+                    norm[c] = cable_geometry(&rotation[row, 0, 0], &position[row, 0], &attachments[c, 0],
+                                             &anchors[c, 0], rotated_cog, arm[c], lever[c], unit[c], moment[c])
+                    stretch[row, c] = fmax(norm[c] - lengths[row, c], 0.0)
+                    tension[c] = stiffness[row, c] * stretch[row, c]
+                    if stretch[row, c] > 0.0:
+                        pulling = 1
+                    for a in range(3):
+                        residual[a] += tension[c] * unit[c][a]
+                        residual[3 + a] += tension[c] * moment[c][a]
+                largest = 0.0
+                for a in range(3):
+                    residual[a] = (residual[a] - loads[row, a]) / weight[row]
+                    residual[3 + a] = (residual[3 + a] - loads[row, 3 + a]) / scale / weight[row]
+                for a in range(6):
+                    largest = nan_max(largest, fabs(residual[a]))
+                if largest < tol or (last_step < 1e-13 and largest < rounding_tol):
+                    for c in range(4):
+                        tensions[row, c] = tension[c]
+                    done[row] = 1
+                    break
+                for a in range(6):
+                    delta[a] = 0.0 if not pulling else -residual[a]
+                    for b in range(6):
+                        system[a][b] = 1.0 if a == b else 0.0
+                if pulling:
+                    for a in range(3):
+                        sum_arm[a] = 0.0
+                        sum_lever[a] = 0.0
+                    for a in range(6):
+                        system[a][a] = 0.0
+                    diagonal = 0.0
+                    turn = 0.0
+                    for c in range(4):
+                        cross3(arm[c], unit[c], twist[c])
+                        turn = tension[c] / norm[c]
+                        along = (stiffness[row, c] if stretch[row, c] > 0.0 else 0.0) - turn
+                        for a in range(3):
+                            left[a] = unit[c][a]
+                            left[3 + a] = moment[c][a]
+                            right[a] = unit[c][a]
+                            right[3 + a] = twist[c][a]
+                        for a in range(6):
+                            for b in range(6):
+                                system[a][b] += along * left[a] * right[b]
+                        for a in range(3):
+                            for b in range(3):  # -t r q^T + tau q u^T
+                                system[3 + a][3 + b] += -turn * arm[c][a] * lever[c][b] + tension[c] * lever[c][a] * unit[c][b]
+                            system[a][a] += turn
+                            sum_arm[a] += turn * arm[c][a]
+                            sum_lever[a] += turn * lever[c][a]
+                        diagonal += turn * (lever[c][0] * arm[c][0] + lever[c][1] * arm[c][1] + lever[c][2] * arm[c][2]) \
+                            - tension[c] * (lever[c][0] * unit[c][0] + lever[c][1] * unit[c][1] + lever[c][2] * unit[c][2])
+                    # - [sum t r]x in the force's turn, + [sum t q]x in the moment's shift
+                    system[0][4] += sum_arm[2]
+                    system[0][5] -= sum_arm[1]
+                    system[1][3] -= sum_arm[2]
+                    system[1][5] += sum_arm[0]
+                    system[2][3] += sum_arm[1]
+                    system[2][4] -= sum_arm[0]
+                    system[3][1] -= sum_lever[2]
+                    system[3][2] += sum_lever[1]
+                    system[4][0] += sum_lever[2]
+                    system[4][2] -= sum_lever[0]
+                    system[5][0] -= sum_lever[1]
+                    system[5][1] += sum_lever[0]
+                    for a in range(3):
+                        system[3 + a][3 + a] += diagonal
+                    biggest = 0.0  # the system's largest entry: a pivot 1e-14 of it is taken as zero (rank deficient)
+                    for a in range(6):
+                        for b in range(6):
+                            if a >= 3:
+                                system[a][b] /= scale
+                            system[a][b] /= weight[row]
+                            biggest = fmax(biggest, fabs(system[a][b]))
+                    if solve_in_place(system, delta, 6, 1e-14 * biggest):
+                        break
+                largest = nan_max(nan_max(largest_of(&delta[3], 3) / step_turn, largest_of(delta, 3) / (step_turn * scale)),
+                                  1.0)
+                for a in range(6):
+                    delta[a] /= largest
+                if not pulling:
+                    delta[2] = -1e-3 * shortest
+                else:
+                    last_step = nan_max(largest_of(delta, 3) / longest, largest_of(&delta[3], 3))
+                for a in range(3):
+                    position[row, a] += delta[a]
+                rotate_left(&rotation[row, 0, 0], delta[3], delta[4], delta[5])
+                steps[row] += 1
 
 
 cdef inline void unstretched(double span, double tension, double ea, double weight, double *length,
