@@ -509,17 +509,14 @@ def elastic_newton_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation
                     done[row] = 1
                     break
                 for a in range(6):
-                    delta[a] = 0.0 if not pulling else -residual[a]
+                    delta[a] = -residual[a] if pulling else 0.0  # no rope pulling: lowered below, not solved
                     for b in range(6):
-                        system[a][b] = 1.0 if a == b else 0.0
+                        system[a][b] = 0.0
                 if pulling:
                     for a in range(3):
                         sum_arm[a] = 0.0
                         sum_lever[a] = 0.0
-                    for a in range(6):
-                        system[a][a] = 0.0
                     diagonal = 0.0
-                    turn = 0.0
                     for c in range(4):
                         cross3(arm[c], unit[c], twist[c])
                         turn = tension[c] / norm[c]
