@@ -158,6 +158,44 @@ cdef inline void pose_block(const double *arm, const double *lever, const double
             block[3 + a][3 + b] = value / scale
 
 
+cdef inline void move_row(const double *step, double *rotation, double *position, double *mu) noexcept nogil:
+    """Move one row of a state by `step` (10,), in place: translation, rotation vector applied on the left,
+    tensions."""
+    cdef int a
+    for a in range(3):
+        position[a] += step[a]
+    rotate_left(rotation, step[3], step[4], step[5])
+    for a in range(4):
+        mu[a] += step[6 + a]
+
+
+cdef inline double nan_max(double a, double b) noexcept nogil:
+    """np.maximum's: NaN where either is."""
+    if a != a or b != b:
+        return a + b
+    return a if a > b else b
+
+
+cdef inline double largest_of(const double *values, int count) noexcept nogil:
+    """The largest |value| (NaN where any is)."""
+    cdef double out = 0.0
+    cdef int a
+    for a in range(count):
+        out = nan_max(out, fabs(values[a]))
+    return out
+
+
+cdef inline double shortening(const double *step, double turn_limit, double shift_limit) noexcept nogil:
+    """How many times a step (translation, rotation vector first) exceeds its limits: its turn `turn_limit`
+    [rad], its shift `shift_limit` [m]; at least 1 (a step within both is taken whole)."""
+    return nan_max(nan_max(largest_of(&step[3], 3) / turn_limit, largest_of(step, 3) / shift_limit), 1.0)
+
+
+cdef inline double step_size(const double *step, double reach) noexcept nogil:
+    """A step's size against the convergence tolerance: translation per `reach`, rotation, tension per |f|."""
+    return nan_max(nan_max(largest_of(step, 3) / reach, largest_of(&step[3], 3)), largest_of(&step[6], 4))
+
+
 cdef int newton_row(const double *lengths, double *rotation, double *position, double *mu, const double *loads,
                     long *steps, const long *taut, int k, const double *attachments, const double *cog,
                     const double *anchors, double scale, double tolerance, int max_steps, double turn_limit,
@@ -174,7 +212,7 @@ cdef int newton_row(const double *lengths, double *rotation, double *position, d
     cdef double rc[3]
     cdef double block[6][6]
     cdef double rotated_cog[3]
-    cdef double norm, weight, worst, largest
+    cdef double norm, weight, largest
     for step in range(max_steps + 1):
         for a in range(MAX_SIZE):
             rhs[a] = 0.0
@@ -204,11 +242,7 @@ cdef int newton_row(const double *lengths, double *rotation, double *position, d
         for a in range(3):
             rhs[a] -= loads[a]
             rhs[3 + a] = (rhs[3 + a] - loads[3 + a]) / scale
-        worst = 0.0
-        for a in range(size):
-            if fabs(rhs[a]) > worst or rhs[a] != rhs[a]:  # NaN: never converged
-                worst = fabs(rhs[a]) if worst == worst else worst
-        if worst < tolerance:
+        if largest_of(rhs, size) < tolerance:  # NaN: never converged
             return 1
         if step == max_steps:
             return 0
@@ -216,12 +250,7 @@ cdef int newton_row(const double *lengths, double *rotation, double *position, d
             rhs[a] = -rhs[a]
         if solve_in_place(system, rhs, size):
             return 0
-        largest = 1.0
-        for a in range(3):
-            if fabs(rhs[3 + a]) / turn_limit > largest:
-                largest = fabs(rhs[3 + a]) / turn_limit
-            if fabs(rhs[a]) / shift_limit > largest:
-                largest = fabs(rhs[a]) / shift_limit
+        largest = shortening(rhs, turn_limit, shift_limit)
         for a in range(size):
             rhs[a] /= largest
         for a in range(3):
@@ -497,12 +526,10 @@ def elastic_newton_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation
                     for a in range(3):
                         residual[a] += tension[c] * unit[c][a]
                         residual[3 + a] += tension[c] * moment[c][a]
-                largest = 0.0
                 for a in range(3):
                     residual[a] = (residual[a] - loads[row, a]) / weight[row]
                     residual[3 + a] = (residual[3 + a] - loads[row, 3 + a]) / scale / weight[row]
-                for a in range(6):
-                    largest = nan_max(largest, fabs(residual[a]))
+                largest = largest_of(residual, 6)
                 if largest < tol or (last_step < 1e-13 and largest < rounding_tol):
                     for c in range(4):
                         tensions[row, c] = tension[c]
@@ -561,8 +588,7 @@ def elastic_newton_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation
                             biggest = fmax(biggest, fabs(system[a][b]))
                     if solve_in_place(system, delta, 6, 1e-14 * biggest):
                         break
-                largest = nan_max(nan_max(largest_of(&delta[3], 3) / step_turn, largest_of(delta, 3) / (step_turn * scale)),
-                                  1.0)
+                largest = shortening(delta, step_turn, step_turn * scale)
                 for a in range(6):
                     delta[a] /= largest
                 if not pulling:
@@ -754,38 +780,6 @@ def whiten_rows(const long[::1] sample, double[:, ::1] residual, double[:, :, ::
                     jacobian[row, pins[a], col] = value
 
 
-cdef inline void move_row(const double *step, double *rotation, double *position, double *mu) noexcept nogil:
-    """Move one row of a state by `step` (10,), in place: translation, rotation vector applied on the left,
-    tensions."""
-    cdef int a
-    for a in range(3):
-        position[a] += step[a]
-    rotate_left(rotation, step[3], step[4], step[5])
-    for a in range(4):
-        mu[a] += step[6 + a]
-
-
-cdef inline double nan_max(double a, double b) noexcept nogil:
-    """np.maximum's: NaN where either is."""
-    if a != a or b != b:
-        return a + b
-    return a if a > b else b
-
-
-cdef inline double largest_of(const double *values, int count) noexcept nogil:
-    """The largest |value| (NaN where any is)."""
-    cdef double out = 0.0
-    cdef int a
-    for a in range(count):
-        out = nan_max(out, fabs(values[a]))
-    return out
-
-
-cdef inline double step_size(const double *step, double reach) noexcept nogil:
-    """A step's size against the convergence tolerance: translation per `reach`, rotation, tension per |f|."""
-    return nan_max(nan_max(largest_of(step, 3) / reach, largest_of(&step[3], 3)), largest_of(&step[6], 4))
-
-
 def gauss_newton_verdict(const long[::1] live, const double[::1] cost, const double[:, ::1] constraint,
                          const double[::1] reach, double[::1] previous, double[:, ::1] last, double[::1] scale,
                          unsigned char[::1] settled, double[:, :, ::1] rotation, double[:, ::1] position,
@@ -799,16 +793,13 @@ def gauss_newton_verdict(const long[::1] live, const double[::1] cost, const dou
     cdef Py_ssize_t n = live.shape[0], j
     cdef long row, count = 0, retried = 0
     cdef int a
-    cdef double worst, value
+    cdef double value
     cdef bint balanced
     cdef double back[10]
     with nogil:
         for j in range(n):
             row = live[j]
-            worst = 0.0
-            for a in range(6):
-                worst = nan_max(worst, fabs(constraint[j, a]))
-            balanced = worst < balance_tol * reach[row]
+            balanced = largest_of(&constraint[j, 0], 6) < balance_tol * reach[row]
             value = cost[j] if balanced else INFINITY
             if balanced and value > previous[row] * (1.0 + 1e-12) + 1e-12:  # past the minimum: half back
                 for a in range(10):
@@ -843,15 +834,13 @@ def gauss_newton_advance(const long[::1] live, const double[:, ::1] step, const 
     cdef Py_ssize_t n = live.shape[0], j
     cdef long row, count = 0
     cdef int a
-    cdef double size, largest, factor
+    cdef double size, factor
     cdef double moved[10]
     with nogil:
         for j in range(n):
             row = live[j]
             size = step_size(&step[j, 0], reach[row])
-            largest = nan_max(nan_max(largest_of(&step[j, 3], 3) / turn_limit, largest_of(&step[j, 0], 3) / shift_limit),
-                              1.0)
-            factor = scale[row] / largest
+            factor = scale[row] / shortening(&step[j, 0], turn_limit, shift_limit)
             for a in range(10):
                 moved[a] = step[j, a] * factor
                 last[row, a] = moved[a]
