@@ -44,6 +44,8 @@ class UpdateProcess:
 
     def _start(self) -> ProcessPoolExecutor:
         # forkserver: the process is not forked from the node's, whose DDS threads may hold locks at the fork
+        while not self._started.empty():  # a lost process's id, not read before it was lost
+            self._started.get()
         self._pid = None
         return ProcessPoolExecutor(1, mp_context=self._context, initializer=_load,
                                    initargs=(self._plant, self._solver, self._started))

@@ -35,6 +35,7 @@ from .energy import (
 )
 
 CHUNK = 1024              # samples solved together from one warm start
+BITS = 1 << np.arange(4)   # a taut set's code: bit i for rope i (the estimator's search codes sets so too)
 
 
 @dataclass
@@ -108,7 +109,6 @@ def empty_batch(plant: Plant, lengths: np.ndarray, loads: np.ndarray | None, met
                          np.zeros(count, int), method=method)
 
 
-BITS = 1 << np.arange(4)   # a taut set's code: bit i for rope i (the estimator's search codes sets so too)
 ChunkSolver = Callable[[np.ndarray, Solution], None]   # (valid rows of a chunk, seed) -> rows solved in `out`
 SampleSolver = Callable[[int, "Solution | None"], Solution]  # (row, warm start) -> the per-sample solver's answer
 
