@@ -15,6 +15,7 @@ from .formatting import format_solution
 from .messages.scene import LIVE_RATE, REPLAY_RATE
 from .model.plantfile.plant import CABLE_NAMES, PlantConfigError, load_plant
 from .model.solvers.solve import METHODS
+from .monitor.sensors import READING_LAG
 from .paths import config_dir
 from .sim.keys import ScenarioError
 
@@ -115,8 +116,7 @@ def _replay_summary(bag: str, args: argparse.Namespace) -> int:
     from .stopping import ignore_stop_signals
 
     summary = replay(bag, args.out, load_plant(args.config), args.solver, args.staleness, progress=not args.quiet,
-                     scene_rate=args.scene_rate,
-                     stamp_window=_stamp_window(args))
+                     scene_rate=args.scene_rate, stamp_window=_stamp_window(args), lag=args.reading_lag)
     if summary.stopped:
         ignore_stop_signals()  # stopping: the summary and the exit status are what is left to give
     print(summary.format())
@@ -156,7 +156,8 @@ def _replay(args: argparse.Namespace) -> int:
 
     if not is_fleet(args.bag):
         return _replay_summary(args.bag, args)
-    return _fleet(args, replay_job(load_plant(args.config), args.solver, args.staleness, args.scene_rate))
+    return _fleet(args, replay_job(load_plant(args.config), args.solver, args.staleness, args.scene_rate,
+                                   args.reading_lag))
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -374,6 +375,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--solver", choices=METHODS, default="energy", help="solver (default: energy, as the node)")
         p.add_argument("--staleness", type=float, default=0.5,
                        help="[s] oldest cable length a sample may use (default: 0.5, as the node)")
+        p.add_argument("--reading-lag", type=float, default=READING_LAG, metavar="SECONDS",
+                       help=f"[s] a sample fuses each sensor's latest reading stamped at least this long before it "
+                       f"(default: {READING_LAG:g}, as the node)")
         p.add_argument("--scene-rate", type=_positive, default=REPLAY_RATE, metavar="HZ",
                        help=f"most 3-D scenes (/platform/scene) per second of recording (default: {REPLAY_RATE:g}; "
                        f"the node draws {LIVE_RATE:g} live)")

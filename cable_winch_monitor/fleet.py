@@ -20,6 +20,7 @@ from .bagio.reader import BagError
 from .messages.scene import REPLAY_RATE
 from .model.plantfile.plant import Plant
 from .monitor.alarm import AlarmLevel
+from .monitor.sensors import READING_LAG
 
 Row = dict[str, Any]            # one bag's result: column -> value (numbers are summed in the total)
 Job = Callable[[Path, Path], Row]
@@ -42,12 +43,13 @@ def find_bags(folder: str | Path) -> list[Path]:
     return sorted(p for p in Path(folder).iterdir() if is_bag(p))
 
 
-def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, staleness: float, scene_rate: float) -> Row:
+def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, staleness: float, scene_rate: float,
+                lag: float) -> Row:
     from .replay import replay
 
     try:
         summary = replay(bag, out, plant, solver, staleness, progress=False, scene_rate=scene_rate,
-                         second_process=False)  # the fleet's workers share the cores
+                         second_process=False, lag=lag)  # the fleet's workers share the cores
     except BagError as error:
         return {"bag": bag.name, "error": str(error)}
     stats = summary.stats
@@ -58,9 +60,10 @@ def _replay_row(bag: Path, out: Path, plant: Plant | None, solver: str, stalenes
 
 
 def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: float = 0.5,
-               scene_rate: float = REPLAY_RATE) -> Job:
+               scene_rate: float = REPLAY_RATE, lag: float = READING_LAG) -> Job:
     """The per-bag replay as a picklable job."""
-    return functools.partial(_replay_row, plant=plant, solver=solver, staleness=staleness, scene_rate=scene_rate)
+    return functools.partial(_replay_row, plant=plant, solver=solver, staleness=staleness, scene_rate=scene_rate,
+                             lag=lag)
 
 
 def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[str] | None,

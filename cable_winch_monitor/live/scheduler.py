@@ -34,6 +34,7 @@ from ..model.plantfile.plant import Plant
 from ..monitor.inputs import JointSample, StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import READING_LAG
 from ..monitor.updates import UpdateProcess
 from ..monitor.waiting import READING_WAIT, ReadingWait
 
@@ -53,11 +54,11 @@ class LiveScheduler:
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
                  stamp_window: StampWindow | None = None, backlog: float = BACKLOG, wait: float = READING_WAIT,
-                 clock: Callable[[], float] = time.monotonic):
+                 clock: Callable[[], float] = time.monotonic, lag: float = READING_LAG):
         # the window updates (the model's error, the tracked parameters) are worked out beside the samples, in a
         # process of their own (started at the first)
         self.updates = UpdateProcess(plant, solver)
-        self.monitor = MonitorPipeline(plant, solver, staleness, stamp_window, background=self.updates)
+        self.monitor = MonitorPipeline(plant, solver, staleness, stamp_window, background=self.updates, lag=lag)
         self.backlog, self.clock = backlog, clock
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
@@ -177,7 +178,7 @@ class LiveScheduler:
         with self.lock:
             old = self.monitor
             self.monitor = MonitorPipeline(old.plant, old.solver, old.staleness, old.merger.window,
-                                           background=self.updates)
+                                           background=self.updates, lag=old.readings.lag)
             self.monitor.stats = old.stats
             self.skipped += self._held.clear() + len(self._pending) + self._solving  # dropped unsolved: from the future that went
             self._pending.clear()

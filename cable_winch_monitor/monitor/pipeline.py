@@ -49,7 +49,7 @@ from .inputs import (
     small_mean,
 )
 from .residuals import Residuals, noise_levels, residuals
-from .sensors import LatestReadings, PayoutHistory, StuckReadings, sensor_of
+from .sensors import READING_LAG, LatestReadings, PayoutHistory, StuckReadings, sensor_of
 from .tracking import ParameterView
 from .updates import UpdateProcess
 
@@ -200,7 +200,8 @@ class MonitorPipeline:
     """Merges inputs, estimates (or solves) each complete sample, and derives alarm and residuals."""
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5,
-                 stamp_window: StampWindow | None = None, background: UpdateProcess | None = None):
+                 stamp_window: StampWindow | None = None, background: UpdateProcess | None = None,
+                 lag: float = READING_LAG):
         self.model = PlantModel.from_plant(plant, solver)  # the one solve path: effects, load, solver
         self.plant, self.solver = plant, solver
         self.limits = InputLimits(plant.max_payout, plant.max_payout_speed)
@@ -216,7 +217,7 @@ class MonitorPipeline:
         self.last_solved_stamp = math.nan
         self.noise = noise_levels(plant)
         self.fusing = solver == "energy" and fuses(self.model)
-        self.readings = LatestReadings(staleness)
+        self.readings = LatestReadings(staleness, lag)  # a sample fuses the readings stamped `lag` before it
         self.pins = StuckReadings()
         self.heard: dict[str, float] = {}  # load pin -> the stamp of its latest finite reading
         # background: where the window updates are worked out (None: at once, as replay does)
@@ -276,13 +277,13 @@ class MonitorPipeline:
         return complete._replace(sensors=pins, taken=taken, faults=faults)
 
     def read_sensors(self, sample: CompleteSample) -> CompleteSample:
-        """A complete sample from `merge_winch` with the latest other readings stamped at or before it, within
-        the staleness limit, and their sensors' faults."""
+        """A complete sample from `merge_winch` with the latest other readings stamped at least the lag before it,
+        within the staleness limit, and their sensors' faults."""
         if not self.fusing:
             return sample
         stamp = sample.stamp
         values, taken = self.readings.at(stamp, small_mean(sample.lengths.tolist()), self.payouts.at)
-        faults = stuck_faults(self.readings.stuck.stuck(stamp))
+        faults = stuck_faults(self.readings.stuck_at(stamp))
         faults.update(sample.faults)
         faults.update(self._silent(stamp, values, self.readings.latest(stamp), faults))
         return sample._replace(sensors={**values, **sample.sensors}, taken={**taken, **sample.taken}, faults=faults)

@@ -47,6 +47,7 @@ from ..monitor.diagnostics import DiagnosticsReporter
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorOutput
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import READING_WAIT
 from .conversions import build, check_response, message_class, rejected_response, requested_lengths
 from .winch_input import WinchInput, waiting
@@ -96,6 +97,10 @@ PARAMETERS: tuple[tuple[str, Any, ParameterDescriptor], ...] = (
         description="[s] a complete sample waits at most this long for a sensor reading due at its stamp that another "
                     "topic's messages overtook (then it is fused without it)",
         floating_point_range=_range(0.0, 1.0), read_only=True)),
+    ("reading_lag", READING_LAG, ParameterDescriptor(
+        description="[s] a sample fuses each sensor's latest reading stamped at least this long before it (carried to "
+                    "its stamp), so that it need not wait for one another topic's messages may still bring",
+        floating_point_range=_range(0.0, 1.0), read_only=True)),
     ("stamp_ahead", StampWindow.ahead, ParameterDescriptor(
         description="[s] a winch stamp later than its arrival on the node clock by more than this is refused",
         floating_point_range=_range(0.001, 1e10), read_only=True)),
@@ -128,7 +133,7 @@ class WinchMonitorNode(Node):
         plant = load_plant(value("plant_file") or None)  # '' = the bundled plant
         window = StampWindow(value("stamp_ahead"), value("stamp_behind"), value("stamp_skew"))
         self.live = LiveScheduler(plant, value("solver"), value("staleness"), stamp_window=window,
-                                  backlog=value("backlog"), wait=value("reading_wait"))
+                                  backlog=value("backlog"), wait=value("reading_wait"), lag=value("reading_lag"))
         importlib.import_module("scipy.optimize")  # the solvers' fallback, loaded now rather than at a sample
         self.reporter = DiagnosticsReporter(hardware_id=plant.name)
         self._rejections_logged = 0

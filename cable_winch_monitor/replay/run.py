@@ -32,6 +32,7 @@ from ..monitor.alarm import AlarmLevel
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import MonitorStats
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import READING_LAG
 from ..progress import Progress
 from ..stopping import Stopped, stop_signals
 from .stages import Encoded
@@ -165,7 +166,7 @@ def _fewer_collections(threshold: int = 20_000) -> Iterator[None]:
 def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver: str = "energy",
            staleness: float = 0.5, progress: bool = True, batched: bool = True,
            scene_rate: float = REPLAY_RATE, stamp_window: StampWindow | None = None,
-           second_process: bool = True) -> ReplaySummary:
+           second_process: bool = True, lag: float = READING_LAG) -> ReplaySummary:
     """Replay `bag` (rosbag2 directory or .mcap file) into the new bag `out`.
 
     With the energy solver and `batched`, the samples of each window of messages are
@@ -183,7 +184,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     require_inputs(bag, PlantModel.from_plant(plant, solver).inputs)  # a topic the effects read: before any work
     stamp_window, clock_note = clock_offset(bag, stamp_window or StampWindow())
     scheduler = WindowScheduler(plant, solver, staleness, batched, stamp_window=stamp_window,
-                                second_process=second_process, scene_rate=scene_rate)
+                                second_process=second_process, scene_rate=scene_rate, lag=lag)
     inputs = fields.input_topics(scheduler.monitor.model.inputs)
     reader = BagReader(bag, inputs)
     reader.report.notes += [clock_note] if clock_note else []

@@ -44,6 +44,7 @@ from ..monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sa
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import CompleteSample, MonitorPipeline, MonitorStats
 from ..monitor.residuals import Residuals
+from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import ReadingWait
 from ..stopping import interruptible
 from .second_process import SecondProcess
@@ -113,8 +114,8 @@ class WindowScheduler:
 
     def __init__(self, plant: Plant, solver: str = "energy", staleness: float = 0.5, batched: bool = True,
                  window: int = WINDOW, stamp_window: StampWindow | None = None, second_process: bool = False,
-                 scene_rate: float = REPLAY_RATE):
-        self.monitor = monitor = MonitorPipeline(plant, solver, staleness, stamp_window)
+                 scene_rate: float = REPLAY_RATE, lag: float = READING_LAG):
+        self.monitor = monitor = MonitorPipeline(plant, solver, staleness, stamp_window, lag=lag)
         self.window = window
         self.batched = batched and (monitor.fusing or monitor.model.batchable)  # else one by one, as the node does
         self.input_specs = {spec.topic: spec for spec in monitor.model.inputs}
