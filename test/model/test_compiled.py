@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from cable_winch_monitor.model.solvers import compiled
 from cable_winch_monitor.model.solvers.ropes import Ropes
-from cable_winch_monitor.model.statics.geometry import rotations_from_vectors
+from cable_winch_monitor.model.statics.geometry import rotations_from_vectors, skew
 
 EA = np.array([6.8e7, 7.0e7, 6.5e7, 7.2e7])
 H = 1e-5  # central-difference step [m, rad, mu]: smaller, rounding of 600 m spans shows
@@ -68,6 +68,68 @@ def _newton(plant, lengths: np.ndarray, taut: np.ndarray):
                              plant.anchors, plant.moment_scale, np.full(n, 1e-12), 15, converged, 0.2,
                              0.2 * plant.moment_scale)
     return rotation, position, mu, converged.astype(bool)
+
+
+def _lstsq_step(plant, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray, mu: np.ndarray,
+                taut: np.ndarray, load: np.ndarray):
+    """One Newton step on the taut cables' KKT conditions, written in numpy, its system (6 + k unknowns) solved
+    by numpy's lstsq: the rotation, position and mu after it."""
+    scale = plant.moment_scale
+    points = position + plant.attachments @ rotation.T
+    arms, arm_c = points - position, rotation @ plant.cog
+    spans = points - plant.anchors
+    norms = np.linalg.norm(spans, axis=1)
+    u, r, q, m = spans[taut] / norms[taut, None], arms[taut], (arms - arm_c)[taut], mu[taut, None, None]
+    moments = np.cross(q, u)
+    residual = np.concatenate([u.T @ mu[taut] - load[:3], (moments.T @ mu[taut] - load[3:]) / scale,
+                               norms[taut] - lengths[taut]])
+    projector = (np.eye(3) - u[:, :, None] * u[:, None, :]) / norms[taut, None, None]
+    sr, sq, su = skew(r), skew(q), skew(u)
+    weighted = m * projector
+    jacobian = np.zeros((6 + taut.size, 6 + taut.size))
+    jacobian[0:3, 0:3] = weighted.sum(axis=0)
+    jacobian[0:3, 3:6] = -(weighted @ sr).sum(axis=0)
+    jacobian[3:6, 0:3] = ((m * sq @ projector) / scale).sum(axis=0)
+    jacobian[3:6, 3:6] = ((m * (su @ sq - sq @ projector @ sr)) / scale).sum(axis=0)
+    jacobian[0:3, 6:], jacobian[3:6, 6:] = u.T, moments.T / scale
+    jacobian[6:, 0:3], jacobian[6:, 3:6] = u, np.cross(r, u)
+    step = np.linalg.lstsq(jacobian, -residual, rcond=1e-13)[0]
+    step /= max(np.abs(step[3:6]).max() / 0.2, np.abs(step[0:3]).max() / (0.2 * scale), 1.0)
+    moved = mu.copy()
+    moved[taut] += step[6:]
+    return rotations_from_vectors(step[None, 3:6])[0] @ rotation, position + step[:3], moved
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2 ** 31 - 1), st.sampled_from([(0, 1, 2, 3), (1,), (0, 2)]), st.booleans())
+def test_a_minimum_norm_step_is_numpys_least_squares_step(plant, seed, taut, redundant):
+    """Four taut ropes (or one) make a system that is singular where the set is redundant: four equal lengths
+    at a level pose, or no rope loaded yet. A step of minimum norm is numpy lstsq's (rcond 1e-13) there and
+    elsewhere, and an exact step stops such a row."""
+    rng = np.random.default_rng(seed)
+    taut = np.array(taut)
+    depth = rng.uniform(50.0, 600.0)
+    rotation = np.eye(3) if redundant else rotations_from_vectors(rng.normal(0.0, 0.01, (1, 3)))[0]
+    position = np.array([0.0, 0.0, -depth]) + (0.0 if redundant else rng.normal(0.0, 0.05, 3))
+    mu = np.zeros(4) if redundant else np.where(np.isin(np.arange(4), taut), rng.uniform(0.1, 0.4, 4), 0.0)
+    lengths = np.full(4, depth + 0.01) if redundant else depth + rng.normal(0.0, 0.02, 4)
+    load = np.array([0.0, 0.0, -1.0, 0.0, 0.0, 0.0])
+    want = _lstsq_step(plant, lengths, rotation, position, mu, taut, load)
+    got = rotation[None].copy(), position[None].copy(), mu[None].copy()
+    steps, converged = np.zeros(1, np.int64), np.zeros(1, np.uint8)
+    compiled.newton_taut_set(lengths[None], *got, load[None], steps, taut.astype(np.int64), plant.attachments,
+                             plant.cog, plant.anchors, plant.moment_scale, np.array([0.0]), 1, converged, 0.2,
+                             0.2 * plant.moment_scale, minimum_norm=True)
+    assert steps[0] == 1
+    for value, expected in zip(got, want):  # to the rounding of a system whose condition number is up to 1e8
+        np.testing.assert_allclose(value[0], expected, rtol=1e-7, atol=1e-8)
+    if redundant and taut.size == 4:
+        exact = rotation[None].copy(), position[None].copy(), mu[None].copy()
+        steps[0] = 0
+        compiled.newton_taut_set(lengths[None], *exact, load[None], steps, taut.astype(np.int64), plant.attachments,
+                                 plant.cog, plant.anchors, plant.moment_scale, np.array([0.0]), 1, converged, 0.2,
+                                 0.2 * plant.moment_scale)
+        assert steps[0] == 0  # singular: no exact step
 
 
 def _spans_and_balance(plant, rotation, position, mu, taut, lengths):

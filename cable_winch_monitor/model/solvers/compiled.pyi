@@ -4,7 +4,8 @@ import numpy as np
 def newton_taut_set(lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray, mu: np.ndarray,
                     loads: np.ndarray, steps: np.ndarray, taut: np.ndarray, attachments: np.ndarray,
                     cog: np.ndarray, anchors: np.ndarray, scale: float, tolerance: np.ndarray, max_steps: int,
-                    converged: np.ndarray, turn_limit: float, shift_limit: float) -> None: ...
+                    converged: np.ndarray, turn_limit: float, shift_limit: float,
+                    minimum_norm: bool = False) -> None: ...
 def equilibrium_terms(rotation: np.ndarray, position: np.ndarray, mu: np.ndarray, taut: np.ndarray,
                       weight: np.ndarray, lengths: np.ndarray, anchors: np.ndarray, attachments: np.ndarray,
                       cog: np.ndarray, loads: np.ndarray, axial_stiffness: np.ndarray, rope_weight: float,

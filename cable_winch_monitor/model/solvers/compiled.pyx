@@ -13,6 +13,7 @@ from libc.math cimport INFINITY, acos, cos, fabs, fmax, fmin, sin, sqrt
 
 cdef enum:
     MAX_SIZE = 10  # 6 pose unknowns and at most 4 tensions
+    JACOBI_SWEEPS = 60  # one-sided Jacobi sweeps at most (a 10 x 10 system takes some eight)
 
 
 cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size, double tiny=0.0) noexcept nogil:
@@ -48,6 +49,69 @@ cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size, double tiny=
         for j in range(k + 1, size):
             b[k] -= a[k][j] * b[j]
         b[k] /= a[k][k]
+    return 0
+
+
+cdef int least_squares_in_place(double (*a)[MAX_SIZE], double *b, int size) noexcept nogil:
+    """The least-squares solution of minimum norm of a (size x size) system in b, singular values below 1e-13
+    of the largest taken as zero, as numpy.linalg.lstsq(a, b, rcond=1e-13) gives it, so that a redundant
+    system (four taut ropes of equal lengths) still gives a step. The singular value decomposition is
+    one-sided Jacobi's (Hestenes: plane rotations of a's columns until they are orthogonal), accurate to
+    the last bits on a system this small. Returns 0, or 1 where a is not finite."""
+    cdef double u[MAX_SIZE][MAX_SIZE]  # a's columns, rotated until orthogonal: U times the singular values
+    cdef double v[MAX_SIZE][MAX_SIZE]  # the same rotations of the identity: V
+    cdef double norms[MAX_SIZE]
+    cdef double alpha, beta, gamma, zeta, t, c, sn, up, uq, largest = 0.0, projection
+    cdef int sweep, p, q, i, rotated
+    for i in range(size):
+        for p in range(size):
+            u[i][p] = a[i][p]
+            v[i][p] = 1.0 if i == p else 0.0
+    for sweep in range(JACOBI_SWEEPS):
+        rotated = 0
+        for p in range(size - 1):
+            for q in range(p + 1, size):
+                alpha = beta = gamma = 0.0
+                for i in range(size):
+                    alpha += u[i][p] * u[i][p]
+                    beta += u[i][q] * u[i][q]
+                    gamma += u[i][p] * u[i][q]
+                if not fabs(gamma) > 1e-15 * sqrt(alpha * beta):  # orthogonal to rounding (or not finite)
+                    continue
+                rotated = 1
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = (1.0 if zeta >= 0.0 else -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta))
+                c = 1.0 / sqrt(1.0 + t * t)
+                sn = c * t
+                for i in range(size):
+                    up, uq = u[i][p], u[i][q]
+                    u[i][p], u[i][q] = c * up - sn * uq, sn * up + c * uq
+                    up, uq = v[i][p], v[i][q]
+                    v[i][p], v[i][q] = c * up - sn * uq, sn * up + c * uq
+        if not rotated:
+            break
+    for p in range(size):
+        norms[p] = 0.0
+        for i in range(size):
+            norms[p] += u[i][p] * u[i][p]
+        norms[p] = sqrt(norms[p])
+        if not norms[p] < INFINITY:  # NaN or infinite: no solution
+            return 1
+        largest = fmax(largest, norms[p])
+    cdef double solution[MAX_SIZE]
+    for i in range(size):
+        solution[i] = 0.0
+    for p in range(size):
+        if norms[p] <= 1e-13 * largest or norms[p] == 0.0:
+            continue
+        projection = 0.0
+        for i in range(size):
+            projection += u[i][p] * b[i]
+        projection /= norms[p] * norms[p]  # (u_p . b) / s_p, with u's column p = s_p u_p
+        for i in range(size):
+            solution[i] += projection * v[i][p]
+    for i in range(size):
+        b[i] = solution[i]
     return 0
 
 
@@ -199,9 +263,10 @@ cdef inline double step_size(const double *step, double reach) noexcept nogil:
 cdef int newton_row(const double *lengths, double *rotation, double *position, double *mu, const double *loads,
                     long *steps, const long *taut, int k, const double *attachments, const double *cog,
                     const double *anchors, double scale, double tolerance, int max_steps, double turn_limit,
-                    double shift_limit) noexcept nogil:
+                    double shift_limit, bint minimum_norm) noexcept nogil:
     """`newton_taut_set` of one row (its (4,) lengths and mu, (3, 3) rotation, (3,) position, (6,) load, the
-    plant's (4, 3) attachments and anchors, row-major); returns 1 where converged."""
+    plant's (4, 3) attachments and anchors, row-major); returns 1 where converged. Each step solves the
+    system exactly (a singular one stops the row) or, `minimum_norm`, by least squares of minimum norm."""
     cdef int size = 6 + k, step, c, j, a, b
     cdef double system[MAX_SIZE][MAX_SIZE]
     cdef double rhs[MAX_SIZE]
@@ -248,7 +313,7 @@ cdef int newton_row(const double *lengths, double *rotation, double *position, d
             return 0
         for a in range(size):
             rhs[a] = -rhs[a]
-        if solve_in_place(system, rhs, size):
+        if least_squares_in_place(system, rhs, size) if minimum_norm else solve_in_place(system, rhs, size):
             return 0
         largest = shortening(rhs, turn_limit, shift_limit)
         for a in range(size):
@@ -266,12 +331,14 @@ def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
                     double[:, ::1] mu, const double[:, ::1] loads, long[::1] steps, const long[::1] taut,
                     const double[:, ::1] attachments, const double[::1] cog, const double[:, ::1] anchors,
                     double scale, const double[::1] tolerance, int max_steps,
-                    unsigned char[::1] converged, double turn_limit, double shift_limit):
+                    unsigned char[::1] converged, double turn_limit, double shift_limit, bint minimum_norm=False):
     """Newton on the taut cables `taut` (k,) of every row until its force and moment balance about C
     (per |f|, moments per `scale`) and its taut spans' lengths are within `tolerance` (n,) of zero,
     at most `max_steps` steps: rotation (n, 3, 3), position (n, 3), mu (n, 4) and steps (n,) are
     moved in place, converged (n,) set. A step is shortened to turn at most `turn_limit` [rad] and
-    shift at most `shift_limit` [m]; a row whose system is singular stops there, not converged."""
+    shift at most `shift_limit` [m]. Each step is the system's exact solution (a row whose system is
+    singular stops there, not converged) or, `minimum_norm`, its least-squares solution of minimum norm
+    (`least_squares_in_place`: a redundant taut set still moves to its lengths)."""
     cdef Py_ssize_t n = lengths.shape[0], row
     cdef int k = taut.shape[0]
     if 6 + k > MAX_SIZE:
@@ -280,7 +347,8 @@ def newton_taut_set(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
         for row in range(n):
             converged[row] = newton_row(&lengths[row, 0], &rotation[row, 0, 0], &position[row, 0], &mu[row, 0],
                                         &loads[row, 0], &steps[row], &taut[0], k, &attachments[0, 0], &cog[0],
-                                        &anchors[0, 0], scale, tolerance[row], max_steps, turn_limit, shift_limit)
+                                        &anchors[0, 0], scale, tolerance[row], max_steps, turn_limit, shift_limit,
+                                        minimum_norm)
 
 
 cdef int best_exchange(double (*unit)[3], double (*moment)[3], const double *wrench, const long *taut, int k,
@@ -379,7 +447,8 @@ def active_set_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation, do
                     position[row, j] = start_position[j]
                 converged = newton_row(&lengths[row, 0], &rotation[row, 0, 0], &position[row, 0], &mu[row, 0],
                                        &loads[row, 0], &steps[row], taut, k, &attachments[0, 0], &cog[0],
-                                       &anchors[0, 0], scale, tolerance[row], max_steps, turn_limit, shift_limit)
+                                       &anchors[0, 0], scale, tolerance[row], max_steps, turn_limit, shift_limit,
+                                       False)
                 rotate(&rotation[row, 0, 0], &cog[0], rotated_cog)
                 cable = 0
                 largest = -INFINITY

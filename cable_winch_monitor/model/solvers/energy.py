@@ -227,60 +227,21 @@ def _newton(plant: Plant, lengths: np.ndarray, state: _State) -> bool:
     """Newton's method on the KKT conditions of the active set; True when converged.
 
     Unknowns: position, a rotation increment (applied on the left) and mu of the active
-    cables. Equations: force and moment balance about C and |A_i B_i| = l_i. Steps are
-    least-squares solutions, so a redundant set (four equal lengths) still converges in
-    pose; its tensions are settled afterwards by `balance_tensions`.
+    cables. Equations: force and moment balance about C and |A_i B_i| = l_i. Two or three
+    taut cables make a square regular system, solved exactly; otherwise steps are
+    least-squares solutions of minimum norm, so a redundant set (four equal lengths) still
+    converges in pose; its tensions are settled afterwards by `balance_tensions`. In C
+    (`compiled.newton_taut_set`, the batched solver's, on one row): a step is some forty
+    numpy calls on 3 x 3 arrays.
     """
     idx = np.flatnonzero(state.active)
-    if idx.size in (2, 3):
-        return _newton_exact(plant, lengths, state, idx)
-    scale = plant.moment_scale
-    pull, turn = state.load[:3] / state.scale, state.load[3:] / (state.scale * scale)
-    for _ in range(NEWTON_MAX_STEPS):
-        arms, arm_c, spans, norms = _geometry(plant, state)
-        units = spans / norms[:, None]
-        levers = arms - arm_c
-        mu = state.mu[idx]
-        force = units[idx].T @ mu - pull
-        moments = cross(levers[idx], units[idx])
-        moment = moments.T @ mu / scale - turn
-        length_error = norms[idx] - lengths[idx]
-        residual = np.concatenate([force, moment, length_error])
-        if np.abs(residual).max() < NEWTON_TOL * max(1.0, lengths.max() * 1e-2):
-            return True
-        u, r, q, m = units[idx], arms[idx], levers[idx], mu[:, None, None]
-        projector = (np.eye(3) - u[:, :, None] * u[:, None, :]) / norms[idx, None, None]
-        sr, sq = skew(r), skew(q)
-        weighted = m * projector
-        jacobian = np.zeros((6 + idx.size, 6 + idx.size))
-        jacobian[0:3, 0:3] = weighted.sum(axis=0)
-        jacobian[0:3, 3:6] = -(weighted @ sr).sum(axis=0)
-        jacobian[3:6, 0:3] = ((m * sq @ projector) / scale).sum(axis=0)
-        jacobian[3:6, 3:6] = ((m * (skew(u) @ sq - sq @ projector @ sr)) / scale).sum(axis=0)
-        jacobian[0:3, 6:] = u.T
-        jacobian[3:6, 6:] = moments.T / scale
-        jacobian[6:, 0:3] = u
-        jacobian[6:, 3:6] = cross(r, u)
-        step = np.linalg.lstsq(jacobian, -residual, rcond=1e-13)[0]
-        largest = max(np.abs(step[3:6]).max() / 0.2, np.abs(step[0:3]).max() / (0.2 * scale), 1.0)
-        step /= largest
-        state.position = state.position + step[0:3]
-        state.rotation = rotation_from_vector(step[3:6]) @ state.rotation
-        state.mu[idx] = mu + step[6:]
-        state.steps += 1
-    return False
-
-
-def _newton_exact(plant: Plant, lengths: np.ndarray, state: _State, idx: np.ndarray) -> bool:
-    """`_newton` for two or three taut cables, whose system is square and regular: the same equations, steps
-    and limits, solved exactly in C (`compiled.newton_taut_set`, the batched solver's, on one row)."""
     rotation, position = state.rotation[None].copy(), state.position[None].copy()
     mu, steps, converged = state.mu[None].copy(), np.zeros(1, np.int64), np.zeros(1, np.uint8)
     tolerance = np.array([NEWTON_TOL * max(1.0, lengths.max() * 1e-2)])
     compiled.newton_taut_set(np.ascontiguousarray(lengths, dtype=float)[None], rotation, position, mu,
                              (state.load / state.scale)[None], steps, idx.astype(np.int64), plant.attachments, plant.cog,
                              plant.anchors, plant.moment_scale, tolerance, NEWTON_MAX_STEPS, converged, 0.2,
-                             0.2 * plant.moment_scale)
+                             0.2 * plant.moment_scale, minimum_norm=idx.size not in (2, 3))
     state.rotation, state.position, state.mu = rotation[0], position[0], mu[0]
     state.steps += int(steps[0])
     return bool(converged[0])
