@@ -100,11 +100,21 @@ def _finite(effect: Effect, hook: str, value: Any, shape: tuple[int, ...], what:
 
 
 def _check_predicted(predicted: dict[str, np.ndarray], posed: np.ndarray, who: str) -> None:
-    """EffectError where a channel is not predicted as a finite number at a state with a pose."""
-    for name, values in predicted.items():
-        bad = posed & ~np.isfinite(values)
-        if bad.any():
-            raise EffectError(f"{who} gave {name} = {values[int(np.argmax(bad))]} at a solved state")
+    """EffectError where a channel is not predicted as one finite number per state with a pose. The channels
+    are checked as one array: the estimator predicts a few states at a time, and a dozen channels checked
+    one by one were half the time of a prediction."""
+    names = list(predicted)
+    if not names:
+        return
+    try:
+        table = np.array([predicted[name] for name in names], dtype=float).reshape(len(names), len(posed))
+    except ValueError:
+        shapes = ", ".join(f"{name} {np.shape(predicted[name])}" for name in names)
+        raise EffectError(f"{who} gave other than one value per state ({len(posed)}): {shapes}") from None
+    bad = ~np.isfinite(table) & posed
+    if bad.any():
+        channel, state = np.argwhere(bad)[0]
+        raise EffectError(f"{who} gave {names[channel]} = {table[channel, state]} at a solved state")
 
 
 def _check_effect_bounds(plant: Plant) -> None:

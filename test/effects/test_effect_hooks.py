@@ -55,11 +55,20 @@ class NanMeasure(Effect):
 
     def measure(self, channels, solution, plant, conditions):
         channels["tension_cable_1"] = float("nan")
+
+
+class ShapelessMeasure(Effect):
+    name, acts, parameters = "shapeless_measure", "measurement", K
+
+    def measure_states(self, channels, states, plant, conditions):
+        channels["tension_cable_2"] = channels["tension_cable_2"][:1]
 '''
 REASONS = {"raising_load": "effect 'raising_load': its load hook raised RuntimeError: the hook broke",
            "nan_load": "effect 'nan_load': its load hook gave a wrench that is not 6 finite numbers: [nan, nan",
            "raising_lengths": "effect 'raising_lengths': its lengths hook raised KeyError: 'temperature'"}
-PREDICTION = "effect 'nan_measure': its measure hook gave tension_cable_1 = nan at a solved state"
+PREDICTION = {"nan_measure": "effect 'nan_measure': its measure hook gave tension_cable_1 = nan at a solved state",
+              "shapeless_measure": "effect 'shapeless_measure': its measure hook gave other than one value per "
+                                   "state"}
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +77,7 @@ def plants(tmp_path_factory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("hooks")
     (folder / "hooks.py").write_text(HOOKS)
     out = {}
-    for name in [*REASONS, "early_failure", "nan_measure"]:
+    for name in [*REASONS, "early_failure", *PREDICTION]:
         config = yaml.safe_load(default_plant_file().read_text())
         config["plant"]["effect_modules"] = ["hooks.py"]
         config["plant"]["effects"] = {name: {"k": 0.1}}
@@ -103,11 +112,12 @@ def test_a_hook_failing_on_some_samples_costs_those_only(plants):
         "ValueError: no reading yet" in line
 
 
-def test_a_prediction_that_is_not_a_number_stops_the_command_with_one_line(plants, tmp_path):
+@pytest.mark.parametrize("effect", PREDICTION)
+def test_a_prediction_that_is_not_a_number_a_state_stops_the_command_with_one_line(plants, tmp_path, effect):
     for args in (("replay", demo_bag(), "--out", tmp_path / "out", "--quiet"), ("compare", demo_bag())):
-        result = run_cli(*args, "--config", plants["nan_measure"])
+        result = run_cli(*args, "--config", plants[effect])
         assert_clean(result, 2)
-        assert result.stderr.count("\n") == 1 and PREDICTION in result.stderr, result.stderr
+        assert result.stderr.count("\n") == 1 and PREDICTION[effect] in result.stderr, result.stderr
     assert not (tmp_path / "out").exists(), "a replay stopped by an error leaves no bag"
 
 
