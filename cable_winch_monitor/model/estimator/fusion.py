@@ -38,6 +38,7 @@ STEP_TOL = 1e-6           # last step [m per 100 m of rope, rad, |f|] at converg
 COST_TOL = 1e-4           # change of the cost [sigma^2, per 1 + cost] between iterates at which it has stopped falling
 MAX_TURN_STEP = 0.2       # [rad] largest rotation of one step
 MAX_SHIFT_STEP = 0.2      # largest translation of one step, in units of the plant's size
+_NO_JACOBIAN = np.empty((0, 0, 0))  # what `_whiten` hands the compiled weighing when it weighs the residuals alone
 
 
 @dataclass(frozen=True)
@@ -131,9 +132,9 @@ class Problem:
 
     @cached_property
     def length_white(self) -> np.ndarray:
-        """(N, 4, 4) whitening of the length corrections' deviation from the prior (needs a prior)."""
+        """(N, 4, 4) whitening of the length corrections' deviation from the prior (needs a prior), contiguous."""
         assert self.prior is not None  # asked only of a problem weighed by a prior
-        return whitening(self.prior.length_covariance)[0]
+        return np.ascontiguousarray(whitening(self.prior.length_covariance)[0])
 
     @cached_property
     def pin_observations(self) -> np.ndarray:
@@ -145,11 +146,12 @@ class Problem:
     def pin_prior(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The ropes with a load pin, and each sample's whitening (N, k, k) of those pins' errors, their
         marginal sigmas (N, k) [N] and expected errors (N, k) [N], each pin not measured at a sample left
-        out of the others' (needs a prior)."""
+        out of the others' (needs a prior); the whitening and the errors contiguous, as `_whiten` passes them."""
         assert self.prior is not None  # asked only of a problem weighed by a prior
         ropes = np.flatnonzero(self.pin_observations >= 0)
         white, sigma = whitening(self.prior.pin_covariance, self._pins_measured)
-        return ropes, white[:, ropes][:, :, ropes], sigma[:, ropes], self.prior.pins[:, ropes]
+        return ropes, np.ascontiguousarray(white[:, ropes][:, :, ropes]), sigma[:, ropes], \
+            np.ascontiguousarray(self.prior.pins[:, ropes])
 
     @cached_property
     def pin_deviation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -165,10 +167,10 @@ class Problem:
     @cached_property
     def pin_columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For the ropes with a load pin (as `pin_prior`): their pins' columns among the residuals (k,), the
-        pins' sigmas (k,) [N], and which pins each sample measured (N, k)."""
+        pins' sigmas (k,) [N], and which pins each sample measured (N, k), contiguous."""
         ropes = np.flatnonzero(self.pin_observations >= 0)
         pins = self.pin_observations[ropes]
-        return 4 + pins, self.sigmas[pins], np.isfinite(self.values[:, pins])
+        return 4 + pins, self.sigmas[pins], np.ascontiguousarray(np.isfinite(self.values[:, pins]))
 
     @cached_property
     def _pins_measured(self) -> np.ndarray:
@@ -306,9 +308,8 @@ def _whiten(problem: Problem, sample: np.ndarray, residual: np.ndarray, jacobian
     covariance. The residuals come in as the lengths' deviations [m] and the pins' (predicted - measured) / sigma."""
     _, white, _, expected = problem.pin_prior
     pins, scale, measured = problem.pin_columns
-    compiled.whiten_rows(sample, residual, np.empty((0, 0, 0)) if jacobian is None else jacobian, jacobian is not None,
-                         np.ascontiguousarray(problem.length_white), np.ascontiguousarray(white), pins, scale,
-                         np.ascontiguousarray(measured).view(np.uint8), np.ascontiguousarray(expected))
+    compiled.whiten_rows(sample, residual, _NO_JACOBIAN if jacobian is None else jacobian, jacobian is not None,
+                         problem.length_white, white, pins, scale, measured.view(np.uint8), expected)
 
 
 def _kkt(jacobian: np.ndarray, residual: np.ndarray, balance: np.ndarray, slack: np.ndarray,
