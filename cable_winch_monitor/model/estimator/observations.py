@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -75,9 +75,10 @@ class States:
         return States(self.plant, np.tile(self.rotation, (times, 1, 1)), np.tile(self.position, (times, 1)),
                       np.tile(self.tensions, (times, 1)), sample, anchors=anchors)
 
-    def moved(self, step: np.ndarray) -> States:
-        """The states moved by `step` (n, 10) in the state coordinates."""
-        rotation = rotations_from_vectors(step[:, 3:6]) @ self.rotation
+    def moved(self, step: np.ndarray, turns: np.ndarray | None = None) -> States:
+        """The states moved by `step` (n, 10) in the state coordinates (`turns`: the rotations of its
+        rotation vectors, where the caller has them already)."""
+        rotation = (rotations_from_vectors(step[:, 3:6]) if turns is None else turns) @ self.rotation
         return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10], self.sample,
                       anchors=self.anchors)
 
@@ -133,13 +134,24 @@ def forward_differences(function: Callable[[States], np.ndarray], states: States
     displaced copies in one call (the steps are small enough that the one-sided error, of the order of
     the step, is far below the sensors' noise)."""
     n, copies = len(states), STATE_SIZE + 1
-    steps = np.zeros((copies, n, STATE_SIZE))
-    for k, h in enumerate(FD_STEPS):
-        steps[k + 1, :, k] = h
-    values = np.asarray(function(states.repeated(copies).moved(steps.reshape(-1, STATE_SIZE))), dtype=float)
+    values = np.asarray(function(states.repeated(copies).moved(*_displacements(n))), dtype=float)
     values = values.reshape((copies, n) + values.shape[1:])
     slopes = (values[1:] - values[0]) / FD_STEPS.reshape((STATE_SIZE,) + (1,) * (values.ndim - 1))
     return np.moveaxis(slopes, 0, -1)
+
+
+@lru_cache(maxsize=64)
+def _displacements(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The forward differences' steps of n states ((11 n, 10): none, then each coordinate's in turn, in
+    blocks of n) and the rotations of their rotation vectors, made once for each n (read-only): the
+    estimator differentiates a few states at a time, many times a sample."""
+    steps = np.zeros((STATE_SIZE + 1, n, STATE_SIZE))
+    for k, h in enumerate(FD_STEPS):
+        steps[k + 1, :, k] = h
+    steps = steps.reshape(-1, STATE_SIZE)
+    turns = rotations_from_vectors(steps[:, 3:6])
+    steps.flags.writeable = turns.flags.writeable = False
+    return steps, turns
 
 
 def _unit_gradient(n: int, column: int) -> np.ndarray:
