@@ -145,10 +145,10 @@ def _displacements(n: int) -> tuple[np.ndarray, np.ndarray]:
     """The forward differences' steps of n states ((11 n, 10): none, then each coordinate's in turn, in
     blocks of n) and the rotations of their rotation vectors, made once for each n (read-only): the
     estimator differentiates a few states at a time, many times a sample."""
-    steps = np.zeros((STATE_SIZE + 1, n, STATE_SIZE))
+    blocks = np.zeros((STATE_SIZE + 1, n, STATE_SIZE))
     for k, h in enumerate(FD_STEPS):
-        steps[k + 1, :, k] = h
-    steps = steps.reshape(-1, STATE_SIZE)
+        blocks[k + 1, :, k] = h
+    steps = blocks.reshape(-1, STATE_SIZE)
     turns = rotations_from_vectors(steps[:, 3:6])
     steps.flags.writeable = turns.flags.writeable = False
     return steps, turns
