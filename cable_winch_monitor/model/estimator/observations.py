@@ -75,10 +75,10 @@ class States:
         return States(self.plant, np.tile(self.rotation, (times, 1, 1)), np.tile(self.position, (times, 1)),
                       np.tile(self.tensions, (times, 1)), sample, anchors=anchors)
 
-    def moved(self, step: np.ndarray, turns: np.ndarray | None = None) -> States:
-        """The states moved by `step` (n, 10) in the state coordinates (`turns`: the rotations of its
-        rotation vectors, where the caller has them already)."""
-        rotation = (rotations_from_vectors(step[:, 3:6]) if turns is None else turns) @ self.rotation
+    def moved(self, step: np.ndarray, turns: np.ndarray) -> States:
+        """The states moved by `step` (n, 10) in the state coordinates; `turns` (n, 3, 3) are the rotations
+        of its rotation vectors, which the caller makes once (`_displacements`)."""
+        rotation = turns @ self.rotation
         return States(self.plant, rotation, self.position + step[:, 0:3], self.tensions + step[:, 6:10], self.sample,
                       anchors=self.anchors)
 

@@ -102,7 +102,7 @@ cdef int least_squares_in_place(double (*a)[MAX_SIZE], double *b, int size) noex
     for i in range(size):
         solution[i] = 0.0
     for p in range(size):
-        if norms[p] <= 1e-13 * largest or norms[p] == 0.0:
+        if norms[p] <= 1e-13 * largest:  # zero too, where every column is
             continue
         projection = 0.0
         for i in range(size):
