@@ -9,6 +9,9 @@ declaration, made in a user's effect module:
     declare(Channel("cage_load", "N", "cage_load", ("/cage/load",), "std_msgs/msg/Float64", "data",
                     predict=lambda solution, plant, conditions: ...))
 
+A channel may give the derivative of its stacked prediction (`gradient_states`); the
+estimator differentiates the others numerically.
+
 Its noise comes from the plant file's `noise:` section under the channel's noise key.
 Extra inputs (`Input`) are topics an effect reads besides the channels: a shaft
 temperature, a motor current; their values reach the effect in `Conditions.inputs`.
@@ -25,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from .model.conditions import Conditions
-from .model.estimator.observations import States, pitch_of, roll_of
+from .model.estimator.observations import STATE_SIZE, States, pitch_gradient, pitch_of, roll_gradient, roll_of, unit_gradient
 from .model.plantfile.plant import CABLE_NAMES, Plant
 from .model.statics.geometry import roll_pitch_of_quaternion, roll_pitch_yaw
 from .model.statics.result import Solution
@@ -35,6 +38,7 @@ WINCH_TOPICS = ("/winch/joint_states", *(f"/winch_{i}/joint_states" for i in ran
 LENGTH_NOISE = "length"  # the noise key of the encoders: the lengths are measurements too (effects.estimate)
 Prediction = Callable[[Solution, Plant, Conditions], float]
 StatesPrediction = Callable[[States], np.ndarray]
+StatesGradient = Callable[[States], np.ndarray]  # (n, 10): d prediction / d (position, rotation vector, tensions)
 NAN = float("nan")
 
 
@@ -89,7 +93,9 @@ class Channel:
     """One measured number: its name, unit, noise key in the plant file, the topics and message type
     it is read from, the field (in words), how to read it from a message (None: the winch merger
     reads it, aligned with the cable lengths) and how the model predicts it: for one solved state, and
-    optionally for stacked states at once (`predict_states`; without it each state is predicted alone)."""
+    optionally for stacked states at once (`predict_states`; without it each state is predicted alone)
+    with its derivative in the state coordinates (`gradient_states`, observations.Observation's;
+    without it the estimator takes forward differences of the model's predictions)."""
 
     name: str
     unit: str
@@ -100,6 +106,7 @@ class Channel:
     predict: Prediction
     read: Callable[[Any], float] | None = None
     predict_states: StatesPrediction | None = None
+    gradient_states: StatesGradient | None = None
 
     def __post_init__(self) -> None:
         if self.read is None and self.msgtype != JOINT_STATE:
@@ -143,25 +150,30 @@ def _attitude(which: int) -> Prediction:
     return predict
 
 
-def _tension_states(cable: int) -> Callable[[Any], np.ndarray]:
+def _tension_states(cable: int) -> StatesPrediction:
     return lambda states: states.tensions[:, cable]
 
 
-def _position_states(axis: int) -> Callable[[Any], np.ndarray]:
+def _position_states(axis: int) -> StatesPrediction:
     return lambda states: states.position[:, axis]
+
+
+def _coordinate_gradient(column: int) -> StatesGradient:
+    """The derivative of a channel that is state coordinate `column` itself."""
+    return lambda states: unit_gradient(len(states), column)
 
 
 TENSION_CHANNELS = tuple(f"tension_{name}" for name in CABLE_NAMES)  # the load pins, one per cable
 BUILTIN = (
     *(Channel(name, "N", "tension", WINCH_TOPICS, JOINT_STATE, f"effort[{cable}]", _tension(i),
-              predict_states=_tension_states(i))
+              predict_states=_tension_states(i), gradient_states=_coordinate_gradient(6 + i))
       for i, (name, cable) in enumerate(zip(TENSION_CHANNELS, CABLE_NAMES))),
     Channel("roll", "rad", "roll", ("/platform/imu",), IMU, "orientation (roll)",
-            _attitude(0), _roll_pitch(0), roll_of),
+            _attitude(0), _roll_pitch(0), roll_of, roll_gradient),
     Channel("pitch", "rad", "pitch", ("/platform/imu",), IMU, "orientation (pitch)",
-            _attitude(1), _roll_pitch(1), pitch_of),
+            _attitude(1), _roll_pitch(1), pitch_of, pitch_gradient),
     *(Channel(name, "m", name, ("/platform/position",), POINT, f"point.{axis}", _position(k),
-              predict_states=_position_states(k))
+              predict_states=_position_states(k), gradient_states=_coordinate_gradient(k))
       for k, (name, axis) in enumerate(zip(("x", "y", "depth"), "xyz"))),
 )
 
@@ -256,4 +268,20 @@ def predicted_states(states: States, conditions: Iterable[Conditions]) -> dict[s
             out[name] = np.array(channel.predict_states(states), dtype=float)
         else:
             out[name] = np.array([channel.predict(s, states.plant, at) for s, at in zip(solutions, conditions)], float)
+    return out
+
+
+def differentiable() -> bool:
+    """Every channel gives the derivative of its stacked prediction (`gradient_states`)."""
+    return all(c.gradient_states is not None for c in REGISTRY.channels.values())
+
+
+def gradients_states(states: States) -> dict[str, np.ndarray] | None:
+    """The derivative (n, 10) of every channel's `predicted_states`, one array per channel; None where a
+    channel declares none."""
+    out = {}
+    for name, channel in REGISTRY.channels.items():
+        if channel.gradient_states is None:
+            return None
+        out[name] = np.asarray(channel.gradient_states(states), dtype=float).reshape(len(states), STATE_SIZE)
     return out

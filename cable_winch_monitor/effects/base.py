@@ -14,7 +14,8 @@ An effect acts on one part of the model (`acts`):
   forms: `measure` for one solved state (the simple one to write), `measure_states`
   for stacked states at once (what the estimator and the analysis call, hundreds of
   states per call); the built-in effects write the stacked form, a user's effect may
-  write either.
+  write either. `measure_gradients`, optional, gives the stacked hook's derivative: the
+  estimator then needs no forward differences of the model's predictions.
 
 Parameters scale with the plant: a default, bounds or fit step may be a function of the
 plant (`relative`: of its weight m g, its anchors' span, its attachments' reach), so one
@@ -243,6 +244,14 @@ class Effect:
             self.measure(row, solution, plant, conditions[k])
             for name, value in row.items():
                 channels[name][k] = value
+
+    def measure_gradients(self, gradients: dict[str, np.ndarray], channels: dict[str, np.ndarray], states: States,
+                          plant: Plant, conditions: StackedConditions) -> None:
+        """measurement, stacked states: the derivative of `measure_states`. Given the readings before this
+        effect (`channels`), replace the derivative (n, 10) in `gradients` -- by position [m], rotation
+        vector [rad] (applied on the left), tensions [N] -- of every reading it changes (chain rule).
+        Optional: where an acting measurement effect does not write it, the estimator differentiates the
+        model's predictions numerically (a few times slower)."""
 
     def implausible(self, plant: Plant) -> list[str]:
         """Why the values are physically implausible for this plant, each "name.parameter: reason" (empty: none)."""

@@ -35,6 +35,10 @@ class InclinometerOffset(Effect):
         for name in INCLINOMETER_CHANNELS:
             channels[name] = channels[name] + self[name]
 
+    def measure_gradients(self, gradients: dict[str, np.ndarray], channels: dict[str, np.ndarray], states: States,
+                          plant: Plant, conditions: StackedConditions) -> None:
+        """A constant offset: the derivatives stay as they are."""
+
 
 class LoadPinCalibration(Effect):
     """Each load pin (load cell) has a zero error and a gain error: reading_i = (1 + gain_i) T_i + zero_i.
@@ -60,3 +64,8 @@ class LoadPinCalibration(Effect):
                        conditions: StackedConditions) -> None:
         for i, name in enumerate(TENSION_CHANNELS, 1):
             channels[name] = (1.0 + self[f"gain_{i}"]) * channels[name] + self[f"zero_{i}"]
+
+    def measure_gradients(self, gradients: dict[str, np.ndarray], channels: dict[str, np.ndarray], states: States,
+                          plant: Plant, conditions: StackedConditions) -> None:
+        for i, name in enumerate(TENSION_CHANNELS, 1):
+            gradients[name] = (1.0 + self[f"gain_{i}"]) * gradients[name]

@@ -7,8 +7,9 @@ A channel is fused where it was measured (finite) and has a finite noise. Withou
 measurement effects the built-in channels are read off the state directly (load pins,
 depth, x, y) or by their analytic prediction (roll, pitch); a user's channel, or any
 channel when measurement effects act (a load pin reading the rope's weight too), is
-predicted by `PlantModel.predict_states` for all candidate states at once, differentiated
-numerically (`ModelledChannels`).
+predicted by `PlantModel.predict_states` for all candidate states at once, differentiated by
+the chain rule where every channel and measurement effect gives its derivative
+(`PlantModel.predict_gradients`), else numerically (`ModelledChannels`).
 Where the geometry depends on the pose (pulleys, head-sheave tangent points), the samples
 are estimated with each sample's anchors and free lengths from the last estimate's pose,
 again until the pose settles (`PlantModel.refine`, the fixed point the per-sample solve
@@ -55,12 +56,15 @@ class ModelledChannels:
     def __init__(self, model: PlantModel, conditions: Sequence[Conditions]):
         self.model = model
         self.conditions = StackedConditions.of(conditions)
+        self.differentiated = model.differentiated
         self._values: tuple[States, dict[str, np.ndarray]] | None = None
         self._jacobians: tuple[States, dict[str, np.ndarray]] | None = None
 
+    def _conditions(self, states: States) -> StackedConditions:
+        return self.conditions.take(states.sample if states.sample is not None else np.zeros(len(states), int))
+
     def _predict(self, states: States) -> dict[str, np.ndarray]:
-        samples = states.sample if states.sample is not None else np.zeros(len(states), int)
-        return self.model.predict_states(states, self.conditions.take(samples))
+        return self.model.predict_states(states, self._conditions(states))
 
     def values(self, states: States) -> dict[str, np.ndarray]:
         if self._values is None or self._values[0] is not states:
@@ -68,11 +72,18 @@ class ModelledChannels:
         return self._values[1]
 
     def jacobians(self, states: States) -> dict[str, np.ndarray]:
-        """(n, 10) derivative of every channel, from one prediction of all displaced states."""
+        """(n, 10) derivative of every channel: the model's own where every channel and measurement effect
+        gives one (the values predicted again with them), else from one prediction of all displaced
+        states (forward differences)."""
         if self._jacobians is None or self._jacobians[0] is not states:
-            names = tuple(self.values(states))
-            table = forward_differences(lambda moved: np.stack(list(self._predict(moved).values()), axis=1), states)
-            self._jacobians = (states, {name: table[:, k] for k, name in enumerate(names)})
+            exact = self.model.predict_gradients(states, self._conditions(states)) if self.differentiated else None
+            if exact is not None:
+                self._values, self._jacobians = (states, exact[0]), (states, exact[1])
+            else:
+                names = tuple(self.values(states))
+                table = forward_differences(lambda moved: np.stack(list(self._predict(moved).values()), axis=1),
+                                            states)
+                self._jacobians = (states, {name: table[:, k] for k, name in enumerate(names)})
         return self._jacobians[1]
 
     def observation(self, name: str, value: float | np.ndarray, sigma: float) -> Observation:

@@ -27,6 +27,7 @@ from .. import channels
 from ..channels import Input
 from ..model.conditions import Conditions, StackedConditions
 from ..model.estimator import States
+from ..model.estimator.observations import STATE_SIZE
 from ..model.plantfile.plant import Plant, PlantConfigError
 from ..model.solvers.batched import BatchSolution, solve_batch
 from ..model.solvers.batched_elastic import solve_batch_elastic
@@ -418,16 +419,62 @@ class PlantModel:
 
     def predict_states(self, states: States, conditions: StackedConditions) -> dict[str, np.ndarray]:
         """`predict` for stacked states (row k of `conditions` is state k's): arrays (n,) by channel."""
+        return self._predicted(states, conditions, None)
+
+    @property
+    def differentiated(self) -> bool:
+        """Every channel and every measurement effect gives its derivative (`predict_gradients` can answer)."""
+        return self._measure_differentiated and channels.differentiable()
+
+    @cached_property
+    def _measure_differentiated(self) -> bool:
+        return all(overrides(type(e), "measure_gradients") for e in self._measurers)
+
+    def predict_gradients(self, states: States, conditions: StackedConditions
+                          ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]] | None:
+        """`predict_states` and each channel's derivative (n, 10) in the state coordinates, by the chain rule
+        through the measurement effects; None where a channel or an effect gives no derivative (the
+        estimator then takes forward differences)."""
+        if not self._measure_differentiated:
+            return None
+        try:
+            gradients = channels.gradients_states(states)
+        except Exception as error:
+            raise EffectError(f"a channel's gradient raised {type(error).__name__}: {error}") from None
+        if gradients is None:
+            return None
+        predicted = self._predicted(states, conditions, gradients)
+        shape = (len(states), STATE_SIZE)
+        for name, gradient in gradients.items():
+            if np.shape(gradient) != shape:
+                raise EffectError(f"the derivative of channel '{name}' has shape {np.shape(gradient)}, not {shape}: "
+                                  "a measure_gradients hook gave another")
+        return predicted, gradients
+
+    def _predicted(self, states: States, conditions: StackedConditions,
+                   gradients: dict[str, np.ndarray] | None, checked: bool = False) -> dict[str, np.ndarray]:
+        """The channels predicted for `states`, their derivatives `gradients` (None: not asked) carried
+        through each measurement effect in place. The readings are checked once, at the end (the
+        estimator predicts a few states at a time, many times a sample); where they fail, the prediction
+        is made again, `checked` after each step, to name the step that gave them."""
         try:
             predicted = channels.predicted_states(states, conditions)
         except Exception as error:
             raise EffectError(f"a channel's prediction raised {type(error).__name__}: {error}") from None
-        posed = np.isfinite(states.position).all(axis=1) & np.isfinite(states.rotation).all(axis=(1, 2)) \
-            & np.isfinite(states.tensions).all(axis=1)
-        _check_predicted(predicted, posed, "a channel's prediction")
+        if checked:
+            _check_predicted(predicted, states.finite, "a channel's prediction")
         for effect in self._measurers:
+            if gradients is not None:  # at the readings before the effect, which its hook then changes
+                _call(effect, "measure_gradients", gradients, predicted, states, self.physical, conditions)
             _call(effect, "measure_states", predicted, states, self.physical, conditions)
-            _check_predicted(predicted, posed, f"effect '{effect.name}': its measure hook")
+            if checked:
+                _check_predicted(predicted, states.finite, f"effect '{effect.name}': its measure hook")
+        if not checked:
+            try:
+                _check_predicted(predicted, states.finite, "a channel's prediction or a measure hook")
+            except EffectError:
+                self._predicted(states, conditions, None, checked=True)
+                raise
         return predicted
 
     def effects_config(self) -> dict[str, dict[str, Any]]:

@@ -67,3 +67,13 @@ class RopeWeight(Effect):
         drop = np.maximum(plant.anchors[:, 2] - states.points_b[:, :, 2], 0.0)
         for i, name in enumerate(CABLE_NAMES):
             channels[f"tension_{name}"] = channels[f"tension_{name}"] + self["w"] * drop[:, i]
+
+    def measure_gradients(self, gradients: dict[str, np.ndarray], channels: dict[str, np.ndarray], states: States,
+                          plant: Plant, conditions: StackedConditions) -> None:
+        # the drop falls as B_i rises: dB_z = dz + (w x R a_i)_z = dz + w_x (R a_i)_y - w_y (R a_i)_x
+        hanging = (plant.anchors[:, 2] > states.points_b[:, :, 2]) * self["w"]
+        arms = states.points_b - states.position[:, None, :]
+        change = np.zeros(hanging.shape + (10,))
+        change[..., 2], change[..., 3], change[..., 4] = -hanging, -hanging * arms[..., 1], hanging * arms[..., 0]
+        for i, name in enumerate(CABLE_NAMES):
+            gradients[f"tension_{name}"] = gradients[f"tension_{name}"] + change[:, i]

@@ -25,6 +25,18 @@ def bending_reading(tension: np.ndarray, rigidity: float, span: float) -> np.nda
     return np.where(tension > 0.0, tension / (1.0 - x), tension)
 
 
+def bending_slope(tension: np.ndarray, rigidity: float, span: float) -> np.ndarray:
+    """d bending_reading / d T: with x = 3 sqrt(B/T) / l (dx/dT = -x / 2T), 1/(1 - x) - x / (2 (1 - x)^2);
+    1/(1 - MAX_BENDING) where the reading is capped, also at T = 0 (the slope into taut: a tension is
+    never negative), 1 below."""
+    tension = np.asarray(tension, dtype=float)
+    root = np.sqrt(np.maximum(tension, 0.0))
+    raw = np.divide(3.0 * np.sqrt(rigidity), span * root, out=np.full_like(tension, np.inf), where=root > 0.0)
+    x = np.minimum(raw, MAX_BENDING)
+    slope = np.where(raw < MAX_BENDING, 1.0 / (1.0 - x) - x / (2.0 * (1.0 - x) ** 2), 1.0 / (1.0 - x))
+    return np.where(tension >= 0.0, slope, 1.0)
+
+
 class TensionSensorBending(Effect):
     """The load pins are three-point-bending sensors evaluated with T = P l / 4 delta (seed 001).
 
@@ -49,3 +61,8 @@ class TensionSensorBending(Effect):
                        conditions: StackedConditions) -> None:
         for name in TENSION_CHANNELS:
             channels[name] = bending_reading(channels[name], self["B"], self["span"])
+
+    def measure_gradients(self, gradients: dict[str, np.ndarray], channels: dict[str, np.ndarray], states: States,
+                          plant: Plant, conditions: StackedConditions) -> None:
+        for name in TENSION_CHANNELS:
+            gradients[name] = bending_slope(channels[name], self["B"], self["span"])[:, None] * gradients[name]

@@ -82,6 +82,12 @@ class SheaveFriction(Effect):
         for i, name in enumerate(CABLE_NAMES):
             channels[f"tension_{name}"] = channels[f"tension_{name}"] * factors[:, i]
 
+    def measure_gradients(self, gradients: dict[str, np.ndarray], channels: dict[str, np.ndarray], states: States,
+                          plant: Plant, conditions: StackedConditions) -> None:
+        factors = np.exp(-conditions.direction * self["mu"] * self["wrap"])
+        for i, name in enumerate(CABLE_NAMES):
+            gradients[f"tension_{name}"] = gradients[f"tension_{name}"] * factors[:, i, None]
+
     def warnings(self, conditions: list[Conditions]) -> list[str]:
         directions = np.array([c.direction for c in conditions]) if conditions else np.zeros((0, 4))
         share_out, share_in = np.mean(directions > 0) if directions.size else 0.0, \

@@ -51,6 +51,12 @@ class States:
         return len(self.position)
 
     @cached_property
+    def finite(self) -> np.ndarray:
+        """(n,) the states whose pose and tensions are all numbers (the others predict nothing)."""
+        return np.isfinite(self.position).all(axis=1) & np.isfinite(self.rotation).all(axis=(1, 2)) \
+            & np.isfinite(self.tensions).all(axis=1)
+
+    @cached_property
     def points_b(self) -> np.ndarray:
         """Attachment points B_i in `shaft`, (n, 4, 3)."""
         return self.position[:, None, :] + np.einsum("nij,cj->nci", self.rotation, self.plant.attachments)
@@ -154,7 +160,8 @@ def _displacements(n: int) -> tuple[np.ndarray, np.ndarray]:
     return steps, turns
 
 
-def _unit_gradient(n: int, column: int) -> np.ndarray:
+def unit_gradient(n: int, column: int) -> np.ndarray:
+    """(n, 10): the derivative of one of the state coordinates themselves (a load pin, the depth)."""
     out = np.zeros((n, STATE_SIZE))
     out[:, column] = 1.0
     return out
@@ -163,13 +170,13 @@ def _unit_gradient(n: int, column: int) -> np.ndarray:
 def load_pin(cable: int, value: float | np.ndarray, sigma: float) -> Observation:
     """Load pin of cable `cable` (0-based): reads the rope tension tau_i [N]."""
     return Observation(f"tension_{CABLE_NAMES[cable]}", value, sigma, lambda s: s.tensions[:, cable],
-                       lambda s: _unit_gradient(len(s), 6 + cable), coordinate=6 + cable)
+                       lambda s: unit_gradient(len(s), 6 + cable), coordinate=6 + cable)
 
 
 def position_component(axis: int, value: float | np.ndarray, sigma: float) -> Observation:
     """Depth gauge (axis 2, named 'depth') or a horizontal position sensor (0: 'x', 1: 'y') [m]."""
     return Observation(("x", "y", "depth")[axis], value, sigma, lambda s: s.position[:, axis],
-                       lambda s: _unit_gradient(len(s), axis), coordinate=axis)
+                       lambda s: unit_gradient(len(s), axis), coordinate=axis)
 
 
 def roll_of(states: States) -> np.ndarray:
@@ -178,7 +185,7 @@ def roll_of(states: States) -> np.ndarray:
     return np.arctan2(r[:, 2, 1], r[:, 2, 2])
 
 
-def _roll_gradient(states: States) -> np.ndarray:
+def roll_gradient(states: States) -> np.ndarray:
     """d roll / d omega: with dR = [w]x R, d r_2j = w_0 r_1j - w_1 r_0j."""
     r = states.rotation
     r21, r22 = r[:, 2, 1], r[:, 2, 2]
@@ -195,7 +202,8 @@ def pitch_of(states: States) -> np.ndarray:
     return np.arcsin(np.clip(-states.rotation[:, 2, 0], -1.0, 1.0))
 
 
-def _pitch_gradient(states: States) -> np.ndarray:
+def pitch_gradient(states: States) -> np.ndarray:
+    """d pitch / d omega: pitch = asin(-r_20), with dR = [w]x R, d r_20 = w_0 r_10 - w_1 r_00."""
     r = states.rotation
     scale = -1.0 / np.sqrt(np.maximum(1.0 - r[:, 2, 0] ** 2, 1e-30))
     out = np.zeros((len(states), STATE_SIZE))
@@ -206,9 +214,9 @@ def _pitch_gradient(states: States) -> np.ndarray:
 
 def roll(value: float | np.ndarray, sigma: float) -> Observation:
     """Inclinometer roll of `platform` [rad] (REP-103)."""
-    return Observation("roll", value, sigma, roll_of, _roll_gradient)
+    return Observation("roll", value, sigma, roll_of, roll_gradient)
 
 
 def pitch(value: float | np.ndarray, sigma: float) -> Observation:
     """Inclinometer pitch of `platform` [rad] (REP-103)."""
-    return Observation("pitch", value, sigma, pitch_of, _pitch_gradient)
+    return Observation("pitch", value, sigma, pitch_of, pitch_gradient)
