@@ -8,6 +8,7 @@ import numpy as np
 
 from ..model.paper.plumb_hang import PlumbHang
 from ..model.plantfile.plant import Plant
+from ..model.solvers.batched import BatchSolution
 from ..model.statics.result import Solution
 
 SWING_SAMPLES_PER_RAD = 60
@@ -61,6 +62,19 @@ def solution_clearances(plant: Plant, solutions: Sequence[Solution]) -> list[Cle
                                     np.array([solutions[i].position for i in posed]))
         for i, clearance in zip(posed, batch):
             out[i] = clearance
+    return out
+
+
+def batch_clearances(plant: Plant, batch: BatchSolution) -> list[Clearance | None]:
+    """`solution_clearances` of a batch's rows, from its arrays (no `Solution` made for a row the batch solved
+    itself; the fallback's rows, a single cable's swing among them, from their own)."""
+    out: list[Clearance | None] = [None] * len(batch)
+    rows = [i for i in np.flatnonzero(batch.ok).tolist() if i not in batch.fallback]
+    if rows:
+        for i, clearance in zip(rows, clearances_at_poses(plant, batch.rotation[rows], batch.position[rows])):
+            out[i] = clearance
+    for i, solution in batch.fallback.items():
+        out[i] = solution_clearance(plant, solution)
     return out
 
 

@@ -36,7 +36,7 @@ from ..model.plantfile.plant import Plant
 from ..model.statics.result import Solution, SolveStatus
 from .alarm import Alarm, AlarmPolicy, AlarmTracker
 from .basis import CORROBORATING_PINS, Basis, judged, tilt_sigmas
-from .clearance import Clearance, solution_clearance, solution_clearances
+from .clearance import Clearance, batch_clearances, solution_clearance, solution_clearances
 from .estimator import Estimated, MonitorEstimator, SampleInput
 from .inputs import (
     CableLengthMerger,
@@ -58,11 +58,10 @@ SILENT = 2.0  # a sensor heard before is silent when its last reading is this ma
 
 @dataclass(frozen=True)
 class ModelView:
-    """What the model says of a sample beside the estimate: its own prediction from the reported lengths
-    and its expected error, and that error per rope."""
+    """What the model says of a sample beside the estimate: the clearance of its own equilibrium for the
+    reported lengths, its expected error, and that error per rope."""
 
-    prediction: Solution
-    clearance: Clearance | None
+    clearance: Clearance | None   # of the model's own equilibrium for the reported lengths
     length_error: np.ndarray      # (4,) model minus reported rope length [m]
     length_sigma: np.ndarray      # (4,) its 1-sigma [m]
     pin_error: np.ndarray         # (4,) load-pin reading minus the model's prediction [N]
@@ -85,7 +84,7 @@ class MonitorOutput:
     alarm: Alarm
     residuals: Residuals | None
     estimate: Estimate | None = None  # the fused estimate the solution is (None: the lengths taken as exact)
-    model: ModelView | None = None    # the model's own prediction and error (None: the lengths taken as exact)
+    model: ModelView | None = None    # the model's own clearance and error (None: the lengths taken as exact)
     basis: Basis | None = None        # what the alarm is based on
 
     @property
@@ -350,10 +349,9 @@ class MonitorPipeline:
     def _estimated(self, estimated: Estimated, samples: Sequence[CompleteSample],
                    conditions: Sequence[Conditions], model: PlantModel) -> list[Solved]:
         """The solved samples of an estimator's run under `model` (the estimator's: the plant file's, with the
-        tracked values in use), with the model's own prediction beside each."""
+        tracked values in use), with the clearance of the model's own equilibrium beside each."""
         estimates = estimated.batch.estimates()
-        predictions = estimated.forward.solutions()
-        model_clearances = solution_clearances(model.physical, predictions)
+        model_clearances = batch_clearances(model.physical, estimated.forward)
         rows = self._solved([e.solution for e in estimates], estimates, conditions, model)
         tilts = tilt_sigmas(model.physical, estimated.prior.length_covariance).tolist()
         due = estimated.parameters_due or [False] * len(rows)
@@ -361,7 +359,7 @@ class MonitorPipeline:
         for k, row in enumerate(rows):
             faults = {**samples[k].faults, **{sensor: "contradicts the other sensors" for sensor in
                                              estimated.left_out + estimated.rejected[k]}}
-            view = ModelView(predictions[k], model_clearances[k], estimated.length_error[k],
+            view = ModelView(model_clearances[k], estimated.length_error[k],
                              estimated.length_sigma[k], estimated.pin_error[k], estimated.pin_sigma[k],
                              tilts[k], estimated.rejected[k],
                              tuple(sorted(set(estimated.left_out) | set(samples[k].faults))), faults,

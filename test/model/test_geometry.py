@@ -1,8 +1,10 @@
 """Pose conversions and the stacked (many-sample) forms of the per-sample geometry."""
 import numpy as np
 import pytest
+from lengths import random_lengths
 
 from cable_winch_monitor.model.plantfile.plant import load_plant
+from cable_winch_monitor.model.solvers.batched import solve_batch
 from cable_winch_monitor.model.statics.geometry import (
     quaternion_from_rotation,
     roll_pitch_of_quaternion,
@@ -13,7 +15,12 @@ from cable_winch_monitor.model.statics.geometry import (
     wrench_residuals,
 )
 from cable_winch_monitor.model.statics.result import solved, solved_rows
-from cable_winch_monitor.monitor.clearance import clearance_at_pose, clearances_at_poses
+from cable_winch_monitor.monitor.clearance import (
+    batch_clearances,
+    clearance_at_pose,
+    clearances_at_poses,
+    solution_clearances,
+)
 
 RNG = np.random.default_rng(7)
 ROTATIONS = [rotation_from_vector(RNG.normal(size=3) * RNG.uniform(0.0, 3.0)) for _ in range(200)]
@@ -96,3 +103,19 @@ def test_clearances_together_equal_clearance_pose_by_pose():
         assert np.allclose(position + rotation @ clearance.point_platform, clearance.point_shaft, atol=1e-12)
         radius = np.hypot(*(clearance.point_shaft[:2] - plant.shaft_centre))
         assert abs(plant.shaft_radius - radius - clearance.value) < 1e-12
+
+
+def test_a_batchs_clearances_from_its_arrays_equal_those_of_its_solutions():
+    """Rows the batch solved together, a single cable's swing (the fallback's), an unsolvable row."""
+    plant = load_plant()
+    lengths = random_lengths(40, seed=9)
+    lengths[5] = [300.0, 304.0, 304.0, 304.0]   # one rope carries the platform alone
+    lengths[11] = np.nan
+    batch = solve_batch(plant, lengths)
+    assert batch.fallback and not batch.ok.all()
+    want = solution_clearances(plant, batch.solutions())
+    for got, expected in zip(batch_clearances(plant, batch), want):
+        assert (got is None) == (expected is None)
+        if got is not None:
+            assert (got.value, got.point_name) == (expected.value, expected.point_name)
+            assert np.array_equal(got.point_shaft, expected.point_shaft)
