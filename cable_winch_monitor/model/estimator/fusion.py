@@ -280,6 +280,8 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     if index.size:
         predicted[:, index] = np.concatenate([position, np.zeros((n, 3)), tensions], axis=1)[:, columns]
     states = States(plant, rotation, position, tensions, sample, anchors=anchors) if functional.size else None
+    # derivatives first: a model that gives its own (effects.estimate) predicts the values with them, once
+    derivatives = [problem.observations[k].jacobian(states) for k in functional.tolist()] if with_jacobian else []
     for k in functional.tolist():
         predicted[:, k] = problem.observations[k].evaluate(states)
     residual[:, 4:] = np.where(measured, predicted - np.where(measured, values, 0.0), 0.0) / problem.sigmas
@@ -291,8 +293,8 @@ def _residuals(problem: Problem, rows: Rows, live: np.ndarray, with_jacobian: bo
     jacobian[:, :4] = lengths_jacobian
     if index.size:
         jacobian[:, 4 + index] = read_jacobian
-    for k in functional.tolist():
-        jacobian[:, 4 + k] = problem.observations[k].jacobian(states) / problem.sigmas[k]
+    for k, derivative in zip(functional.tolist(), derivatives):
+        jacobian[:, 4 + k] = derivative / problem.sigmas[k]
     observed = jacobian[:, 4:]
     observed[:, :, 6:] *= (weight[:, None] * taut)[:, None, :]   # per newton -> per unit of |f|; slack ropes' held
     observed *= measured[..., None]
