@@ -5,8 +5,9 @@ An effect acts on one part of the model (`acts`):
 * ``rope_law`` -- the cable's constitutive law (elastic stretch, own weight): it edits
   the `RopeLaw` the equilibrium solver uses;
 * ``geometry`` -- the mechanism (encoder lengths to true lengths, anchors, centre of
-  gravity, mass): it edits the plant or the lengths before the solve, or, where the
-  geometry depends on the pose (a sheave's tangent point), refines them after it;
+  gravity, mass): it edits the plant or the lengths before the solve (`lengths`, or
+  `lengths_states` for many samples at once), or, where the geometry depends on the pose
+  (a sheave's tangent point), refines them after it;
 * ``load`` -- the external wrench on the platform (gravity by default): inertia when the
   winches accelerate, a side pull;
 * ``measurement`` -- what a sensor reads for a given equilibrium (load-pin friction,
@@ -159,7 +160,12 @@ class Effect:
         self.for_plant = plant
         given_bounds = plant.effect_bounds.get(self.name, {}) if plant is not None else {}
         self.specs: tuple[Resolved, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
-        self.values: dict[str, float] = {}
+        self.values: dict[str, float] = self._checked(values)
+
+    def _checked(self, values: Mapping[str, Any]) -> dict[str, float]:
+        """Every parameter's value: the one given, else its default; EffectError where it is not a number
+        within the resolved bounds."""
+        out = {}
         for p in self.specs:
             try:
                 value = file_number(values.get(p.name, p.default))
@@ -172,7 +178,8 @@ class Effect:
             if not p.bounds[0] <= value <= p.bounds[1]:
                 raise EffectError(f"effect '{self.name}': parameter '{p.name}' = {value:g} {p.unit} is outside "
                                   f"its bounds [{p.bounds[0]:g}, {p.bounds[1]:g}]")
-            self.values[p.name] = value
+            out[p.name] = value
+        return out
 
     def __getitem__(self, name: str) -> float:
         return self.values[name]
@@ -190,8 +197,20 @@ class Effect:
         return tuple(p for p in self.specs if p.fit)
 
     def replaced(self, **values: float) -> Effect:
-        """A copy with some parameter values changed (for the same plant)."""
-        return type(self)({**self.values, **values}, self.for_plant)
+        """A copy with some parameter values changed (for the same plant). Its parameters' numbers for the plant
+        are this one's, not resolved again (parameter tracking replaces values many times a window), unless
+        the class sets itself up in an `__init__` of its own."""
+        values = {**self.values, **values}
+        if type(self).__init__ is not Effect.__init__:
+            return type(self)(values, self.for_plant)
+        unknown = sorted(set(values) - set(self.values))
+        if unknown:
+            raise EffectError(f"effect '{self.name}': unknown parameter '{unknown[0]}' "
+                              f"(known: {', '.join(sorted(self.values)) or 'none'})")
+        out = object.__new__(type(self))
+        out.for_plant, out.specs = self.for_plant, self.specs
+        out.values = out._checked(values)
+        return out
 
     # -- hooks: each returns its input unchanged unless the effect acts there ---------------
     def rope(self, law: RopeLaw) -> RopeLaw:
@@ -205,6 +224,11 @@ class Effect:
     def lengths(self, lengths: np.ndarray, conditions: Conditions) -> np.ndarray:
         """geometry: the true unstretched rope lengths for the lengths the winches report."""
         return lengths
+
+    def lengths_states(self, lengths: np.ndarray, conditions: StackedConditions) -> np.ndarray:
+        """geometry, many samples: the true lengths (N, 4) for the reported ones (N, 4) (conditions[k] is row
+        k's). By default `lengths` on each row; an effect writing it spares the estimator a loop per sample."""
+        return np.array([self.lengths(row, conditions[k]) for k, row in enumerate(lengths)], dtype=float)
 
     def load(self, wrench: np.ndarray, plant: Plant, conditions: Conditions) -> np.ndarray:
         """load: the external wrench on the platform (force [N], moment about C [N m], shaft frame)."""

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.conditions import Conditions
+from ..model.conditions import Conditions, StackedConditions
 from .base import Bounds, Effect, Number, Parameter, relative, relative_bounds, span
 
 
@@ -27,6 +27,13 @@ class EncoderScale(Effect):
     source = "drum kinematics: payout = drum angle * effective radius"
 
     def lengths(self, lengths: np.ndarray, conditions: Conditions) -> np.ndarray:
+        return self._true(lengths)
+
+    def lengths_states(self, lengths: np.ndarray, conditions: StackedConditions) -> np.ndarray:
+        return self._true(lengths)
+
+    def _true(self, lengths: np.ndarray) -> np.ndarray:
+        """The true lengths of one row (4,) or many (N, 4): the same scale for every sample."""
         return lengths * (1.0 + np.array([self[f"k_{i}"] for i in range(1, 5)]))
 
 
@@ -45,4 +52,11 @@ class EncoderOffset(Effect):
     source = "encoder zeroing"
 
     def lengths(self, lengths: np.ndarray, conditions: Conditions) -> np.ndarray:
+        return self._true(lengths)
+
+    def lengths_states(self, lengths: np.ndarray, conditions: StackedConditions) -> np.ndarray:
+        return self._true(lengths)
+
+    def _true(self, lengths: np.ndarray) -> np.ndarray:
+        """The true lengths of one row (4,) or many (N, 4): the same offsets for every sample."""
         return lengths + np.array([self[f"d_{i}"] for i in range(1, 5)])

@@ -388,6 +388,9 @@ class PlantModel:
         hooked: list[int] = []
         if not (self._lengtheners or self._loaders):
             return lengths, loads, hooked
+        stacked = None if self._loaders else self._stacked_lengths(lengths, conditions)
+        if stacked is not None:
+            return stacked, loads, hooked
         for k, at in enumerate(conditions):
             try:
                 lengths[k] = self.true_lengths(lengths[k], at)
@@ -396,6 +399,24 @@ class PlantModel:
                 lengths[k], loads[k] = np.nan, self.physical.wrench
                 hooked.append(k)
         return lengths, loads, hooked
+
+    def _stacked_lengths(self, reported: np.ndarray, conditions: Sequence[Conditions]) -> np.ndarray | None:
+        """The true lengths of all rows at once, where every geometry effect writes `lengths_states` and none
+        fails on a row (a hook raising, or making finite lengths not finite); else None, and the rows are
+        taken one by one, which finds the rows a hook fails on."""
+        if not all(overrides(type(e), "lengths_states") for e in self._lengtheners):
+            return None
+        stacked = StackedConditions.of(conditions)
+        lengths = reported
+        for effect in self._lengtheners:
+            given = lengths
+            try:
+                lengths = np.asarray(effect.lengths_states(given, stacked), dtype=float)
+            except Exception:
+                return None
+            if lengths.shape != given.shape or not np.isfinite(lengths[np.isfinite(given).all(axis=1)]).all():
+                return None
+        return lengths
 
     def predict(self, solution: Solution, conditions: Conditions = NO_CONDITIONS) -> dict[str, float]:
         """What every declared channel reads for a solved state: the plain model, then measurement effects."""

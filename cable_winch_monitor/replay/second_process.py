@@ -30,7 +30,8 @@ from .worker import ForkedWorker, WorkerLost
 def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[list[Encoded], bytes]:
     """The worker's job: a window's samples encoded (without the outputs themselves) and the stages' state
     after them."""
-    return [e._replace(output=None) for e in stages.run(*job)], stages.state()
+    samples, conditions, headers, batched = job
+    return stages.run(samples, conditions, headers, batched, outputs=False), stages.state()
 
 
 class SecondProcess:

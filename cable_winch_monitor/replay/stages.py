@@ -43,8 +43,9 @@ class WindowStages:
         self.second = -math.inf  # the second of stamps whose diagnostics view was sent
 
     def run(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions],
-            headers: Sequence[Stamp], batched: bool = True) -> list[Encoded]:
-        """What replay writes for each sample (header stamps `headers`); solved together where `batched`."""
+            headers: Sequence[Stamp], batched: bool = True, outputs: bool = True) -> list[Encoded]:
+        """What replay writes for each sample (header stamps `headers`); solved together where `batched`; with
+        the outputs themselves where `outputs` (a second process sends back only what replay writes)."""
         monitor = self.monitor
         solved = monitor.solve_samples(samples, conditions) if batched else [None] * len(samples)
         out = []
@@ -57,7 +58,7 @@ class WindowStages:
             view = None
             if second != self.second:
                 self.second, view = second, sample_view(output, monitor.fusing)
-            out.append(Encoded(encoded, outcome, view, output))
+            out.append(Encoded(encoded, outcome, view, output if outputs else None))
         return out
 
     def state(self) -> bytes:
