@@ -227,7 +227,7 @@ class DiagnosticsReporter:
         values: dict[str, object] = {}
         worst_channel, worst = "", 0.0
         for channel, (history, noise) in sorted(self.residuals.items()):
-            rms = float(np.sqrt(np.mean(np.square(history))))
+            rms = float(np.sqrt(np.mean(np.square(np.fromiter(history, float, len(history))))))
             normalised = rms / noise if noise > 0.0 else float("nan")
             values[f"{channel} last"] = f"{history[-1]:.6g}"
             values[f"{channel} rms"] = f"{rms:.6g}"

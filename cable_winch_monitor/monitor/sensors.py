@@ -90,17 +90,19 @@ class LatestReadings:
         self.staleness, self.lag = staleness, lag
         self.values: dict[str, deque[tuple[float, float]]] = {}  # channel -> (stamp, value), recent ones
         self.periods: dict[str, float] = {}  # channel -> the shortest interval between its recent readings [s]
+        self.intervals: dict[str, deque[float]] = {}  # channel -> the intervals between its recent readings [s]
         self.stuck = StuckReadings()
 
     def add(self, stamp: float, values: Mapping[str, float]) -> None:
         for name, value in values.items():
             if math.isfinite(value) and math.isfinite(stamp):
                 history = self.values.setdefault(name, deque(maxlen=HISTORY))
+                if history:
+                    intervals = self.intervals.setdefault(name, deque(maxlen=HISTORY - 1))
+                    intervals.append(stamp - history[-1][0])
+                    self.periods[name] = min(intervals)
                 history.append((stamp, value))
                 self.stuck.add(name, value, stamp)
-                if len(history) > 1:
-                    stamps = [when for when, _ in history]
-                    self.periods[name] = min(b - a for a, b in zip(stamps, stamps[1:]))
 
     def latest(self, stamp: float = math.inf) -> dict[str, float]:
         """Each channel's latest stamp a sample stamped `stamp` may take."""
