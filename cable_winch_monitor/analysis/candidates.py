@@ -6,7 +6,10 @@ from its values in the round before (they move little when one effect is added; 
 effect added took over their part, from the defaults again): enough to rank them, not to
 report their values as estimates. The promising ones -- their training chi-square
 already falls by the BIC margin -- are then fitted to convergence on a larger spread, best
-screened first, until SHORTLIST of them are acceptable or none is left.
+screened first, until SHORTLIST of them are acceptable or none is left, and then those
+screened within SCREEN_MARGIN of the last of them: a screening ranks candidates only to its
+precision, and one with many parameters (eight load-pin zeros and gains) is farther from its
+optimum after two steps than one with a few.
 
 Acceptable: a real gain (Delta BIC below MAX_DELTA_BIC on the training and on the
 held-out rows, the held-out score falling by MIN_GAIN) and a fit that is a finding (no
@@ -29,6 +32,7 @@ as much, its better member is added (the other follows in the next round).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -44,6 +48,7 @@ MAX_DELTA_BIC = -10.0  # "very strong" evidence (Kass and Raftery)
 MIN_GAIN = 0.02        # relative fall of the held-out score an effect must bring to be selected
 QUICK_EVALUATIONS = 3  # a screening fit: the start and two Gauss-Newton steps (one from the last round's values)
 SHORTLIST = 3          # acceptable candidates fitted fully per round before one is picked
+SCREEN_MARGIN = 0.1    # candidates screened within this share of the shortlist's last are fitted fully too
 PARSIMONY = 0.9        # a simpler candidate with this share of the best held-out gain is picked instead
 FINALISTS = 2          # the best acceptable candidates refitted jointly (on the screening's fit rows) before one is picked
 PAIRS = 2              # pairs of smaller candidates refitted jointly against a lead with as many parameters as both
@@ -142,11 +147,12 @@ def screen(round_: Round, names: list[str], before: list[Candidate], budget: Bud
 
 
 def settle(round_: Round, trials: list[Candidate], budget: Budget, bar: Progress) -> list[Candidate]:
-    """Fit the promising screened candidates to convergence, best first, until SHORTLIST are acceptable;
-    the ranking with each fitted candidate in place of its screening."""
-    out, acceptable = list(trials), 0
+    """Fit the promising screened candidates to convergence, best first, until SHORTLIST are acceptable and
+    those screened within SCREEN_MARGIN of the last of them; the ranking with each fitted candidate in place
+    of its screening."""
+    out, acceptable, cutoff = list(trials), 0, math.inf  # cutoff: the screened score beyond which none is fitted
     for k, candidate in enumerate(trials):
-        if acceptable >= SHORTLIST or candidate.delta_bic >= MAX_DELTA_BIC:
+        if candidate.score_after > cutoff or candidate.delta_bic >= MAX_DELTA_BIC:
             continue
         if budget.spent():
             budget.unfinished.append(f"candidate {candidate.name} (round {round_.number}: screened, not fitted fully)")
@@ -159,6 +165,8 @@ def settle(round_: Round, trials: list[Candidate], budget: Budget, bar: Progress
                                      "budget)")
         out[k] = fitted
         acceptable += fitted.acceptable
+        if acceptable == SHORTLIST and math.isinf(cutoff):
+            cutoff = (1.0 + SCREEN_MARGIN) * candidate.score_after
     return sorted(out, key=lambda c: (c.screened, c.score_after, c.delta_bic))
 
 
