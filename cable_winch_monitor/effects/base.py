@@ -151,20 +151,19 @@ class Effect:
     def __init__(self, values: Mapping[str, Any] | None = None, plant: Plant | None = None):
         """The effect with these values (the rest at their defaults), its parameters resolved for `plant`
         (its size and its file's effect_bounds; without a plant, plant-relative bounds are not checked)."""
-        values = dict(values or {})
-        known = {p.name for p in self.parameters}
+        self.for_plant = plant
+        given_bounds = plant.effect_bounds.get(self.name, {}) if plant is not None else {}
+        self.specs: tuple[Resolved, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
+        self.values: dict[str, float] = self._checked(values or {})
+
+    def _checked(self, values: Mapping[str, Any]) -> dict[str, float]:
+        """Every parameter's value: the one given, else its default; EffectError where a name is not a
+        parameter's, or a value is not a number within the resolved bounds."""
+        known = {p.name for p in self.specs}
         unknown = sorted(set(values) - known)
         if unknown:
             raise EffectError(f"effect '{self.name}': unknown parameter '{unknown[0]}' "
                               f"(known: {', '.join(sorted(known)) or 'none'})")
-        self.for_plant = plant
-        given_bounds = plant.effect_bounds.get(self.name, {}) if plant is not None else {}
-        self.specs: tuple[Resolved, ...] = tuple(p.resolved(plant, given_bounds.get(p.name)) for p in self.parameters)
-        self.values: dict[str, float] = self._checked(values)
-
-    def _checked(self, values: Mapping[str, Any]) -> dict[str, float]:
-        """Every parameter's value: the one given, else its default; EffectError where it is not a number
-        within the resolved bounds."""
         out = {}
         for p in self.specs:
             try:
@@ -203,10 +202,6 @@ class Effect:
         values = {**self.values, **values}
         if type(self).__init__ is not Effect.__init__:
             return type(self)(values, self.for_plant)
-        unknown = sorted(set(values) - set(self.values))
-        if unknown:
-            raise EffectError(f"effect '{self.name}': unknown parameter '{unknown[0]}' "
-                              f"(known: {', '.join(sorted(self.values)) or 'none'})")
         out = object.__new__(type(self))
         out.for_plant, out.specs = self.for_plant, self.specs
         out.values = out._checked(values)

@@ -78,15 +78,20 @@ class SheaveFriction(Effect):
 
     def measure_states(self, channels: dict[str, np.ndarray], states: States, plant: Plant,
                        conditions: StackedConditions) -> None:
-        factors = np.exp(-conditions.direction * self["mu"] * self["wrap"])
+        factors = self._factors(conditions)
         for i, name in enumerate(CABLE_NAMES):
             channels[f"tension_{name}"] = channels[f"tension_{name}"] * factors[:, i]
 
     def measure_gradients(self, gradients: dict[str, np.ndarray], channels: dict[str, np.ndarray], states: States,
                           plant: Plant, conditions: StackedConditions) -> None:
-        factors = np.exp(-conditions.direction * self["mu"] * self["wrap"])
+        factors = self._factors(conditions)
         for i, name in enumerate(CABLE_NAMES):
             gradients[f"tension_{name}"] = gradients[f"tension_{name}"] * factors[:, i, None]
+
+    def _factors(self, conditions: StackedConditions) -> np.ndarray:
+        """(n, 4) what each pin reads per newton of the rope's tension: e^{-mu theta} paying out, e^{+mu theta}
+        hauling in."""
+        return np.exp(-conditions.direction * self["mu"] * self["wrap"])
 
     def warnings(self, conditions: list[Conditions]) -> list[str]:
         directions = np.array([c.direction for c in conditions]) if conditions else np.zeros((0, 4))
