@@ -159,9 +159,11 @@ class MonitorEstimator:
         self.window: _Window | None = None
         self.left_out: dict[str, float] = {}   # sensor -> the stamp from which it is left out
         self.last_rejected: tuple[str, ...] = ()  # the sensors rejected at the sample before
-        # every forward solve of a window starts from the first of its samples that solved alone (None: not yet),
-        # so that a sample's start does not depend on which samples the node or the replay solves with it
+        # every forward solve of a window starts from the last sample solved before the window (the first
+        # window's: from the first of its samples that solved alone), so that a sample's start does not depend
+        # on which samples the node or the replay solves with it, and no window starts cold
         self.seed: Solution | None = None
+        self.last_solved: tuple[BatchSolution, int] | None = None  # the latest forward solve's last solved row
         self.predictions: list[tuple[float, float, float]] = []  # the model's stamp, roll, pitch lately
 
     def __getstate__(self) -> dict[str, Any]:
@@ -169,6 +171,10 @@ class MonitorEstimator:
         the model back) and without the node's update process (its pending update taken)."""
         pending = self.pending.result(self.base) if isinstance(self.pending, PendingUpdate) else self.pending
         return {**self.__dict__, "model": None, "base": None, "background": None, "pending": pending}
+
+    def _last_solution(self) -> Solution | None:
+        """The last sample that the forward kinematics solved, where one has been."""
+        return None if self.last_solved is None else self.last_solved[0].solution(self.last_solved[1])
 
     def attach(self, model: PlantModel) -> None:
         """Give the plant file's model back to an estimator restored from a pickle."""
@@ -194,7 +200,7 @@ class MonitorEstimator:
             if self.window is not None and index != self.window.index:
                 self._close(index)
             if self.window is None:
-                self.window, self.seed = _Window(index), None
+                self.window, self.seed = _Window(index), self._last_solution()
             stop = start + 1
             while stop < len(samples) and self.error.window(samples[stop].stamp, self.origin) == index:
                 stop += 1
@@ -212,7 +218,9 @@ class MonitorEstimator:
         prior = self.error.prior(stamps, lengths)
         forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.seed)
         solved = np.flatnonzero(forward.ok)
-        self.seed = forward.solution(int(solved[0])) if self.seed is None and solved.size else self.seed
+        if solved.size:
+            self.seed = forward.solution(int(solved[0])) if self.seed is None else self.seed
+            self.last_solved = forward, int(solved[-1])
         measured = self._carried(samples, forward)
         left_out = tuple(sorted(self.left_out))
         kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured]
