@@ -4,7 +4,10 @@ What happens to a complete sample after it is merged -- its estimate (the model'
 carried from window to window), its alarm and residuals, its records and scene -- is a
 function of the merged samples in order (`WindowStages`), by the monitor's own code, which
 the node runs one sample at a time. What comes out per sample is bytes and a small outcome
-(`Encoded`), so that a second process can hand it back cheaply (second_process.py).
+(`Encoded`), so that a second process can hand it back cheaply (second_process.py). A sample due a
+scene brings what the scene shows (its solution and alarm) instead of the scene itself: the scene
+is drawn where the replay writes (`drawn`), by the process that reads and writes, which has time
+to spare while the second one estimates.
 """
 from __future__ import annotations
 
@@ -18,24 +21,36 @@ from ..messages.fields import Stamp
 from ..messages.records import Record
 from ..messages.scene import SceneBuilder, SceneThrottle
 from ..model.conditions import Conditions
+from ..model.statics.result import Solution
+from ..monitor.alarm import Alarm
 from ..monitor.diagnostics import SampleView, sample_view
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
 
 
 class Encoded(NamedTuple):
-    """A complete sample as replay writes it: its records (outputs, and a scene where one is due), what its
-    counts and the residuals of the sensor messages after it need, and at the first sample of each
-    second of stamps what /diagnostics says of it."""
+    """A complete sample as replay writes it: its records (outputs; a scene once `drawn`), what its counts
+    and the residuals of the sensor messages after it need, and at the first sample of each second of
+    stamps what /diagnostics says of it."""
 
     records: list[Record]
     outcome: Outcome
     view: SampleView | None
+    scene: tuple[Solution, Alarm] | None = None  # where a scene is due and not drawn yet: what it shows
     output: MonitorOutput | None = None  # the sample's outputs themselves, where encoded in this process
+
+
+def drawn(encoded: Encoded, header: Stamp, builder: SceneBuilder) -> Encoded:
+    """`encoded` (header stamp `header`) with its scene drawn after its outputs, where one is due."""
+    if encoded.scene is None:
+        return encoded
+    return encoded._replace(records=encoded.records + records.scene_records(header, builder, *encoded.scene),
+                            scene=None)
 
 
 class WindowStages:
     """A window's merged samples estimated (or solved) together, judged one by one in order -- alarm,
-    residuals, what the alarm is based on -- and encoded, by the monitor's own code."""
+    residuals, what the alarm is based on -- and encoded, by the monitor's own code; the scenes are
+    drawn with its `builder` where the replay writes (`drawn`)."""
 
     def __init__(self, monitor: MonitorPipeline, scene_rate: float):
         self.monitor = monitor
@@ -51,14 +66,13 @@ class WindowStages:
         out = []
         for sample, at, header, done in zip(samples, conditions, headers, solved):
             output, outcome = monitor.judge(sample, done, at)
-            encoded = records.output_records(header, output)
-            if self.throttle.due(output.stamp):
-                encoded += records.scene_records(header, self.builder, output.solution, output.alarm)
+            scene = (output.solution, output.alarm) if self.throttle.due(output.stamp) else None
             second = math.floor(output.stamp)
             view = None
             if second != self.second:
                 self.second, view = second, sample_view(output, monitor.fusing)
-            out.append(Encoded(encoded, outcome, view, output if outputs else None))
+            out.append(Encoded(records.output_records(header, output), outcome, view, scene,
+                               output if outputs else None))
         return out
 
     def state(self) -> bytes:

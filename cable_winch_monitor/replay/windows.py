@@ -14,7 +14,8 @@ ahead. For each window of messages:
    in order, so a window at once gives what the node gives one sample at a time;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
-   solved pose -- the per-sample monitor's own code, so the outputs are the node's.
+   solved pose -- the per-sample monitor's own code, so the outputs are the node's; the
+   3-D scene, where one is due, is drawn as the sample is taken.
 
 Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
 a sample's value is interpolated between the readings around its stamp. Where the effects
@@ -48,7 +49,7 @@ from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import ReadingWait
 from ..stopping import interruptible
 from .second_process import SecondProcess
-from .stages import Encoded, WindowStages
+from .stages import Encoded, WindowStages, drawn
 
 WINDOW = 2000  # messages read ahead
 EXTENDED = 1000  # messages a window goes on by at most while a sample waits for a reading due at it
@@ -296,10 +297,11 @@ class WindowScheduler:
                 return outcome
             if outcome is None:
                 return None
+            assert isinstance(outcome, Merged)  # a winch message merges into a sample, or fails, or waits
             done = next(encoded)
             self.monitor.note(done.outcome)
             self.last_view = done.view or self.last_view
-            return done
+            return drawn(done, outcome.header, self.stages.builder)
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
         values = outcome if isinstance(outcome, dict) else None
