@@ -382,13 +382,13 @@ def _unloaded(problem: Problem, best: Rows) -> Rows:
     and no dearer than SEARCH_SIGMA^2: where the model's lengths are free to follow the sensors, four
     rigid ropes can always be made taut, and a rope carrying a pin's noise is not one the platform
     hangs on. A rope its pin shows carrying more stays taut."""
-    ropes = np.flatnonzero(problem.pin_observations >= 0)
+    pins = problem.pins
+    ropes = pins.ropes
     if not ropes.size:
         return best
-    _, sigma, measured = problem.pin_columns
     tension = best.mu[:, ropes] * problem.scales[best.sample, None]
     weak = np.zeros_like(best.taut)
-    weak[:, ropes] = best.taut[:, ropes] & measured[best.sample] & (tension < SEARCH_SIGMA * sigma)
+    weak[:, ropes] = best.taut[:, ropes] & pins.measured[best.sample] & (tension < SEARCH_SIGMA * pins.sigma)
     rows = np.flatnonzero(weak.any(axis=1) & ((best.taut & ~weak).sum(axis=1) >= 2) & _admissible(best))
     if not rows.size:
         return best
@@ -432,7 +432,7 @@ def _pinned_sets(problem: Problem, best: Rows, pending: np.ndarray, visited: np.
     it has none. None where no load pin is read off the state. One candidate a row instead of its
     neighbours (seven for three taut ropes): with 1 mm of noise the forward kinematics of four rigid
     ropes often picks the wrong three, and the pins say which."""
-    if not problem.pins:
+    if not problem.pins.read_off:
         return None
     taut = best.taut[pending].copy()
     samples = best.sample[pending]
@@ -452,7 +452,7 @@ def _slack_readings(problem: Problem, samples: np.ndarray) -> list[tuple[int, in
     slack rope at each sample [N] (nothing, or the prior's expected pin error: the rope's own weight
     above the platform, a pin's zero) and the pin's noise (N,) [N]."""
     expected = np.zeros((len(samples), 4)) if problem.prior is None else problem.prior.pins[samples]
-    return [(k, rope, expected[:, rope], np.full(len(samples), problem.sigmas[k])) for k, rope in problem.pins]
+    return [(k, rope, expected[:, rope], np.full(len(samples), problem.sigmas[k])) for k, rope in problem.pins.read_off]
 
 
 def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np.ndarray:
@@ -464,11 +464,11 @@ def _pinned_cost(problem: Problem, samples: np.ndarray, codes: np.ndarray) -> np
     kilonewtons on three ropes, the sets that slacken one of them."""
     bound = np.zeros(len(samples))
     if problem.prior is None:
-        for k, rope in problem.pins:
+        for k, rope in problem.pins.read_off:
             slack = (codes >> rope & 1) == 0
             bound += np.where(slack, np.nan_to_num((problem.values[samples, k] / problem.sigmas[k]) ** 2), 0.0)
         return bound
-    ropes, deviation, covariance = problem.pin_deviation
+    ropes, deviation, covariance = problem.pins.slack_deviation
     compiled.slack_pin_bounds(np.ascontiguousarray(samples, dtype=np.int64),
                               np.ascontiguousarray(codes, dtype=np.int64), ropes, deviation, covariance, bound)
     return bound
@@ -525,8 +525,8 @@ def _marginal(problem: Problem, rows: Rows) -> np.ndarray:
     out = rows.residuals[:, 4:].copy()
     if problem.prior is None or not rows.sample.size:
         return out
-    _, white, sigma, _ = problem.pin_prior
-    pins = problem.pin_columns[0] - 4   # the pins' columns among the observations
+    white, sigma, _ = problem.pins.whitened
+    pins = problem.pins.observations
     raw = np.linalg.solve(white[rows.sample], out[:, pins][..., None])[..., 0]
     out[:, pins] = raw / sigma[rows.sample]
     return out

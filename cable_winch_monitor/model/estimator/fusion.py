@@ -42,6 +42,51 @@ _NO_JACOBIAN = np.empty((0, 0, 0))  # what `_whiten` hands the compiled weighing
 
 
 @dataclass(frozen=True)
+class LoadPins:
+    """A problem's load pins, in one place: the ropes that have one, where their readings sit among the
+    observations, their noise, which samples read them, those read off the state (a rope's tension
+    coordinate, not through a measurement effect), and with a prior their weighing (`whitened`) and what
+    the slack-rope bound needs (`slack_deviation`)."""
+
+    ropes: np.ndarray          # (k,) the ropes with a load pin
+    observations: np.ndarray   # (k,) their observations' indices
+    sigma: np.ndarray          # (k,) their noise [N]
+    measured: np.ndarray       # (N, k) bool, contiguous: which samples read each
+    read_off: tuple[tuple[int, int], ...]  # (observation index, rope) of the pins read off the state
+    values: np.ndarray         # (N, m) the problem's observation values
+    prior: Prior | None
+
+    @cached_property
+    def columns(self) -> np.ndarray:
+        """(k,) the pins' columns among the residuals (the four lengths' first)."""
+        return 4 + self.observations
+
+    @cached_property
+    def whitened(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each sample's whitening (N, k, k) of the pins' errors, their marginal sigmas (N, k) [N] and expected
+        errors (N, k) [N], a pin not measured at a sample left out of the others' (needs a prior); the
+        whitening and the errors contiguous, as the compiled weighing takes them."""
+        assert self.prior is not None  # asked only of a problem weighed by a prior
+        measured = np.zeros((len(self.measured), 4), bool)
+        measured[:, self.ropes] = self.measured
+        white, sigma = whitening(self.prior.pin_covariance, measured)
+        ropes = self.ropes
+        return np.ascontiguousarray(white[:, ropes][:, :, ropes]), sigma[:, ropes], \
+            np.ascontiguousarray(self.prior.pins[:, ropes])
+
+    @cached_property
+    def slack_deviation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For the pins read off the state: their ropes (j,), each sample's readings' deviation from the prior's
+        expected pin error (N, j) [N] (NaN where not read), and the prior's pin covariance (N, 4, 4) [N^2],
+        contiguous for `compiled.slack_pin_bounds` (needs a prior)."""
+        assert self.prior is not None  # asked only of a problem weighed by a prior
+        ropes = np.array([rope for _, rope in self.read_off], dtype=np.int64)
+        values = self.values[:, [k for k, _ in self.read_off]]
+        return ropes, np.ascontiguousarray(self.prior.pins[:, ropes] - values), \
+            np.ascontiguousarray(self.prior.pin_covariance, dtype=float)
+
+
+@dataclass(frozen=True)
 class Problem:
     """The measurements of N samples: reported lengths (N, 4), their noise, observation values (N, m).
 
@@ -120,12 +165,6 @@ class Problem:
         return index, columns, jacobian / self.sigmas[index, None] if index.size else jacobian
 
     @cached_property
-    def pins(self) -> list[tuple[int, int]]:
-        """(observation index, rope) of each load pin read off the state (a rope's tension coordinate)."""
-        index, columns, _ = self.read_off
-        return [(int(k), int(c) - 6) for k, c in zip(index, columns) if c >= 6]
-
-    @cached_property
     def expected_lengths(self) -> np.ndarray:
         """(N, 4) the lengths the model's ropes are expected to have: reported plus the prior's correction."""
         return self.lengths if self.prior is None else self.lengths + self.prior.lengths
@@ -137,46 +176,17 @@ class Problem:
         return np.ascontiguousarray(whitening(self.prior.length_covariance)[0])
 
     @cached_property
-    def pin_observations(self) -> np.ndarray:
-        """(4,) the index of each rope's load-pin observation, -1 where it has none."""
+    def pins(self) -> LoadPins:
+        """The problem's load pins: an observation named tension_<cable> on a rope."""
         index = {o.name: k for k, o in enumerate(self.observations)}
-        return np.array([index.get(f"tension_{name}", -1) for name in CABLE_NAMES], dtype=int)
-
-    @cached_property
-    def pin_prior(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The ropes with a load pin, and each sample's whitening (N, k, k) of those pins' errors, their
-        marginal sigmas (N, k) [N] and expected errors (N, k) [N], each pin not measured at a sample left
-        out of the others' (needs a prior); the whitening and the errors contiguous, as `_whiten` passes them."""
-        assert self.prior is not None  # asked only of a problem weighed by a prior
-        ropes = np.flatnonzero(self.pin_observations >= 0)
-        white, sigma = whitening(self.prior.pin_covariance, self._pins_measured)
-        return ropes, np.ascontiguousarray(white[:, ropes][:, :, ropes]), sigma[:, ropes], \
-            np.ascontiguousarray(self.prior.pins[:, ropes])
-
-    @cached_property
-    def pin_deviation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """For the load pins read off the state (as `pins`): their ropes (k,), each sample's readings' deviation
-        from the prior's expected pin error (N, k) [N] (NaN where not read), and the prior's pin covariance
-        (N, 4, 4) [N^2], contiguous for `compiled.slack_pin_bounds` (needs a prior)."""
-        assert self.prior is not None  # asked only of a problem weighed by a prior
-        ropes = np.array([rope for _, rope in self.pins], dtype=np.int64)
-        values = self.values[:, [k for k, _ in self.pins]]
-        return ropes, np.ascontiguousarray(self.prior.pins[:, ropes] - values), \
-            np.ascontiguousarray(self.prior.pin_covariance, dtype=float)
-
-    @cached_property
-    def pin_columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """For the ropes with a load pin (as `pin_prior`): their pins' columns among the residuals (k,), the
-        pins' sigmas (k,) [N], and which pins each sample measured (N, k), contiguous."""
-        ropes = np.flatnonzero(self.pin_observations >= 0)
-        pins = self.pin_observations[ropes]
-        return 4 + pins, self.sigmas[pins], np.ascontiguousarray(np.isfinite(self.values[:, pins]))
-
-    @cached_property
-    def _pins_measured(self) -> np.ndarray:
-        measured = np.zeros((len(self.lengths), 4), bool)
-        measured[:, self.pin_observations >= 0] = self.pin_columns[2]
-        return measured
+        by_rope = [(rope, index.get(f"tension_{name}", -1)) for rope, name in enumerate(CABLE_NAMES)]
+        ropes = np.array([rope for rope, k in by_rope if k >= 0], dtype=int)
+        observations = np.array([k for _, k in by_rope if k >= 0], dtype=int)
+        read_index, read_columns, _ = self.read_off
+        read_off = tuple((int(k), int(c) - 6) for k, c in zip(read_index, read_columns) if c >= 6)
+        return LoadPins(ropes, observations, self.sigmas[observations],
+                        np.ascontiguousarray(np.isfinite(self.values[:, observations])), read_off, self.values,
+                        self.prior)
 
     @cached_property
     def predicted_by_function(self) -> np.ndarray:
@@ -308,10 +318,10 @@ def _whiten(problem: Problem, sample: np.ndarray, residual: np.ndarray, jacobian
     (`compiled.whiten_rows`): the lengths' deviation from their expected correction by the corrections'
     covariance, the pins' readings beyond the model's prediction by the expected pin error and its
     covariance. The residuals come in as the lengths' deviations [m] and the pins' (predicted - measured) / sigma."""
-    _, white, _, expected = problem.pin_prior
-    pins, scale, measured = problem.pin_columns
+    pins = problem.pins
+    white, _, expected = pins.whitened
     compiled.whiten_rows(sample, residual, _NO_JACOBIAN if jacobian is None else jacobian, jacobian is not None,
-                         problem.length_white, white, pins, scale, measured.view(np.uint8), expected)
+                         problem.length_white, white, pins.columns, pins.sigma, pins.measured.view(np.uint8), expected)
 
 
 def _kkt(jacobian: np.ndarray, residual: np.ndarray, balance: np.ndarray, slack: np.ndarray,
@@ -338,9 +348,9 @@ def prior_jacobian(problem: Problem, rows: Rows) -> np.ndarray:
     active = rows.taut | (slack_length > problem.expected_lengths[rows.sample])
     out = np.zeros((live.size, 4 + len(problem.observations), 8))
     out[:, :4, :4] = -problem.length_white[rows.sample] * active[:, None, :]
-    ropes, white, _, _ = problem.pin_prior
-    pins, _, measured = problem.pin_columns
-    out[:, pins[:, None], 4 + ropes[None, :]] = white[rows.sample] * measured[rows.sample][:, None, :]
+    pins = problem.pins
+    white = pins.whitened[0]
+    out[:, pins.columns[:, None], 4 + pins.ropes[None, :]] = white[rows.sample] * pins.measured[rows.sample][:, None, :]
     return out
 
 
