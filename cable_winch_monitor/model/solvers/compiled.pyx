@@ -510,8 +510,7 @@ def slack_pin_bounds(const long[::1] samples, const long[::1] codes, const long[
     cdef double d[MAX_SIZE]
     cdef double x[MAX_SIZE]
     cdef double value
-    if k > 4:
-        raise ValueError(f"{k} load pins: at most 4")
+    at_most_four_pins(k)
     with nogil:
         for i in range(n):
             s = samples[i]
@@ -800,6 +799,37 @@ def kkt_systems(const double[:, :, ::1] jacobian, const double[:, ::1] residual,
                     system[row, 10 + b, a] = balance[row, b, a]
 
 
+cdef int at_most_four_pins(Py_ssize_t k) except -1:
+    """ValueError where a row would have more load pins than ropes."""
+    if k > 4:
+        raise ValueError(f"{k} load pins: at most 4")
+    return 0
+
+
+cdef inline void whiten_column(double *column, Py_ssize_t stride, const double *length_white, const double *pin_white,
+                               const long *pins, const double *pin_scale, const double *offset, int k) noexcept nogil:
+    """One column of a row -- its residuals, or one column of their Jacobian: items `stride` apart -- weighed in
+    place: its four length entries by the lengths' whitening (4 x 4), its pins' entries (rows `pins`, times
+    `pin_scale`, plus `offset`) by the pins' whitening (k x k)."""
+    cdef double out[4]
+    cdef double raw[4]
+    cdef double value
+    cdef int a, b
+    for a in range(4):
+        out[a] = 0.0
+        for b in range(4):
+            out[a] += length_white[4 * a + b] * column[b * stride]
+    for a in range(4):
+        column[a * stride] = out[a]
+    for a in range(k):
+        raw[a] = column[pins[a] * stride] * pin_scale[a] + offset[a]
+    for a in range(k):
+        value = 0.0
+        for b in range(k):
+            value += pin_white[k * a + b] * raw[b]
+        column[pins[a] * stride] = value
+
+
 def whiten_rows(const long[::1] sample, double[:, ::1] residual, double[:, :, ::1] jacobian, bint with_jacobian,
                 const double[:, :, ::1] length_white, const double[:, :, ::1] pin_white, const long[::1] pins,
                 const double[::1] pin_scale, const unsigned char[:, ::1] measured, const double[:, ::1] expected):
@@ -808,45 +838,28 @@ def whiten_rows(const long[::1] sample, double[:, ::1] residual, double[:, :, ::
     pins' columns `pins` (k,), read as (predicted - measured) / `pin_scale`, as what the pins read beyond the
     model's prediction and their `expected` error (N, k) where `measured` (N, k), by the pins' whitening
     (N, k, k)."""
-    cdef Py_ssize_t n = residual.shape[0], row
-    cdef int k = pins.shape[0], a, b, col, s
-    cdef double out[4]
-    cdef double raw[4]
-    cdef double value
-    if k > 4:
-        raise ValueError(f"{k} load pins: at most 4")
+    cdef Py_ssize_t n = residual.shape[0], row, col
+    cdef int k = pins.shape[0], a, s
+    cdef double offset[4]
+    cdef double nothing[4]
+    cdef const double *pin_block = NULL
+    at_most_four_pins(k)
+    for a in range(4):
+        nothing[a] = 0.0
     with nogil:
         for row in range(n):
             s = sample[row]
-            for a in range(4):
-                out[a] = 0.0
-                for b in range(4):
-                    out[a] += length_white[s, a, b] * residual[row, b]
-            for a in range(4):
-                residual[row, a] = out[a]
+            if k:
+                pin_block = &pin_white[s, 0, 0]
             for a in range(k):
-                raw[a] = residual[row, pins[a]] * pin_scale[a] + (expected[s, a] if measured[s, a] else 0.0)
-            for a in range(k):
-                value = 0.0
-                for b in range(k):
-                    value += pin_white[s, a, b] * raw[b]
-                residual[row, pins[a]] = value
+                offset[a] = expected[s, a] if measured[s, a] else 0.0
+            whiten_column(&residual[row, 0], 1, &length_white[s, 0, 0], pin_block, &pins[0] if k else NULL,
+                          &pin_scale[0] if k else NULL, offset, k)
             if not with_jacobian:
                 continue
             for col in range(jacobian.shape[2]):
-                for a in range(4):
-                    out[a] = 0.0
-                    for b in range(4):
-                        out[a] += length_white[s, a, b] * jacobian[row, b, col]
-                for a in range(4):
-                    jacobian[row, a, col] = out[a]
-                for a in range(k):
-                    raw[a] = jacobian[row, pins[a], col] * pin_scale[a]
-                for a in range(k):
-                    value = 0.0
-                    for b in range(k):
-                        value += pin_white[s, a, b] * raw[b]
-                    jacobian[row, pins[a], col] = value
+                whiten_column(&jacobian[row, 0, col], jacobian.shape[2], &length_white[s, 0, 0], pin_block,
+                              &pins[0] if k else NULL, &pin_scale[0] if k else NULL, nothing, k)
 
 
 def gauss_newton_verdict(const long[::1] live, const double[::1] cost, const double[:, ::1] constraint,
