@@ -59,6 +59,11 @@ LEFT_OUT_SHARE = 0.5  # a sensor rejected on more than this share of a window's 
 RETRY_EVERY = 10      # a sensor left out is tried again on every this-many-th sample
 TAKEN_BACK_SHARE = 0.9  # and taken back when it agrees on at least this share of its tries in a window
 FOLLOW = 10.0  # how many times less a sample the model cannot explain weighs the model's lengths
+# Runs of at most this many samples (the node's) after one the model could not explain are estimated under the
+# model loosely held too, in the same batch: a sample that fails its gates is estimated again so (`_screen`),
+# which during a swing the model cannot follow is every sample, and one batch of two rows costs the node little
+# more than one of one (its cost is numpy's per call); replay's windows estimate their failing samples again alone
+SPECULATED = 4
 _THRESHOLDS = np.array([np.inf] + [chi_square_threshold(dof) for dof in range(1, 17)])  # by channels measured
 
 
@@ -165,6 +170,7 @@ class MonitorEstimator:
         self.seed: Solution | None = None
         self.last_solved: tuple[BatchSolution, int] | None = None  # the latest forward solve's last solved row
         self.predictions: list[tuple[float, float, float]] = []  # the model's stamp, roll, pitch lately
+        self.failing = False  # whether the latest sample failed its gates (the model could not explain it)
 
     def __getstate__(self) -> dict[str, Any]:
         """What it has learnt, without the model (a user's effects need not pickle: whoever restores it gives
@@ -224,11 +230,15 @@ class MonitorEstimator:
         measured = self._carried(samples, forward)
         left_out = tuple(sorted(self.left_out))
         kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured]
-        batch = self._batch(lengths, kept, [s.conditions for s in samples], loads, prior, forward)
+        conditions = [s.conditions for s in samples]
+        if self.failing and len(samples) <= SPECULATED:
+            batch, loosely = self._batches(lengths, kept, conditions, loads, (prior, _loosened(prior)), forward)
+        else:
+            batch, loosely = self._batch(lengths, kept, conditions, loads, prior, forward), None
         for k in hooked:  # an effect's hook failed on this sample: the model's own solve says why
             batch.fallback[k] = unfused(model.solve(reported[k], None, samples[k].conditions), reported[k],
                                         self.sigma_length)
-        rejected, followed = self._screen(batch, lengths, kept, samples, loads, prior, forward)
+        rejected, followed = self._screen(batch, lengths, kept, samples, loads, prior, forward, loosely)
         self._try_left_out(lengths, measured, kept, samples, loads, prior, forward, batch)
         self._remember(samples, lengths, kept, rejected, followed, batch, prior)
         length_error, length_sigma = self.error.length_errors(lengths)
@@ -245,6 +255,17 @@ class MonitorEstimator:
         observations = observations_for(self.model, values, conditions)
         return estimate_batch(self.model.physical, lengths, observations, self.sigma_length,
                               self.ropes.axial_stiffness, self.ropes.weight, loads=loads, prior=prior, forward=forward)
+
+    def _batches(self, lengths: np.ndarray, measured: Sequence[Mapping[str, float]],
+                 conditions: Sequence[Conditions], loads: np.ndarray, priors: Sequence[Prior],
+                 forward: BatchSolution) -> list[BatchEstimate]:
+        """`_batch` under each of `priors`, in one batch: the same states as one batch each (every row is worked
+        out on its own), for numpy's cost per call once."""
+        count = len(lengths)
+        rows = np.tile(np.arange(count), len(priors))
+        batch = self._batch(lengths[rows], [measured[i] for i in rows], [conditions[i] for i in rows], loads[rows],
+                            Prior.stacked(priors), _take(forward, rows))
+        return [batch.take(np.arange(k * count, (k + 1) * count)) for k in range(len(priors))]
 
     def _carried(self, samples: Sequence[SampleInput], forward: BatchSolution) -> list[dict[str, float]]:
         """Each sample's readings, the inclinometer's carried from its stamp to the sample's by the rate at
@@ -301,8 +322,8 @@ class MonitorEstimator:
         return np.einsum("ni,ni->n", deviation, np.linalg.solve(prior.length_covariance, deviation[..., None])[..., 0])
 
     def _screen(self, batch: BatchEstimate, lengths: np.ndarray, measured: list[dict[str, float]],
-                samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior,
-                forward: BatchSolution) -> tuple[list[tuple[str, ...]], np.ndarray]:
+                samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior, forward: BatchSolution,
+                loosely: BatchEstimate | None = None) -> tuple[list[tuple[str, ...]], np.ndarray]:
         """Each sample's rejected sensors, and which samples the model could not explain. A sample that fails
         its gates is estimated again with the model's lengths weighed FOLLOW times less: where its
         sensors then agree with each other, the model is what was wrong (faster than its error is learnt),
@@ -312,17 +333,20 @@ class MonitorEstimator:
         before if it is one of them (a fault lasts, and where four rigid ropes can share the load any way,
         two pins may each be the odd one out at one sample), else the one whose leaving out lowers the
         cost most, is rejected. A sensor is a fault where it contradicts the other sensors, never where it
-        contradicts the model alone. In place on `batch` and `measured`."""
+        contradicts the model alone. `loosely`: the samples estimated under the model loosely held already,
+        where they were (SPECULATED). In place on `batch` and `measured`."""
         rejected: list[tuple[str, ...]] = [() for _ in samples]
         followed = np.zeros(len(samples), bool)
         failing = np.flatnonzero(self._failing(batch, prior))
+        self.failing = bool(failing.size) and failing[-1] == len(samples) - 1
         if not failing.size:
             self.last_rejected = ()
             return rejected, followed
-        loose = Prior(prior.lengths, prior.length_covariance * FOLLOW ** 2, prior.pins, prior.pin_covariance)
-        again = self._batch(lengths[failing], [measured[i] for i in failing],
-                            [samples[i].conditions for i in failing.tolist()], loads[failing], loose.take(failing),
-                            _take(forward, failing))
+        loose = _loosened(prior)
+        again = loosely.take(failing) if loosely is not None else \
+            self._batch(lengths[failing], [measured[i] for i in failing],
+                        [samples[i].conditions for i in failing.tolist()], loads[failing], loose.take(failing),
+                        _take(forward, failing))
         disagree = self._failing(again, loose.take(failing), lengths=False)
         for k, i in enumerate(failing.tolist()):
             if k not in again.fallback:
@@ -520,6 +544,11 @@ def _stacked(window: _Window, rows: list[int]) -> tuple[np.ndarray, np.ndarray, 
         states.append(state)
     taut, rotation, position, tensions = (np.array([state[j] for state in states]) for j in range(4))
     return taut, rotation, position, tensions
+
+
+def _loosened(prior: Prior) -> Prior:
+    """The prior with the model's lengths weighed FOLLOW times less (a sample the model could not explain)."""
+    return Prior(prior.lengths, prior.length_covariance * FOLLOW ** 2, prior.pins, prior.pin_covariance)
 
 
 def _take(forward: BatchSolution, rows: np.ndarray) -> BatchSolution:

@@ -23,6 +23,7 @@ from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.estimator import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.model.statics.result import check_physics
+from cable_winch_monitor.monitor import estimator
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 from cable_winch_monitor.monitor.sensors import sensors_used
 from cable_winch_monitor.replay import second_process, worker
@@ -129,6 +130,43 @@ def test_a_pin_that_goes_wrong_is_left_out_from_its_first_wrong_reading(plant, l
         assert np.abs(output.solution.tensions - truth.tensions).max() <= 4.0 * NOISE["tension"]
     assert any(o.model.left_out == ("tension_cable_2",) for o in node)  # left out of a later window
     assert_same(replayed(WindowScheduler(noisy(plant), window=64), items), node)
+
+
+def test_the_node_estimates_under_the_model_loosely_held_in_the_same_batch_with_the_same_bits(plant, lowering,
+                                                                                             monkeypatch):
+    """After a sample that fails its gates, the node estimates its next samples under the model as it is and
+    under the model loosely held in one batch (estimator.SPECULATED), instead of estimating the failing ones
+    again alone: every output is the same to the bit, what the alarm is based on included. Winch 1's encoder
+    slips 5 cm at sample 100: from there the model's lengths disagree with the sensors, which the state
+    follows, until the model's error has learnt the slip."""
+    truths, _ = lowering
+    slipped = [0]
+
+    def reported(lengths: np.ndarray) -> np.ndarray:
+        slipped[0] += 1
+        return lengths + (np.array([0.05, 0.0, 0.0, 0.0]) if slipped[0] > 100 else 0.0)
+
+    items = sensed(truths[:300], seed=6, reported=reported)
+    calls = []
+    batches = estimator.MonitorEstimator._batches
+    monkeypatch.setattr(estimator.MonitorEstimator, "_batches",
+                        lambda self, *args: calls.append(len(args[0])) or batches(self, *args))
+    speculated = live(MonitorPipeline(noisy(plant)), items)
+    assert len(calls) >= 50 and set(calls) == {1}  # one sample at a time, each with its loose twin
+    followed = [o for o in speculated if "the model disagrees" in o.basis.text]
+    assert len(followed) >= 50  # the state followed the sensors
+    monkeypatch.setattr(estimator, "SPECULATED", 0)
+    before = len(calls)
+    alone = live(MonitorPipeline(noisy(plant)), items)
+    assert len(calls) == before  # nothing speculated the second time
+    assert len(speculated) == len(alone) == 300
+    for a, b in zip(speculated, alone):
+        assert a.solution.tensions.tobytes() == b.solution.tensions.tobytes()
+        assert a.solution.points_b.tobytes() == b.solution.points_b.tobytes()
+        assert a.estimate.residuals == b.estimate.residuals and a.estimate.used == b.estimate.used
+        assert a.refused == b.refused and a.basis.text == b.basis.text
+        assert (a.alarm.level, a.alarm.reason, a.alarm.clearance.value) == \
+            (b.alarm.level, b.alarm.reason, b.alarm.clearance.value)
 
 
 def test_a_second_process_publishing_ahead_gives_the_same_outputs(plant, lowering, monkeypatch, tmp_path):

@@ -154,6 +154,17 @@ class BatchEstimate:
     def estimate(self, i: int) -> Estimate:
         return self.estimates([i])[0]
 
+    def take(self, rows: np.ndarray) -> BatchEstimate:
+        """The estimates of samples `rows`, in that order."""
+        index = {int(i): k for k, i in enumerate(rows)}
+        arrays = {name: getattr(self, name)[rows] for name in ("reported", "corrected", "loaded", "status", "taut",
+                                                                "tensions", "rotation", "position", "residuals",
+                                                                "iterations", "loads")}
+        return BatchEstimate(self.plant, names=self.names, sigma_length=self.sigma_length, **arrays,
+                             fallback={index[i]: e for i, e in self.fallback.items() if i in index},
+                             anchors=None if self.anchors is None else self.anchors[rows],
+                             cost=None if self.cost is None else self.cost[rows])
+
     def estimates(self, indices: Sequence[int] | None = None) -> list[Estimate]:
         """The samples (all by default) as `Estimate`s; the solved ones are built together."""
         indices = list(range(len(self))) if indices is None else list(indices)

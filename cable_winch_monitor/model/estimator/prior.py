@@ -17,6 +17,7 @@ values up to date from the samples it has seen.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,12 @@ class Prior:
 
     def take(self, rows: np.ndarray) -> Prior:
         return Prior(self.lengths[rows], self.length_covariance[rows], self.pins[rows], self.pin_covariance[rows])
+
+    @staticmethod
+    def stacked(priors: Sequence[Prior]) -> Prior:
+        """The rows of every prior, in order."""
+        return Prior(*(np.concatenate([getattr(prior, name) for prior in priors])
+                       for name in ("lengths", "length_covariance", "pins", "pin_covariance")))
 
     def check(self, count: int) -> None:
         """ValueError naming what is wrong: shapes for `count` samples, finite values, covariances that are
