@@ -64,6 +64,8 @@ FOLLOW = 10.0  # how many times less a sample the model cannot explain weighs th
 # which during a swing the model cannot follow is every sample, and one batch of two rows costs the node little
 # more than one of one (its cost is numpy's per call); replay's windows estimate their failing samples again alone
 SPECULATED = 4
+# a trial of leaving each sensor out: the (sample, sensor) pairs, the readings kept, the estimates, which agree
+Trial = tuple[list[tuple[int, str]], list[dict[str, float]], "BatchEstimate | None", np.ndarray]
 _THRESHOLDS = np.array([np.inf] + [chi_square_threshold(dof) for dof in range(1, 17)])  # by channels measured
 
 
@@ -353,8 +355,8 @@ class MonitorEstimator:
                 _put(batch, i, again, k)
                 followed[i] = not disagree[k]
         suspects = failing[disagree]
-        tiers = [(self._without_each(suspects, lengths, measured, samples, loads, weights, forward, with_lengths),
-                  with_lengths) for weights, with_lengths in ((prior, True), (loose, False))]
+        tiers = list(zip(self._without_each(suspects, lengths, measured, samples, loads, (prior, loose), forward),
+                         (True, False)))
         for i in range(len(samples)):  # in order: the sensor rejected at the sample before is preferred
             for (pairs, trial, without, agrees), with_lengths in tiers:  # the model as it is, then loosely held
                 agreeing = [k for k, (row, _) in enumerate(pairs) if row == i and agrees[k]]
@@ -371,22 +373,24 @@ class MonitorEstimator:
         return rejected, followed
 
     def _without_each(self, suspects: np.ndarray, lengths: np.ndarray, measured: list[dict[str, float]],
-                      samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior, forward: BatchSolution,
-                      with_lengths: bool) -> tuple[list[tuple[int, str]], list[dict[str, float]], BatchEstimate | None,
-                                                   np.ndarray]:
-        """The suspect samples estimated again without each of their sensors under `prior`: the (sample,
-        sensor) pairs, the readings kept, the estimates, and whether the other sensors (and, `with_lengths`,
-        the lengths) then agree."""
+                      samples: Sequence[SampleInput], loads: np.ndarray, priors: tuple[Prior, Prior],
+                      forward: BatchSolution) -> list[Trial]:
+        """The suspect samples estimated again without each of their sensors under the model as it is and under
+        it loosely held (`priors`, in one batch): for each, the (sample, sensor) pairs, the readings kept, the
+        estimates, and whether the other sensors (and, under the first, the lengths) then agree."""
         pairs = [(int(i), sensor) for i in suspects for sensor in sorted({sensor_of(n) for n in measured[i]})]
         if not pairs:
-            return [], [], None, np.zeros(0, bool)
+            return [([], [], None, np.zeros(0, bool)) for _ in priors]
         rows = np.array([i for i, _ in pairs], dtype=int)
         trial = [{n: v for n, v in measured[i].items() if sensor_of(n) != sensor} for i, sensor in pairs]
-        without = self._batch(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows],
-                              prior.take(rows), _take(forward, rows))
-        agrees = ~self._failing(without, prior.take(rows), lengths=with_lengths) & \
-            np.array([k not in without.fallback for k in range(len(pairs))])
-        return pairs, trial, without, agrees
+        estimates = self._batches(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows],
+                                  [prior.take(rows) for prior in priors], _take(forward, rows))
+        out: list[Trial] = []
+        for without, prior, with_lengths in zip(estimates, priors, (True, False)):
+            agrees = ~self._failing(without, prior.take(rows), lengths=with_lengths) & \
+                np.array([k not in without.fallback for k in range(len(pairs))])
+            out.append((pairs, trial, without, agrees))
+        return out
 
     def _try_left_out(self, lengths: np.ndarray, measured: list[dict[str, float]], kept: list[dict[str, float]],
                       samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior, forward: BatchSolution,
