@@ -65,7 +65,7 @@ FOLLOW = 10.0  # how many times less a sample the model cannot explain weighs th
 # more than one of one (its cost is numpy's per call); replay's windows estimate their failing samples again alone
 SPECULATED = 4
 # a trial of leaving each sensor out: the (sample, sensor) pairs, the readings kept, the estimates, which agree
-Trial = tuple[list[tuple[int, str]], list[dict[str, float]], "BatchEstimate | None", np.ndarray]
+Trial = tuple[list[tuple[int, str]], list[dict[str, float]], BatchEstimate | None, np.ndarray]
 _THRESHOLDS = np.array([np.inf] + [chi_square_threshold(dof) for dof in range(1, 17)])  # by channels measured
 
 
@@ -340,7 +340,7 @@ class MonitorEstimator:
         rejected: list[tuple[str, ...]] = [() for _ in samples]
         followed = np.zeros(len(samples), bool)
         failing = np.flatnonzero(self._failing(batch, prior))
-        self.failing = bool(failing.size) and failing[-1] == len(samples) - 1
+        self.failing = bool(failing.size and failing[-1] == len(samples) - 1)
         if not failing.size:
             self.last_rejected = ()
             return rejected, followed
@@ -383,11 +383,12 @@ class MonitorEstimator:
             return [([], [], None, np.zeros(0, bool)) for _ in priors]
         rows = np.array([i for i, _ in pairs], dtype=int)
         trial = [{n: v for n, v in measured[i].items() if sensor_of(n) != sensor} for i, sensor in pairs]
-        estimates = self._batches(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows],
-                                  [prior.take(rows) for prior in priors], _take(forward, rows))
+        weights = [prior.take(rows) for prior in priors]
+        estimates = self._batches(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows], weights,
+                                  _take(forward, rows))
         out: list[Trial] = []
-        for without, prior, with_lengths in zip(estimates, priors, (True, False)):
-            agrees = ~self._failing(without, prior.take(rows), lengths=with_lengths) & \
+        for without, weight, with_lengths in zip(estimates, weights, (True, False)):
+            agrees = ~self._failing(without, weight, lengths=with_lengths) & \
                 np.array([k not in without.fallback for k in range(len(pairs))])
             out.append((pairs, trial, without, agrees))
         return out
