@@ -62,7 +62,8 @@ FOLLOW = 10.0  # how many times less a sample the model cannot explain weighs th
 # Runs of at most this many samples (the node's) after one the model could not explain are estimated under the
 # model loosely held too, in the same batch: a sample that fails its gates is estimated again so (`_screen`),
 # which during a swing the model cannot follow is every sample, and one batch of two rows costs the node little
-# more than one of one (its cost is numpy's per call); replay's windows estimate their failing samples again alone
+# more than one of one (its cost is numpy's per call); replay's runs are mostly its windows' hundreds of samples,
+# which estimate their failing samples again alone (the same bits either way)
 SPECULATED = 4
 # a trial of leaving each sensor out: the (sample, sensor) pairs, the readings kept, the estimates, which agree
 Trial = tuple[list[tuple[int, str]], list[dict[str, float]], BatchEstimate | None, np.ndarray]
@@ -221,7 +222,8 @@ class MonitorEstimator:
         model = self.model
         stamps = np.array([s.stamp for s in samples])
         reported = np.array([s.reported for s in samples], dtype=float)
-        lengths, loads, hooked = model.batch_inputs(reported, [s.conditions for s in samples])
+        conditions = [s.conditions for s in samples]
+        lengths, loads, hooked = model.batch_inputs(reported, conditions)
         lengths[hooked] = reported[hooked]  # estimated as reported, published as the hook's failure (below)
         prior = self.error.prior(stamps, lengths)
         forward = forward_kinematics(model.physical, lengths + prior.lengths, self.ropes, loads, self.seed)
@@ -232,7 +234,6 @@ class MonitorEstimator:
         measured = self._carried(samples, forward)
         left_out = tuple(sorted(self.left_out))
         kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured]
-        conditions = [s.conditions for s in samples]
         if self.failing and len(samples) <= SPECULATED:
             batch, loosely = self._batches(lengths, kept, conditions, loads, (prior, _loosened(prior)), forward)
         else:
