@@ -93,6 +93,7 @@ class Estimated:
     length_sigma: np.ndarray              # (N, 4) its 1-sigma [m]
     pin_error: np.ndarray                 # (N, 4) the load pins' estimated error [N] (reading minus model)
     pin_sigma: np.ndarray                 # (N, 4) its 1-sigma [N]
+    model: PlantModel                     # the model they were estimated under (the tracked values then in use)
     parameters: ParameterView | None = None  # the tracked plant parameters (None: the plant file tracks none)
     parameters_due: list[bool] | None = None  # which samples publish them
 
@@ -248,7 +249,7 @@ class MonitorEstimator:
         pin_error, pin_sigma = self.error.pin_errors(lengths)
         tracked = (None, None) if self.tracker is None else (self.tracker.view(), self.tracker.due(stamps.tolist()))
         return Estimated(batch, forward, prior, rejected, left_out, length_error, length_sigma, pin_error, pin_sigma,
-                         *tracked)
+                         model, *tracked)
 
     def _batch(self, lengths: np.ndarray, measured: Sequence[Mapping[str, float]], conditions: Sequence[Conditions],
                loads: np.ndarray, prior: Prior, forward: BatchSolution) -> BatchEstimate:

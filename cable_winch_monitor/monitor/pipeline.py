@@ -340,16 +340,18 @@ class MonitorPipeline:
             out: list[Solved] = []
             for estimated, start in estimator.run(inputs):
                 stop = start + len(estimated)
-                out += self._estimated(estimated, samples[start:stop], conditions[start:stop], estimator.model)
+                out += self._estimated(estimated, samples[start:stop], conditions[start:stop])
             return out
         lengths = np.array([s.lengths for s in samples]).reshape(-1, 4)
         solutions = self.model.solve_batch(lengths, conditions, self._warm_start())
         return self._solved(solutions, [None] * len(solutions), conditions)
 
     def _estimated(self, estimated: Estimated, samples: Sequence[CompleteSample],
-                   conditions: Sequence[Conditions], model: PlantModel) -> list[Solved]:
-        """The solved samples of an estimator's run under `model` (the estimator's: the plant file's, with the
-        tracked values in use), with the clearance of the model's own equilibrium beside each."""
+                   conditions: Sequence[Conditions]) -> list[Solved]:
+        """The solved samples of an estimator's run, with the clearance of the model's own equilibrium beside
+        each, and what each channel reads there under the model they were estimated with (the plant file's,
+        with the tracked values then in use: a window's end within the samples of one call changes it)."""
+        model = estimated.model
         estimates = estimated.batch.estimates()
         model_clearances = batch_clearances(model.physical, estimated.forward)
         rows = self._solved([e.solution for e in estimates], estimates, conditions, model)

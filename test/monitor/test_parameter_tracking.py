@@ -40,11 +40,12 @@ from trackbags import (
 
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
+from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bench.plants import SITE_EA, tracking_plant_file
 from cable_winch_monitor.bench.safety import score
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.model.plantfile.plant import load_plant
-from cable_winch_monitor.replay import ReplaySummary, replay
+from cable_winch_monitor.replay import ReplaySummary, replay, windows
 from cable_winch_monitor_msgs.srv import WritePlantFile
 
 CLI = Path(sys.executable).parent / "cable-winch-monitor"
@@ -111,6 +112,14 @@ def hour_bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 @pytest.fixture(scope="module")
 def hour(hour_bags, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Case]:
     return cases(hour_bags, tmp_path_factory.mktemp("hour_out"))
+
+
+def topic_bytes(bag: Path) -> dict[str, list[bytes]]:
+    """Every message of a bag as its bytes, by topic, in log order."""
+    out: dict[str, list[bytes]] = {}
+    for entry in BagReader(bag, None):
+        out.setdefault(entry.topic, []).append(bytes(entry.data))
+    return out
 
 
 def check_the_correct_model_explains_the_recording(bag: Path, directory: Path) -> None:
@@ -311,6 +320,20 @@ def test_a_stuck_load_pin_is_left_out_not_learnt(short):
 
 def test_a_correct_plant_file_raises_no_drift(short):
     check_correct_file_kept(short["d"])
+
+
+def test_replay_writes_the_same_bytes_whatever_windows_it_estimates_at_once(short, tmp_path, monkeypatch):
+    """(a), whose tracked stiffness comes into use while it plays: an update window's end within the samples
+    replay estimates at once changes the model for the samples after it, not for those before, which keep
+    the load-pin predictions (and residuals) of the model they were estimated under, as the node gives
+    them one sample at a time. Windows of other sizes write every message the same to the byte."""
+    case = short["a"]
+    monkeypatch.setattr(windows, "FIRST_WINDOW", 97)  # every window's edge elsewhere than the fixture's
+    replay(case.bag, tmp_path / "other", load_plant(case.plant), progress=False)
+    written, again = topic_bytes(case.out), topic_bytes(tmp_path / "other")
+    assert written.keys() == again.keys() and "/model/residuals" in written
+    for topic, data in written.items():
+        assert data == again[topic], topic
 
 
 def test_the_node_fed_the_slip_over_dds_tracks_as_replay_and_writes_its_plant_file(short, domain_id, tmp_path):
