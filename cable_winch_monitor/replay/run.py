@@ -191,7 +191,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     summary = ReplaySummary(Path(bag), Path(out), reader.report, scheduler.monitor.stats)
     bar = Progress("replay", reader.report.expected, enabled=progress)
     with stop_signals(), new_bag(out) as writer, _fewer_collections(), \
-            closing(scheduler.run_diagnosed(reader)) as taken:
+            closing(scheduler.run_diagnosed(reader, reader.report.expected or 0)) as taken:
         try:
             for count, (item, result, diagnostics) in enumerate(taken, 1):
                 if count == 1:

@@ -22,6 +22,11 @@ a sample's value is interpolated between the readings around its stamp. Where th
 make the geometry depend on the pose, or with another solver, each sample is solved in
 step 3 instead, as the node solves it.
 
+With a second process, the windows grow from FIRST_WINDOW messages to the full size and shrink
+again towards the bag's end (`window_sizes`): the second process, which takes longer over a
+window than this one, starts on a small window instead of waiting for a full one to be merged,
+and this one waits less for the last window's results before it can write them.
+
 Each message comes out with its result: the encoded sample (`Encoded`), residuals, None,
 or why the monitor could not take it (`Failed`: what it raised, counted like the node's
 callback errors). The scheduler holds the monitor and decides when and where its stages
@@ -30,6 +35,7 @@ do is the monitor's.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from collections import Counter, deque
 from collections.abc import Generator, Iterable, Iterator
@@ -52,6 +58,7 @@ from .second_process import SecondProcess
 from .stages import Encoded, WindowStages, drawn
 
 WINDOW = 2000  # messages read ahead
+FIRST_WINDOW = 250  # messages in the first and last windows read ahead, with a second process
 EXTENDED = 1000  # messages a window goes on by at most while a sample waits for a reading due at it
 MERGED_AHEAD = 3  # windows merged ahead of the one taken in order, with a second process
 DIAGNOSTICS_PERIOD = 1.0  # [s] of log time between /diagnostics, as the node's default
@@ -100,6 +107,21 @@ def _read(merged: list[Any], released: list[tuple[Any, CompleteSample]]) -> None
         merged[index] = merged[index]._replace(sample=sample)
 
 
+def window_sizes(full: int, expected: int) -> Iterator[int]:
+    """How many messages each window takes, with a second process, of a bag of `expected` messages (0: not
+    known): doubling from FIRST_WINDOW up to `full`, and halving again over the last ones, but not below
+    FIRST_WINDOW. (The messages a window goes on by while a sample waits, EXTENDED, are not counted: the
+    last windows are then a little larger.)"""
+    size = least = min(FIRST_WINDOW, full)
+    taken = 0
+    while True:
+        left = expected - taken
+        this = max(min(size, left // 2), least) if 0 < left < 2 * full else size
+        yield this
+        taken += this
+        size = min(2 * size, full)
+
+
 def _since(before: list[Counter[str]], stats: MonitorStats) -> list[Counter[str]]:
     """What merging has counted since `before` (a `_counters` copy)."""
     return [getattr(stats, name) - counter for name, counter in zip(COUNTED, before)]
@@ -131,14 +153,16 @@ class WindowScheduler:
         self.not_taken: Counter[str] = Counter()  # after a stop: messages read but not taken, by topic
         self.worker_lost = ""  # why the second process was given up (the rest published here), where it was
 
-    def run(self, items: Iterable[Any]) -> Iterator[tuple[Any, Result]]:
+    def run(self, items: Iterable[Any], expected: int = 0) -> Iterator[tuple[Any, Result]]:
         """Every item in order, with what became of it: a winch message that made a complete sample with its
         `Encoded`, a sensor message with its residuals (or None), a message the monitor could not
-        take with why (`Failed`: counted as the node counts its callback errors)."""
-        for item, result, _ in self.run_diagnosed(items):
+        take with why (`Failed`: counted as the node counts its callback errors). `expected`: how many
+        items there are (0: not known), to size the windows by."""
+        for item, result, _ in self.run_diagnosed(items, expected):
             yield item, result
 
-    def run_diagnosed(self, items: Iterable[Any]) -> Generator[tuple[Any, Result, list[Record]], None, None]:
+    def run_diagnosed(self, items: Iterable[Any], expected: int = 0
+                      ) -> Generator[tuple[Any, Result, list[Record]], None, None]:
         """`run`, with /diagnostics after the messages where DIAGNOSTICS_PERIOD of log time has passed, as
         the node publishes them at its clock (log time stands for it).
 
@@ -147,13 +171,16 @@ class WindowScheduler:
         taken are then taken back (`not_taken`: the reader's)."""
         second = SecondProcess(self.stages) if self.second_process else None
         depth = MERGED_AHEAD if second is not None else 0
+        sizes = window_sizes(self.window, expected) if second is not None else itertools.repeat(self.window)
+        size = next(sizes)
         prepared: deque[Prepared] = deque()
         window: list[Any] = []
         try:
             stream = iter(items)
             for item in stream:
                 window.append(item)
-                if len(window) == self.window:
+                if len(window) == size:
+                    size = next(sizes)
                     prepared.append(self._prepare(window, second, stream))
                     window = []
                     if len(prepared) > depth:

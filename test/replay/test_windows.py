@@ -5,6 +5,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cable_winch_monitor import channels
 from cable_winch_monitor.bench.plants import realistic
@@ -12,7 +14,7 @@ from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
 from cable_winch_monitor.replay.stages import Encoded
-from cable_winch_monitor.replay.windows import Failed, WindowScheduler
+from cable_winch_monitor.replay.windows import FIRST_WINDOW, Failed, WindowScheduler, window_sizes
 
 
 def header(t: float) -> SimpleNamespace:
@@ -97,3 +99,23 @@ def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batch
     assert stats.messages == reference.stats.messages and stats.used == reference.stats.used
     assert stats.rejected == reference.stats.rejected and stats.states == reference.stats.states
     assert sum(stats.rejected.values()) >= 1  # the stamp that went backwards
+
+
+@settings(max_examples=200, deadline=None)
+@given(full=st.integers(1, 5000), expected=st.integers(0, 50_000))
+def test_windows_grow_from_the_first_to_the_full_size_and_shrink_towards_the_end(full, expected):
+    """With a second process: the first window small (the second process starts sooner), the full size in
+    between, and the last ones small again (the replay waits less for them); never above the full size nor
+    below the first."""
+    least = min(FIRST_WINDOW, full)
+    sizes, taken = [], 0
+    generator = window_sizes(full, expected)
+    while taken < max(expected, 10 * full):
+        sizes.append(next(generator))
+        taken += sizes[-1]
+    assert sizes[0] == least and all(least <= size <= full for size in sizes)
+    if expected >= 16 * full:  # long enough to reach the full size
+        assert full in sizes
+    covering = next(k for k in range(len(sizes)) if sum(sizes[:k + 1]) >= expected) if expected else None
+    if covering is not None and expected >= 4 * full:
+        assert sizes[covering] <= max(full // 2, least)  # the bag's last window is at most half the full one
