@@ -276,17 +276,26 @@ class MonitorEstimator:
         which the model's own roll and pitch have been changing (a line through its predictions of the last
         CARRY_WINDOW seconds): its readings come tens of milliseconds after the winches', so the latest one
         at a sample is most of a sample period old, which during a swing towards the wall is millimetres of
-        clearance. A line, not the last two predictions: those differ by the encoders' noise."""
+        clearance. A line, not the last two predictions: those differ by the encoders' noise.
+
+        A sample's line runs through the predictions of the samples up to it, in their order, from the first
+        stamped within CARRY_WINDOW before it: samples made at each winch's message are not quite in stamp
+        order, and a window found by time alone would take a later sample's prediction, or not, as the
+        samples estimated with it went (the node's one, replay's many)."""
         stamps = np.array([s.stamp for s in samples])
         ok = forward.ok
         angles = np.array([roll_pitch_yaw(r)[:2] for r in forward.rotation[ok]]).reshape(-1, 2)
         earlier = np.array(self.predictions).reshape(-1, 3)
         times = np.concatenate([earlier[:, 0], stamps[ok]])
         values = np.concatenate([earlier[:, 1:], angles])
-        rates = line_slopes(times, values, np.searchsorted(times, stamps - CARRY_WINDOW, side="left"),
-                            np.searchsorted(times, stamps, side="right"), least=3)
-        recent = times >= stamps[-1] - CARRY_WINDOW
-        self.predictions = [tuple(row) for row in np.column_stack([times[recent], values[recent]]).tolist()]
+        reached = np.maximum.accumulate(times) if times.size else times  # the first within a window: the first to reach it
+        stop = len(earlier) + np.cumsum(ok)  # the predictions of the samples up to each
+        start = np.minimum(np.searchsorted(reached, stamps - CARRY_WINDOW, side="left"), stop)
+        rates = line_slopes(times, values, start, stop, least=3)
+        # kept for the samples to come: from the first that reaches CARRY_WINDOW before the latest stamp, and as
+        # much again for samples stamped before the latest
+        kept = int(np.searchsorted(reached, reached[-1] - 2.0 * CARRY_WINDOW, side="left")) if times.size else 0
+        self.predictions = [tuple(row) for row in np.column_stack([times[kept:], values[kept:]]).tolist()]
         out = []
         for k, sample in enumerate(samples):
             row = {name: value for name, value in sample.measured.items() if math.isfinite(value)}

@@ -17,8 +17,10 @@ import pytest
 from fusionbags import NOISE, header, lowering_truths, noisy, sensed
 from root_truth import weak_mode_truth
 from scipy.special import chdtri
+from simbags import simulated
 
 from cable_winch_monitor import channels
+from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.estimator import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
@@ -31,13 +33,15 @@ from cable_winch_monitor.replay.stages import Encoded
 from cable_winch_monitor.replay.windows import WindowScheduler
 
 
-def live(pipeline: MonitorPipeline, items) -> list[MonitorOutput]:
-    """What the node does with each message, the samples it publishes."""
+def live(pipeline: MonitorPipeline, items, received: bool = False) -> list[MonitorOutput]:
+    """What the node does with each message, the samples it publishes (`received`: each winch message
+    arriving at its log time, as replay takes it)."""
     out = []
     for entry in items:
         msg = entry.message
         if entry.msgtype == channels.JOINT_STATE:
-            output = pipeline.on_joint_state(fields.joint_sample(msg, entry.topic))
+            arrival = entry.log_time * 1e-9 if received else float("nan")
+            output = pipeline.on_joint_state(fields.joint_sample(msg, entry.topic, arrival))
             if output is not None:
                 out.append(output)
         else:
@@ -93,6 +97,25 @@ def test_replay_publishes_the_fused_tensions_and_equals_the_live_node(plant, low
     exact_tension = np.array([np.abs(o.solution.tensions - t.tensions).max() for o, t in zip(exact, truths)])
     assert np.mean(exact_tension > 3.0 * NOISE["tension"]) > 0.3  # the lengths alone miss the share
     assert_same(live(MonitorPipeline(fused), items), outputs)  # the node, one message at a time
+
+
+def test_samples_made_winch_by_winch_are_estimated_as_the_node_estimates_them_to_the_bit(plant, tmp_path):
+    """Every channel, each winch on its own topic, its messages logged as they come: a sample is made at each
+    winch's message, so the samples are not quite in stamp order. The inclinometer, carried to each sample's
+    stamp by the model's tilt rate, takes the predictions of the samples up to it (not those stamped before
+    it, which would take a later sample's in replay's windows but not in the node), so the node, one
+    message at a time, and replay, in windows that end anywhere, give every sample the same bits."""
+    items = list(BagReader(simulated(tmp_path, "all_channels", "duration=20"), fields.input_topics()))
+    node = live(MonitorPipeline(plant), items, received=True)
+    stamps = np.array([o.stamp for o in node])
+    assert len(node) > 700 and np.sum(np.diff(stamps) < 0) > 20  # samples out of stamp order
+    assert all(o.estimate.fused and "/platform/imu" in sensors_used(o.estimate) for o in node[10:])
+    for window in (97, 2000):
+        replay = replayed(WindowScheduler(plant, window=window), items)
+        assert [o.stamp for o in replay] == stamps.tolist()
+        for a, b in zip(replay, node):
+            assert a.solution.tensions.tobytes() == b.solution.tensions.tobytes()
+            assert a.solution.points_b.tobytes() == b.solution.points_b.tobytes()
 
 
 def test_sensor_messages_logged_late_are_fused_as_if_logged_in_order(plant, lowering):
