@@ -23,7 +23,7 @@ from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from . import fields, frames
-from .scene import SceneBuilder, scene_encoder
+from .scene import SceneBuilder, SceneState, scene_encoder
 
 MSGS = "cable_winch_monitor_msgs/msg"
 POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
@@ -125,12 +125,12 @@ def static_records(stamp: fields.Stamp, builder: SceneBuilder) -> list[Record]:
             _record(OUTLINE, builder.outline(stamp), per_sample=False)]
 
 
-def scene_cdr(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> bytes:
+def scene_cdr(stamp: fields.Stamp, builder: SceneBuilder, state: SceneState) -> bytes:
     """The 3-D scene of one sample as CDR bytes (the live node publishes these raw: building the rclpy
     MarkerArray instead cost four times as much)."""
-    return scene_encoder()(builder.scene(stamp, solution, alarm))
+    return scene_encoder()(builder.draw(stamp, state))
 
 
-def scene_records(stamp: fields.Stamp, builder: SceneBuilder, solution: Solution, alarm: Alarm) -> list[Record]:
+def scene_records(stamp: fields.Stamp, builder: SceneBuilder, state: SceneState) -> list[Record]:
     """The 3-D scene of one sample."""
-    return [(SCENE, OUTPUT_TYPES[SCENE], scene_cdr(stamp, builder, solution, alarm))]
+    return [(SCENE, OUTPUT_TYPES[SCENE], scene_cdr(stamp, builder, state))]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from functools import lru_cache
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -104,6 +105,38 @@ def marker(head: Fields, ns: str, kind: int, *, marker_id: int = 0, vertices: li
             "points": vertices or [], "text": text}
 
 
+class SceneState(NamedTuple):
+    """What a sample's scene shows of its solution and alarm, in plain numbers: replay's second process sends
+    it to the process that draws the scenes (a Solution and an Alarm took 140 us a scene to pickle and
+    unpickle, as much as drawing it)."""
+
+    lengths: list[float]                  # the solution's rope lengths [m] (NaN: not known)
+    position: list[float] | None          # the platform's position [m] (None: no pose)
+    up: list[float] | None                # its rotation's third row: body point p is at height position[2] + up . p
+    points_b: list[list[float]] | None    # the attachments B_i in `shaft` [m]
+    tensions: list[float] | None          # [N]
+    spans: list[float] | None             # [m] from A_i to B_i
+    taut: frozenset[int]                  # the taut ropes (1..4)
+    level: AlarmLevel
+    clearance: tuple[float, str, list[float]] | None  # [m], the outline point nearest the wall, where it is in `shaft`
+    reason: str
+
+    @classmethod
+    def of(cls, solution: Solution, alarm: Alarm) -> SceneState:
+        def listed(values: np.ndarray | None) -> Any:
+            return None if values is None else values.tolist()
+
+        pose = solution.ok and solution.position is not None and solution.rotation is not None
+        clearance = alarm.clearance
+        return cls(solution.lengths.tolist(), listed(solution.position) if pose else None,
+                   solution.rotation[2].tolist() if pose and solution.rotation is not None else None,
+                   listed(solution.points_b), listed(solution.tensions), listed(solution.spans),
+                   frozenset(solution.taut_set), alarm.level,
+                   None if clearance is None else (float(clearance.value), clearance.point_name,
+                                                   clearance.point_shaft.tolist()),
+                   alarm.reason)
+
+
 class SceneBuilder:
     """The scene of one plant: what does not move is computed once."""
 
@@ -119,26 +152,28 @@ class SceneBuilder:
     def scene(self, stamp: Stamp, solution: Solution, alarm: Alarm) -> Fields:
         """The MarkerArray fields of one sample (wall, sheaves and alarm always; ropes and closest point with a
         pose or a clearance)."""
+        return self.draw(stamp, SceneState.of(solution, alarm))
+
+    def draw(self, stamp: Stamp, state: SceneState) -> Fields:
+        """`scene`, from what it shows of the solution and alarm."""
         head = header(stamp, FRAME)
         markers = [marker(head, "", 0, action=DELETEALL),
                    marker(head, "sheaves", SPHERE_LIST, vertices=self.sheaves, colour=SHEAVE_COLOUR,
                           scale=(0.4, 0.4, 0.4))]
-        level_colour = LEVEL_COLOURS[alarm.level]
-        lengths = solution.lengths.tolist()
-        known = [length for length in lengths if not math.isnan(length)]  # np.nanmean's, the same to the bit
+        level_colour = LEVEL_COLOURS[state.level]
+        known = [length for length in state.lengths if not math.isnan(length)]  # np.nanmean's, the same to the bit
         bottom = -small_mean(known) if any(map(math.isfinite, known)) else 0.0
         label_at = (*self.plant.shaft_centre.tolist(), bottom + 2.0)
-        if solution.ok:
-            assert solution.position is not None and solution.rotation is not None  # solved: a pose
-            heights = solution.position[2] + self.plant.outline_array @ solution.rotation[2]
+        if state.position is not None and state.up is not None:
+            heights = state.position[2] + self.plant.outline_array @ np.array(state.up)
             bottom = float(heights.min())
-            label_at = (*solution.position[:2].tolist(), float(heights.max()) + 5.0)
-            markers += self._ropes(head, solution)
+            label_at = (*state.position[:2], float(heights.max()) + 5.0)
+            markers += self._ropes(head, state)
         markers.append(self._wall(head, bottom - WALL_BELOW))
-        markers += self._closest(head, alarm, level_colour)
-        clearance = "" if alarm.clearance is None else f", clearance {alarm.clearance.value:.3f} m"
+        markers += self._closest(head, state, level_colour)
+        clearance = "" if state.clearance is None else f", clearance {state.clearance[0]:.3f} m"
         markers.append(marker(head, "alarm", TEXT, colour=level_colour, scale=(0.0, 0.0, TEXT_HEIGHT * 1.5),
-                              position=label_at, text=f"{alarm.level.name}{clearance}: {alarm.reason}"))
+                              position=label_at, text=f"{state.level.name}{clearance}: {state.reason}"))
         return {"markers": markers}
 
     def _wall(self, head: Fields, bottom: float) -> Fields:
@@ -155,16 +190,15 @@ class SceneBuilder:
                                    scale=(DECK_WIDTH, 0.0, 0.0), frame_locked=True)
                             for k, deck in enumerate(self.decks)]}
 
-    def _ropes(self, head: Fields, solution: Solution) -> list[Fields]:
+    def _ropes(self, head: Fields, state: SceneState) -> list[Fields]:
         """Rope i from A_i to B_i: coloured by tension when taut, grey and dashed when slack; a label near B_i."""
-        assert solution.tensions is not None and solution.points_b is not None  # drawn for a solved pose only
-        assert solution.spans is not None
+        assert state.tensions is not None and state.points_b is not None  # drawn for a solved pose only
+        assert state.spans is not None
         out = []
         weight = self.plant.weight
-        tensions = solution.tensions.tolist()
-        for i, (name, a, b) in enumerate(zip(CABLE_NAMES, self.plant.anchors, solution.points_b)):
-            tension = tensions[i]
-            if (i + 1) in solution.taut_set:
+        for i, (name, a, b) in enumerate(zip(CABLE_NAMES, self.plant.anchors, np.array(state.points_b))):
+            tension = state.tensions[i]
+            if (i + 1) in state.taut:
                 out.append(marker(head, "ropes", LINE_STRIP, marker_id=i, vertices=points([a.tolist(), b.tolist()]),
                                   colour=tension_colour(tension / weight), scale=(ROPE_WIDTH, 0.0, 0.0)))
                 label = f"{name} {tension / 1000.0:.1f} kN"
@@ -172,7 +206,7 @@ class SceneBuilder:
                 dashes = points((a + DASH_ENDS * (b - a)).tolist())
                 out.append(marker(head, "ropes", LINE_LIST, marker_id=i, vertices=dashes, colour=SLACK_COLOUR,
                                   scale=(ROPE_WIDTH, 0.0, 0.0)))
-                label = f"{name} slack, loose by {float(solution.lengths[i] - solution.spans[i]):.3f} m"
+                label = f"{name} slack, loose by {state.lengths[i] - state.spans[i]:.3f} m"
             towards_a = a - b
             distance = max(math.sqrt(towards_a.dot(towards_a)), 1e-9)  # np.linalg.norm's sum, without its checks
             label_at = [p + 3.0 * (d / distance) for p, d in zip(b.tolist(), towards_a.tolist())]
@@ -180,21 +214,21 @@ class SceneBuilder:
                               position=label_at, text=label))
         return out
 
-    def _closest(self, head: Fields, alarm: Alarm, colour: RGBA) -> list[Fields]:
+    def _closest(self, head: Fields, state: SceneState, colour: RGBA) -> list[Fields]:
         """The outline point nearest the wall, the gap from it to the wall, and the clearance as text."""
-        clearance = alarm.clearance
-        if clearance is None or not np.isfinite(clearance.value):
+        if state.clearance is None or not math.isfinite(state.clearance[0]):
             return []
-        point = clearance.point_shaft
+        value, name, shaft = state.clearance
+        point = np.array(shaft)
         offset = point[:2] - self.plant.shaft_centre
         radial = offset / max(math.hypot(*offset.tolist()), 1e-9)
-        wall = (*(self.plant.shaft_centre + self.plant.shaft_radius * radial).tolist(), float(point[2]))
-        return [marker(head, "closest_point", SPHERE, colour=colour, scale=(0.3, 0.3, 0.3), position=point.tolist()),
-                marker(head, "closest_point", LINE_LIST, marker_id=1, vertices=points([point.tolist(), wall]),
+        wall = (*(self.plant.shaft_centre + self.plant.shaft_radius * radial).tolist(), shaft[2])
+        return [marker(head, "closest_point", SPHERE, colour=colour, scale=(0.3, 0.3, 0.3), position=shaft),
+                marker(head, "closest_point", LINE_LIST, marker_id=1, vertices=points([shaft, wall]),
                        colour=colour, scale=(ROPE_WIDTH, 0.0, 0.0)),
                 marker(head, "closest_point", TEXT, marker_id=2, colour=colour, scale=(0.0, 0.0, TEXT_HEIGHT),
                        position=(point + np.array([0.0, 0.0, 0.8])).tolist(),
-                       text=f"{clearance.value:.3f} m at {clearance.point_name}")]
+                       text=f"{value:.3f} m at {name}")]
 
 
 class SceneThrottle:

@@ -40,7 +40,7 @@ from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..live.scheduler import BACKLOG, LiveScheduler
 from ..messages import fields, frames, records
-from ..messages.scene import LIVE_RATE, SceneBuilder, SceneThrottle
+from ..messages.scene import LIVE_RATE, SceneBuilder, SceneState, SceneThrottle
 from ..model.plantfile.plant import PlantConfigError, load_plant
 from ..model.solvers.solve import METHODS
 from ..monitor.diagnostics import DiagnosticsReporter
@@ -278,7 +278,7 @@ class WinchMonitorNode(Node):
         self._note_residuals(output.residuals)
         self._send(records.output_records(stamp, output))
         if self.scene_throttle.due(output.stamp):
-            self.scene_pub.publish(records.scene_cdr(stamp, self.scene, output.solution, output.alarm))
+            self.scene_pub.publish(records.scene_cdr(stamp, self.scene, SceneState.of(output.solution, output.alarm)))
 
     def _note_residuals(self, residuals: Residuals | None) -> None:
         if residuals is not None:

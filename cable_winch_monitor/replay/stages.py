@@ -19,10 +19,8 @@ from typing import NamedTuple
 from ..messages import records
 from ..messages.fields import Stamp
 from ..messages.records import Record
-from ..messages.scene import SceneBuilder, SceneThrottle
+from ..messages.scene import SceneBuilder, SceneState, SceneThrottle
 from ..model.conditions import Conditions
-from ..model.statics.result import Solution
-from ..monitor.alarm import Alarm
 from ..monitor.diagnostics import SampleView, sample_view
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
 
@@ -35,7 +33,7 @@ class Encoded(NamedTuple):
     records: list[Record]
     outcome: Outcome
     view: SampleView | None
-    scene: tuple[Solution, Alarm] | None = None  # where a scene is due and not drawn yet: what it shows
+    scene: SceneState | None = None  # where a scene is due and not drawn yet: what it shows
     output: MonitorOutput | None = None  # the sample's outputs themselves, where encoded in this process
 
 
@@ -43,7 +41,7 @@ def drawn(encoded: Encoded, header: Stamp, builder: SceneBuilder) -> Encoded:
     """`encoded` (header stamp `header`) with its scene drawn after its outputs, where one is due."""
     if encoded.scene is None:
         return encoded
-    return encoded._replace(records=encoded.records + records.scene_records(header, builder, *encoded.scene),
+    return encoded._replace(records=encoded.records + records.scene_records(header, builder, encoded.scene),
                             scene=None)
 
 
@@ -66,7 +64,7 @@ class WindowStages:
         out = []
         for sample, at, header, done in zip(samples, conditions, headers, solved):
             output, outcome = monitor.judge(sample, done, at)
-            scene = (output.solution, output.alarm) if self.throttle.due(output.stamp) else None
+            scene = SceneState.of(output.solution, output.alarm) if self.throttle.due(output.stamp) else None
             second = math.floor(output.stamp)
             view = None
             if second != self.second:
