@@ -2,8 +2,9 @@
 
 Connections are added on a topic's first message; message definitions come from the
 type store, so the bag carries the schemas that other tools decode it with. Messages go
-into rosbags' MCAP chunk by `_append`, which does what rosbags' `Writer.write` does for an
-uncompressed bag (the same bytes, the same bookkeeping), in one step.
+into rosbags' open MCAP chunk by `_append` (the bytes rosbags' `Writer.write` writes for an
+uncompressed bag), their index and counts kept here as arrays and counters and handed to
+rosbags, which writes the summary and metadata.yaml, when the bag is closed.
 
 Chunks are bounded, so that damage costs little: one is closed past CHUNK_SIZE bytes or
 when its messages would span more than CHUNK_SPAN of log time, and each carries the
@@ -13,10 +14,10 @@ for the same reason.
 """
 from __future__ import annotations
 
-import itertools
 import shutil
 import struct
 import zlib
+from array import array
 from collections import Counter, defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -65,7 +66,10 @@ class BagWriter:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
         assert isinstance(writer.storage, McapWriter)  # open() made the storage of the plugin asked for
         self._storage: McapWriter = writer.storage
-        self._written: dict[int, int] = writer.counts  # rosbags' count per channel, kept after close
+        self._written: Counter[int] = Counter()  # messages per channel
+        self._index: dict[int, array[int]] = {}  # the open chunk's (log time, offset) of each message, by channel
+        self._first, self._last = 2 ** 63 - 1, 0  # [ns] the open chunk's earliest and latest log time
+        self._span = [2 ** 63 - 1, 0]  # [ns] the bag's
         # rosbags' own close() ends the last chunk through it too (mypy: rosbags has no hook, its method is replaced)
         self._storage.close_chunk = self._close_chunk  # type: ignore[method-assign]
 
@@ -73,32 +77,28 @@ class BagWriter:
         """End the open chunk: what rosbags' McapWriter.close_chunk writes for an uncompressed chunk (the
         chunk, its message indexes, its entry of the chunk index), packed a record at a time rather than
         a field at a time, and with the CRC-32 of the chunk's data where rosbags writes 0 ("no CRC")."""
-        storage = self._storage
-        chunk, out = storage.chunk, storage.bio
-        data = chunk.bio.getvalue()
-        start_time, end_time = chunk.message_start_time, chunk.message_end_time
+        storage, out = self._storage, self._storage.bio
+        data = storage.chunk.bio.getvalue()
+        start_time, end_time = self._first, self._last
         chunk_start = out.tell()
         out.write(CHUNK.pack(0x06, CHUNK.size - 9 + len(data), start_time, end_time, len(data), zlib.crc32(data), 0,
                              len(data)))
         out.write(data)
         chunk_end = out.tell()
         offsets = []
-        for channel, entries in chunk.msgs.items():  # (log time, offset in the chunk) of each message
+        for channel, entries in self._index.items():  # (log time, offset in the chunk) of each message
             offsets.append((channel, out.tell()))
-            out.write(MESSAGE_INDEX.pack(0x07, MESSAGE_INDEX.size - 9 + 16 * len(entries), channel, 16 * len(entries)))
-            out.write(struct.pack(f"<{2 * len(entries)}Q", *itertools.chain.from_iterable(entries)))
+            out.write(MESSAGE_INDEX.pack(0x07, MESSAGE_INDEX.size - 9 + 8 * len(entries), channel, 8 * len(entries)))
+            out.write(entries.tobytes())
         entry = BytesIO()
         entry.write(struct.pack("<QQQQI", start_time, end_time, chunk_start, chunk_end - chunk_start, 10 * len(offsets)))
         entry.write(b"".join(struct.pack("<HQ", *offset) for offset in offsets))
         entry.write(struct.pack("<QIQQ", out.tell() - chunk_end, 0, len(data), len(data)))
         storage.chunks.append(entry)
+        if self._index:  # (rosbags' chunk may hold the records of connections alone)
+            self._span = [min(self._span[0], start_time), max(self._span[1], end_time)]
         storage.chunk = PendingChunk(2 ** 63 - 1, 0, BytesIO(), defaultdict(list))
-
-    def close_spanning_chunk(self, time: int) -> None:
-        """End the open chunk if a message at `time` [ns] would make it span more than CHUNK_SPAN."""
-        chunk = self._storage.chunk
-        if chunk.msgs and (time - chunk.message_start_time > CHUNK_SPAN or chunk.message_end_time - time > CHUNK_SPAN):
-            self._close_chunk()
+        self._index, self._first, self._last = {}, 2 ** 63 - 1, 0
 
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes | memoryview, latched: bool = False) -> None:
         """CDR bytes as they are, at `log_time` [ns]; a `latched` topic is recorded as offered transient-local
@@ -124,27 +124,39 @@ class BagWriter:
         return Counter({topic: self._written[channel] for topic, channel in self._channels.items()})
 
     def _append(self, channel: int, time: int, data: bytes | memoryview) -> None:
-        """rosbags' Writer.write and McapWriter.write (rosbags 0.11.9, no compression) in one step."""
-        self.close_spanning_chunk(time)
-        writer, storage = self._writer, self._storage
-        assert writer is not None  # nothing is written after close
-        writer.counts[channel] += 1
-        storage.channel_stats[channel] += 1
-        if time < writer.min_timestamp:
-            writer.min_timestamp = storage.message_start_time = time
-        if time > writer.max_timestamp:
-            writer.max_timestamp = storage.message_end_time = time
-        chunk = storage.chunk
-        if time < chunk.message_start_time:
-            chunk.message_start_time = time
-        if time > chunk.message_end_time:
-            chunk.message_end_time = time
-        bio = chunk.bio
-        offset = bio.tell()
-        chunk.msgs[channel].append((time, offset))
-        bio.write(MESSAGE.pack(0x05, MESSAGE.size - 9 + len(data), channel, 0, time, time) + data)
+        """A message into the open chunk (a new one where it would span more than CHUNK_SPAN), indexed."""
+        if self._index and (time - self._first > CHUNK_SPAN or self._last - time > CHUNK_SPAN):
+            self._close_chunk()
+        assert self._writer is not None  # nothing is written after close
+        self._written[channel] += 1
+        if time < self._first:
+            self._first = time
+        if time > self._last:
+            self._last = time
+        chunk = self._storage.chunk.bio
+        offset = chunk.tell()
+        index = self._index.get(channel)
+        if index is None:
+            index = self._index[channel] = array("Q")
+        index.append(time)
+        index.append(offset)
+        chunk.write(MESSAGE.pack(0x05, MESSAGE.size - 9 + len(data), channel, 0, time, time))
+        chunk.write(data)
         if offset + MESSAGE.size + len(data) > CHUNK_SIZE:
             self._close_chunk()
+
+    def _hand_over(self) -> None:
+        """The last chunk ended, and what rosbags writes into the summary and metadata.yaml as it closes the bag
+        handed to it: the messages per channel, and the earliest and latest log time."""
+        if self._index:
+            self._close_chunk()
+        writer, storage = self._writer, self._storage
+        assert writer is not None  # handed over once, as the bag is closed
+        for channel, count in self._written.items():
+            writer.counts[channel] = storage.channel_stats[channel] = count
+        if self._written:
+            writer.min_timestamp = storage.message_start_time = self._span[0]
+            writer.max_timestamp = storage.message_end_time = self._span[1]
 
     def write(self, topic: str, msgtype: str, log_time: int, message: Any) -> None:
         """A rosbags message object, serialised to CDR."""
@@ -153,16 +165,18 @@ class BagWriter:
     def close(self) -> None:
         """Write the index and metadata.yaml (idempotent)."""
         if self._writer is not None:
+            self._hand_over()
             self._writer.close()
             self._writer = None
             _seal_summary(self._storage.path)
 
     def discard(self) -> None:
         """Remove the bag (a job that failed leaves none)."""
-        writer, self._writer = self._writer, None
-        if writer is not None:
+        if self._writer is not None:
             with suppress(Exception):  # the failure is the job's, reported by the caller
-                writer.close()
+                self._hand_over()
+                self._writer.close()
+        self._writer = None
         shutil.rmtree(self.path, ignore_errors=True)
 
     def __enter__(self) -> BagWriter:

@@ -18,7 +18,7 @@ from simbags import encoder_tracking_plant
 
 from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
 from cable_winch_monitor.bagio.typestore import typestore
-from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.bagio.writer import CHUNK_SPAN, BagWriter
 from cable_winch_monitor.messages import records
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
@@ -33,8 +33,12 @@ def generic_encoder(msgtype: str) -> Any:
 
 
 def generic_append(self: BagWriter, channel: int, time: int, data: bytes) -> None:
-    """rosbags' own write, under the writer's chunk policy (bounded span; the CRC is added at close_chunk)."""
-    self.close_spanning_chunk(time)
+    """rosbags' own write and counts, under the writer's chunk policy (bounded span; the CRC is added at
+    close_chunk)."""
+    chunk = self._storage.chunk
+    if chunk.msgs and (time - chunk.message_start_time > CHUNK_SPAN or chunk.message_end_time - time > CHUNK_SPAN):
+        self._storage.close_chunk()
+    self._written[channel] += 1  # what the writer reports
     writer = self._writer
     writer.write(next(c for c in writer.connections if c.id == channel), time, data)
 
@@ -72,6 +76,7 @@ def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
         patch.setattr(records, "scene_encoder", lambda: generic_encoder(records.OUTPUT_TYPES[records.SCENE]))
         patch.setattr(BagWriter, "_append", generic_append)
         patch.setattr(BagWriter, "_close_chunk", generic_close_chunk)
+        patch.setattr(BagWriter, "_hand_over", lambda self: None)  # rosbags counted every message itself
         replay(BAG, generic, plant, progress=False)
     replay(BAG, fast, plant, progress=False)
     return generic, fast
