@@ -62,15 +62,16 @@ class LiveScheduler:
         self.backlog, self.clock = backlog, clock
         self.lock = threading.RLock()
         self._ready = threading.Condition(self.lock)
-        self._held = ReadingWait(self.monitor, wait)  # waiting for a reading due at them
-        self._pending: deque[tuple[Hashable, CompleteSample]] = deque()  # with their readings, for the worker
+        # complete samples keyed by their tag and the clock at their merge: held while a reading due at them has
+        # not come, then pending with their readings for the worker
+        self._held: ReadingWait[tuple[Hashable, float]] = ReadingWait(self.monitor, wait)
+        self._pending: deque[tuple[tuple[Hashable, float], CompleteSample]] = deque()
+        self._taken: list[float] = []  # the clock at the merge of each sample of the latest `take`
         self._solving = 0  # samples taken by the worker and not yet noted: still waiting for their outputs
         self.unseen = 0  # winch messages the transport dropped before they were offered (as far as known)
         self.complete = 0  # complete samples merged
         self.skipped = 0  # complete samples dropped unsolved: more than the backlog behind the newest
         self.generation = 0  # restarts so far
-        # stamp and clock of each complete sample not yet solved (bounded: a scheduler nobody solves for forgets)
-        self._merged: deque[tuple[float, float]] = deque(maxlen=100 * TIMED)
         self.queued: deque[float] = deque(maxlen=TIMED)  # [s] from merge to the start of its solve, latest samples
         self.processed: deque[float] = deque(maxlen=TIMED)  # [s] from merge to its outputs
 
@@ -83,8 +84,7 @@ class LiveScheduler:
                 return False
             self.complete += 1
             now = self.clock()
-            self._merged.append((complete.stamp, now))
-            self._hand_over(self._held.add(tag, complete, now))
+            self._hand_over(self._held.add((tag, now), complete, now))
             while self._pending and self._pending[0][1].stamp < complete.stamp - self.backlog:
                 self._pending.popleft()
                 self.skipped += 1
@@ -98,7 +98,7 @@ class LiveScheduler:
             self._hand_over(self._held.release(self.clock()))
             return residuals
 
-    def _hand_over(self, released: list[tuple[Hashable, CompleteSample]]) -> None:
+    def _hand_over(self, released: list[tuple[tuple[Hashable, float], CompleteSample]]) -> None:
         """Samples released with their readings, for the worker."""
         if released:
             self._pending.extend(released)
@@ -116,7 +116,8 @@ class LiveScheduler:
             taken = list(self._pending)
             self._pending.clear()
             self._solving = len(taken)
-            return taken
+            self._taken = [merged for (_, merged), _ in taken]
+            return [(tag, sample) for (tag, _), sample in taken]
 
     def solve_all(self, samples: list[CompleteSample]) -> list[MonitorOutput]:
         """Solve samples from `take` together, in order: equilibrium, alarm and load-pin residuals of each
@@ -138,22 +139,19 @@ class LiveScheduler:
                     output, outcome = monitor.judge(sample, done, at)
                     monitor.note(outcome)
                     outputs.append(output)
-                self._time(samples, started, self.clock())
+                self._time(started, self.clock())
                 return outputs
         finally:
             with self.lock:
                 self._solving = 0
 
-    def _time(self, samples: list[CompleteSample], started: float, done: float) -> None:
-        """Keep how long each solved sample queued and took from its merge to its outputs (`started`, `done`:
-        the clock when their solve began and ended); the samples skipped before them are forgotten."""
-        for sample in samples:
-            while self._merged and self._merged[0][0] < sample.stamp:
-                self._merged.popleft()
-            if self._merged and self._merged[0][0] == sample.stamp:
-                merged = self._merged.popleft()[1]
-                self.queued.append(started - merged)
-                self.processed.append(done - merged)
+    def _time(self, started: float, done: float) -> None:
+        """Keep how long each sample of the latest `take` queued and took from its merge to its outputs
+        (`started`, `done`: the clock when their solve began and ended)."""
+        for merged in self._taken:
+            self.queued.append(started - merged)
+            self.processed.append(done - merged)
+        self._taken = []
 
     def counters(self) -> dict[str, object]:
         """The node's own counts, the update process's losses, and its latest samples' times, for /diagnostics."""
@@ -182,7 +180,6 @@ class LiveScheduler:
             self.monitor.stats = old.stats
             self.skipped += self._held.clear() + len(self._pending) + self._solving  # dropped unsolved: from the future that went
             self._pending.clear()
-            self._merged.clear()
             self._held.monitor = self.monitor
             self.generation += 1
 

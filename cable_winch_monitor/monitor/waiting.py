@@ -12,30 +12,33 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Hashable
+from typing import Generic, TypeVar
 
 from .pipeline import CompleteSample, MonitorPipeline
+
+Key = TypeVar("Key", bound=Hashable)
 
 READING_WAIT = 0.05  # [s] a complete sample is held at most this long for a sensor reading due at its stamp
 
 
-class ReadingWait:
+class ReadingWait(Generic[Key]):
     """Complete samples from `MonitorPipeline.merge_winch`, each with a key, given back in order with their
     readings (`MonitorPipeline.read_sensors`) once none is due at them, or their wait is over."""
 
     def __init__(self, monitor: MonitorPipeline, wait: float = READING_WAIT):
         self.monitor, self.wait = monitor, wait
-        self._held: deque[tuple[Hashable, CompleteSample, float]] = deque()  # key, sample, when it came
+        self._held: deque[tuple[Key, CompleteSample, float]] = deque()  # key, sample, when it came
         self.held = 0  # samples that had to wait (for a reading due at them, or at a sample before them)
         self.unheld = 0  # of those, released when the wait ran out before the reading came
 
-    def add(self, key: Hashable, sample: CompleteSample, now: float) -> list[tuple[Hashable, CompleteSample]]:
+    def add(self, key: Key, sample: CompleteSample, now: float) -> list[tuple[Key, CompleteSample]]:
         """A complete sample that came at `now`; the samples released by it (itself, unless it waits)."""
         self._held.append((key, sample, now))
         released = self.release(now)
         self.held += bool(self._held)
         return released
 
-    def release(self, now: float, everything: bool = False) -> list[tuple[Hashable, CompleteSample]]:
+    def release(self, now: float, everything: bool = False) -> list[tuple[Key, CompleteSample]]:
         """The samples held that may go at `now` (`everything`: all of them), oldest first, with their readings:
         up to the first whose reading is still due within its wait."""
         out = []

@@ -101,7 +101,7 @@ def _counters(stats: MonitorStats) -> list[Counter[str]]:
     return [getattr(stats, name).copy() for name in COUNTED]
 
 
-def _read(merged: list[Any], released: list[tuple[Any, CompleteSample]]) -> None:
+def _read(merged: list[Any], released: list[tuple[int, CompleteSample]]) -> None:
     """The samples released by the wait for their readings, with them, in their places in a window's `merged`."""
     for index, sample in released:
         merged[index] = merged[index]._replace(sample=sample)
@@ -143,7 +143,7 @@ class WindowScheduler:
         self.batched = batched and (monitor.fusing or monitor.model.batchable)  # else one by one, as the node does
         self.input_specs = {spec.topic: spec for spec in monitor.model.inputs}
         self.stages = WindowStages(monitor, scene_rate)
-        self.waiting = ReadingWait(monitor)  # a window's complete samples waiting for a reading due at them
+        self.waiting: ReadingWait[int] = ReadingWait(monitor)  # a window's samples (by place) waiting for a reading due at them
         self.second_process = second_process and SecondProcess.available()
         self.last_view: SampleView | None = None  # what /diagnostics says of the latest sample taken
         self.reporter = DiagnosticsReporter(plant.name)
