@@ -180,8 +180,9 @@ class ConditionsTracker:
                inputs: Mapping[str, float] | None = None) -> Conditions:
         """Record a sample (stamp [s], lengths, reported speeds with NaN where none) and return its conditions."""
         history = self.history
-        if history and time <= history[-1][0]:
-            history.clear()  # time went back (a replay restarted): derivatives start afresh
+        if history and time < history[-1][0] - self.window:
+            history.clear()  # time went back by more than the window (a replay restarted): derivatives start afresh
+        # (by less, a sample made at another winch's message stamped a little earlier: the window's line holds it)
         lengths, speeds = np.asarray(lengths, dtype=float), np.asarray(speeds, dtype=float)
         history.append((time, lengths, speeds))
         while history[0][0] < time - self.window:

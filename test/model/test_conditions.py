@@ -36,6 +36,22 @@ def test_live_conditions_are_the_stacked_ones(seed, count, silent):
     np.testing.assert_array_equal([c.direction for c in live], directions(stacked_speeds))
 
 
+def test_a_sample_stamped_a_little_before_the_one_before_it_keeps_the_windows_line():
+    """Samples made at each winch's message are not quite in stamp order: one stamped 2 ms before the sample
+    before it is part of the same motion, not a replay starting again, and its speeds and accelerations are
+    the line through the window as it is (a restart would have made its acceleration 0: an effect reading it,
+    the platform's inertia, would lose m a from the load)."""
+    t = np.arange(40) * 0.1
+    t[21] = t[20] - 0.002  # merged after sample 20, stamped before it
+    lengths = 100.0 + 0.5 * 0.4 * t[:, None] ** 2 * np.ones(4)  # paying out at 0.4 m/s^2
+    speeds = 0.4 * t[:, None] * np.ones(4)
+    tracker = ConditionsTracker()
+    live = [tracker.update(float(at), row, rate) for at, row, rate in zip(t, lengths, speeds)]
+    assert all(abs(c.acceleration - 0.4) < 1e-9 for c in live[1:])
+    restarted = tracker.update(0.0, lengths[0], speeds[0])  # the bag played again: afresh
+    assert restarted.acceleration == 0.0
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 10_000), count=st.integers(1, 40), least=st.integers(1, 4))
 def test_line_slopes_are_least_squares_lines_over_each_window(seed, count, least):
