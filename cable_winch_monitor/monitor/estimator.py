@@ -206,17 +206,25 @@ class MonitorEstimator:
             if self.origin is None:
                 self.origin = samples[start].stamp
                 self.error.start(self.origin)
-            index = self.error.window(samples[start].stamp, self.origin)
+            index = self._window_of(samples[start].stamp)
             if self.window is not None and index != self.window.index:
                 self._close(index)
             if self.window is None:
                 self.window, self.seed = _Window(index), self._last_solution()
             stop = start + 1
-            while stop < len(samples) and self.error.window(samples[stop].stamp, self.origin) == index:
+            while stop < len(samples) and self._window_of(samples[stop].stamp) == index:
                 stop += 1
             out.append((self._estimate(samples[start:stop]), start))
             start = stop
         return out
+
+    def _window_of(self, stamp: float) -> int:
+        """The update window of a sample: the window its stamp falls in, or the open one where that is later (a
+        sample made at another winch's message may be stamped a little before the one before it, across a
+        window's start: it is not taken back to the window closed already)."""
+        assert self.origin is not None  # set by the first sample
+        index = self.error.window(stamp, self.origin)
+        return index if self.window is None else max(index, self.window.index)
 
     # -- one run of samples in the current window ------------------------------------------------------------
     def _estimate(self, samples: Sequence[SampleInput]) -> Estimated:

@@ -9,6 +9,7 @@ outputs; a load pin that goes wrong is left out as soon as it contradicts the ot
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 from types import SimpleNamespace
 
@@ -116,6 +117,29 @@ def test_samples_made_winch_by_winch_are_estimated_as_the_node_estimates_them_to
         for a, b in zip(replay, node):
             assert a.solution.tensions.tobytes() == b.solution.tensions.tobytes()
             assert a.solution.points_b.tobytes() == b.solution.points_b.tobytes()
+
+
+def test_a_sample_stamped_just_before_an_update_window_it_follows_stays_in_the_open_window(plant, tmp_path,
+                                                                                          monkeypatch):
+    """Each winch on its own topic: where a sample is stamped a little before the one before it, across the
+    start of an update window, it is estimated in the window open already, not in the one closed before
+    (which would close the open one after a sample and start the model error's update over); the node and
+    replay alike, to the bit."""
+    items = list(BagReader(simulated(tmp_path, "all_channels", "duration=20"), fields.input_topics()))
+    stamps = [o.stamp for o in live(MonitorPipeline(plant), items, received=True)]
+    k = next(k for k in range(200, len(stamps) - 1) if stamps[k + 1] < stamps[k])
+    period = (stamps[k] + stamps[k + 1]) / 2.0 - stamps[0]  # a window starts between the two
+    edged = plant.with_changes(model_error=dataclasses.replace(plant.model_error, period=period))
+    closed = []
+    close = estimator.MonitorEstimator._close
+    monkeypatch.setattr(estimator.MonitorEstimator, "_close",
+                        lambda self, index: closed.append((self.window.index, index)) or close(self, index))
+    node = live(MonitorPipeline(edged), items, received=True)
+    assert closed and all(after > before for before, after in closed)
+    replay = replayed(WindowScheduler(edged, window=97), items)
+    assert [o.stamp for o in replay] == stamps
+    for a, b in zip(replay, node):
+        assert a.solution.tensions.tobytes() == b.solution.tensions.tobytes()
 
 
 def test_sensor_messages_logged_late_are_fused_as_if_logged_in_order(plant, lowering):
