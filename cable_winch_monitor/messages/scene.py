@@ -233,7 +233,8 @@ class SceneBuilder:
 
 class SceneThrottle:
     """At most `rate` scenes per second of header stamps: a scene is due when `period` has passed since the last
-    one (or the stamps went back, as when a simulation restarts)."""
+    one, or the stamps went back by more than that, as when a simulation restarts (a sample made at another
+    winch's message, stamped a little before the last, is not a restart)."""
 
     def __init__(self, rate: float):
         if not rate > 0.0:
@@ -242,7 +243,7 @@ class SceneThrottle:
         self.last = -math.inf
 
     def due(self, stamp: float) -> bool:
-        if self.last <= stamp < self.last + self.period:
+        if self.last - self.period <= stamp < self.last + self.period:
             return False
         self.last = stamp
         return True

@@ -37,6 +37,7 @@ def test_throttle_lets_through_one_scene_per_period_and_restarts_when_stamps_go_
     stamps = np.arange(0.0, 2.0, 0.025)  # 40 Hz
     due = [t for t in stamps if throttle.due(float(t))]
     assert len(due) == pytest.approx(20, abs=1) and np.all(np.diff(due) >= 0.1 - 1e-12)
+    assert not throttle.due(due[-1] - 0.002), "a sample made at another winch's message, stamped a little earlier"
     assert throttle.due(0.5), "a simulation restarted: stamps went back"
     with pytest.raises(ValueError):
         SceneThrottle(0.0)
