@@ -46,6 +46,7 @@ from ..effects.plantfile import write_plant
 from ..effects.tracked import TrackedParameter, tracked_parameters
 from ..model.plantfile.error_spec import SIZE
 from ..model.plantfile.track import TrackSpec
+from .seconds import FirstOfEachSecond
 from .sensitivity import WindowSamples, window_information
 
 INITIAL = 10.0     # [tolerances] 1-sigma of a tracked parameter before the first window, and after a step
@@ -106,7 +107,7 @@ class ParameterTracker:
         self.updated_at = math.nan  # [s] the end of the last window applied
         self.excited = np.zeros(len(self.parameters), bool)
         self.since = np.full(len(self.parameters), math.nan)
-        self.second = -math.inf    # the second of stamps whose view was last published
+        self.first_of_second = FirstOfEachSecond()  # where the view is published
         self._view: ParameterView | None = None
 
     @classmethod
@@ -199,12 +200,7 @@ class ParameterTracker:
     # -- what the outputs say ---------------------------------------------------------------------------------
     def due(self, stamps: Sequence[float]) -> list[bool]:
         """Whether each of these samples (in order) publishes the parameters: the first of each second."""
-        out = []
-        for stamp in stamps:
-            second = math.floor(stamp)
-            out.append(second != self.second)
-            self.second = second
-        return out
+        return [self.first_of_second(stamp) for stamp in stamps]
 
     def view(self) -> ParameterView:
         """The parameters as they stand (the same object until the next update)."""

@@ -11,7 +11,6 @@ to spare while the second one estimates.
 """
 from __future__ import annotations
 
-import math
 import pickle
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -23,6 +22,7 @@ from ..messages.scene import SceneBuilder, SceneState, SceneThrottle
 from ..model.conditions import Conditions
 from ..monitor.diagnostics import SampleView, sample_view
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
+from ..monitor.seconds import FirstOfEachSecond
 
 
 class Encoded(NamedTuple):
@@ -53,7 +53,7 @@ class WindowStages:
     def __init__(self, monitor: MonitorPipeline, scene_rate: float):
         self.monitor = monitor
         self.builder, self.throttle = SceneBuilder(monitor.plant), SceneThrottle(scene_rate)
-        self.second = -math.inf  # the second of stamps whose diagnostics view was sent
+        self.first_of_second = FirstOfEachSecond()  # where the diagnostics view of a sample is sent
 
     def run(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions],
             headers: Sequence[Stamp], batched: bool = True, outputs: bool = True) -> list[Encoded]:
@@ -65,10 +65,7 @@ class WindowStages:
         for sample, at, header, done in zip(samples, conditions, headers, solved):
             output, outcome = monitor.judge(sample, done, at)
             scene = SceneState.of(output.solution, output.alarm) if self.throttle.due(output.stamp) else None
-            second = math.floor(output.stamp)
-            view = None
-            if second != self.second:
-                self.second, view = second, sample_view(output, monitor.fusing)
+            view = sample_view(output, monitor.fusing) if self.first_of_second(output.stamp) else None
             out.append(Encoded(records.output_records(header, output), outcome, view, scene,
                                output if outputs else None))
         return out
@@ -77,11 +74,11 @@ class WindowStages:
         """What the stages have learnt so far (the estimator's, the alarm's, the scenes'), pickled."""
         monitor = self.monitor
         return pickle.dumps((monitor.estimator, monitor.alarms.level, monitor.tracker, self.throttle.last,
-                             self.second), protocol=pickle.HIGHEST_PROTOCOL)
+                             self.first_of_second), protocol=pickle.HIGHEST_PROTOCOL)
 
     def restore(self, state: bytes) -> None:
         monitor = self.monitor
-        estimator, level, tracker, scene, self.second = pickle.loads(state)
+        estimator, level, tracker, scene, self.first_of_second = pickle.loads(state)
         if estimator is not None:
             estimator.attach(monitor.model)
         monitor.estimator, monitor.alarms.level, monitor.tracker, self.throttle.last = estimator, level, tracker, scene
