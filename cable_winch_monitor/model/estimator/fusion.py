@@ -403,10 +403,10 @@ def solve_rows(problem: Problem, rows: Rows) -> Rows:
                                                              constraint[kept], balance[kept])
         system, gradient = _kkt(jacobian, residual, balance, ~rows.taut[live], rows.mu[live])
         rhs = -np.concatenate([gradient, constraint], axis=1)
-        try:
-            step = np.linalg.solve(system, rhs[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            step = np.stack([np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(system, rhs)]).reshape(-1, 16)
+        step, singular = np.empty((live.size, 16)), np.empty(live.size, np.uint8)
+        compiled.kkt_steps(system, rhs, step, singular)
+        for k in np.flatnonzero(singular).tolist():  # a row's own: the others' steps do not depend on it
+            step[k] = np.linalg.lstsq(system[k], rhs[k], rcond=None)[0]
         moving = np.empty(live.size + retried, np.int64)
         live = moving[:compiled.gauss_newton_advance(
             live, np.ascontiguousarray(step), retry[:retried], reach, scale, last, rows.steps, settled.view(np.uint8),

@@ -13,42 +13,43 @@ from libc.math cimport INFINITY, acos, cos, fabs, fmax, fmin, sin, sqrt
 
 cdef enum:
     MAX_SIZE = 10  # 6 pose unknowns and at most 4 tensions
+    KKT_SIZE = 16  # the fusion's Gauss-Newton systems: 10 state unknowns and the 6 balance multipliers
     JACOBI_SWEEPS = 60  # one-sided Jacobi sweeps at most (a 10 x 10 system takes some eight)
 
 
-cdef int solve_in_place(double (*a)[MAX_SIZE], double *b, int size, double tiny=0.0) noexcept nogil:
-    """Gaussian elimination with partial pivoting of a (size x size) system; the solution in b.
-    Returns 0, or 1 where a pivot is no larger than `tiny` (zero: exactly zero, as LAPACK's gesv reports a
-    singular system)."""
+cdef int solve_in_place(double *a, int stride, double *b, int size, double tiny=0.0) noexcept nogil:
+    """Gaussian elimination with partial pivoting of a (size x size) system, row i of a at a + i * stride; the
+    solution in b. Returns 0, or 1 where a pivot is no larger than `tiny` (zero: exactly zero, as LAPACK's gesv
+    reports a singular system)."""
     cdef int i, j, k, pivot
     cdef double largest, factor, swap
     for k in range(size):
         pivot = k
-        largest = fabs(a[k][k])
+        largest = fabs(a[k * stride + k])
         for i in range(k + 1, size):
-            if fabs(a[i][k]) > largest:
-                largest = fabs(a[i][k])
+            if fabs(a[i * stride + k]) > largest:
+                largest = fabs(a[i * stride + k])
                 pivot = i
         if largest <= tiny:
             return 1
         if pivot != k:
             for j in range(size):
-                swap = a[k][j]
-                a[k][j] = a[pivot][j]
-                a[pivot][j] = swap
+                swap = a[k * stride + j]
+                a[k * stride + j] = a[pivot * stride + j]
+                a[pivot * stride + j] = swap
             swap = b[k]
             b[k] = b[pivot]
             b[pivot] = swap
         for i in range(k + 1, size):
-            factor = a[i][k] / a[k][k]
+            factor = a[i * stride + k] / a[k * stride + k]
             if factor != 0.0:
                 for j in range(k + 1, size):
-                    a[i][j] -= factor * a[k][j]
+                    a[i * stride + j] -= factor * a[k * stride + j]
                 b[i] -= factor * b[k]
     for k in range(size - 1, -1, -1):
         for j in range(k + 1, size):
-            b[k] -= a[k][j] * b[j]
-        b[k] /= a[k][k]
+            b[k] -= a[k * stride + j] * b[j]
+        b[k] /= a[k * stride + k]
     return 0
 
 
@@ -313,7 +314,7 @@ cdef int newton_row(const double *lengths, double *rotation, double *position, d
             return 0
         for a in range(size):
             rhs[a] = -rhs[a]
-        if least_squares_in_place(system, rhs, size) if minimum_norm else solve_in_place(system, rhs, size):
+        if least_squares_in_place(system, rhs, size) if minimum_norm else solve_in_place(&system[0][0], MAX_SIZE, rhs, size):
             return 0
         largest = shortening(rhs, turn_limit, shift_limit)
         for a in range(size):
@@ -375,7 +376,7 @@ cdef int best_exchange(double (*unit)[3], double (*moment)[3], const double *wre
                 normal[i][j] = 0.0
                 for r in range(6):
                     normal[i][j] += column[i][r] * column[j][r]
-        if solve_in_place(normal, tensions, k):
+        if solve_in_place(&normal[0][0], MAX_SIZE, tensions, k):
             continue
         residual = 0.0
         lowest = 0.0
@@ -531,7 +532,7 @@ def slack_pin_bounds(const long[::1] samples, const long[::1] codes, const long[
                         system[a][b] = covariance[s, ropes[picked[a]], ropes[picked[b]]]
                     else:
                         system[a][b] = 1.0 if a == b else 0.0
-            if solve_in_place(system, x, m):
+            if solve_in_place(&system[0][0], MAX_SIZE, x, m):
                 bound[i] = INFINITY
                 continue
             value = 0.0
@@ -654,7 +655,7 @@ def elastic_newton_rows(const double[:, ::1] lengths, double[:, :, ::1] rotation
                                 system[a][b] /= scale
                             system[a][b] /= weight[row]
                             biggest = fmax(biggest, fabs(system[a][b]))
-                    if solve_in_place(system, delta, 6, 1e-14 * biggest):
+                    if solve_in_place(&system[0][0], MAX_SIZE, delta, 6, 1e-14 * biggest):
                         break
                 largest = shortening(delta, step_turn, step_turn * scale)
                 for a in range(6):
@@ -797,6 +798,28 @@ def kkt_systems(const double[:, :, ::1] jacobian, const double[:, ::1] residual,
                 for b in range(6):
                     system[row, a, 10 + b] = balance[row, b, a]
                     system[row, 10 + b, a] = balance[row, b, a]
+
+
+def kkt_steps(const double[:, :, ::1] system, const double[:, ::1] rhs, double[:, ::1] step,
+              unsigned char[::1] singular):
+    """Each row's KKT system (n, 16, 16) solved for its right-hand side (n, 16) into `step`, by Gaussian
+    elimination with partial pivoting (as LAPACK's gesv, row by row: numpy's batched solve cost the lab
+    robot's replay a quarter of its estimating process); a row whose system has a zero pivot is flagged in
+    `singular` (its step left as it was) for the caller to solve by least squares."""
+    cdef Py_ssize_t n = system.shape[0], row
+    cdef int a, b
+    cdef double work[KKT_SIZE][KKT_SIZE]
+    cdef double x[KKT_SIZE]
+    with nogil:
+        for row in range(n):
+            for a in range(KKT_SIZE):
+                x[a] = rhs[row, a]
+                for b in range(KKT_SIZE):
+                    work[a][b] = system[row, a, b]
+            singular[row] = solve_in_place(&work[0][0], KKT_SIZE, x, KKT_SIZE)
+            if not singular[row]:
+                for a in range(KKT_SIZE):
+                    step[row, a] = x[a]
 
 
 cdef int at_most_four_pins(Py_ssize_t k) except -1:
