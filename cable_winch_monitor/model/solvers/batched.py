@@ -199,19 +199,14 @@ def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solut
     Next after a set that is not admissible, as `energy._next_active_sets` ranks first: a negative tension
     releases the least loaded cable; an overstretched slack cable is taken up, in exchange for the taut cable
     whose set balances the weight best at this pose (added when fewer than three are taut). Four taut cables
-    (nearly singular) and one (the single-cable test) are left to the per-sample solver; a seed with four taut
-    starts the search from its three that carry most, so that the rows whose answer has fewer are solved here
-    (a sixth of the lab robot's rows went to the per-sample solver, a millisecond each)."""
-    assert seed.rotation is not None and seed.taut is not None and seed.tensions is not None  # seeded with a solved sample
+    (nearly singular) and one (the single-cable test) are left to the per-sample solver."""
+    assert seed.rotation is not None and seed.taut is not None  # `solve_chunks` seeds with a solved sample
     lengths = out.lengths[rows]
     scales = np.linalg.norm(out.loads[rows, :3], axis=1)
     rotation = np.broadcast_to(seed.rotation, (rows.size, 3, 3)).copy()
     position = seed.position + np.outer(seed.lengths.mean() - lengths.mean(axis=1), [0.0, 0.0, 1.0])
     active = np.tile(seed.taut.astype(np.uint8), (rows.size, 1))
     mu = seed.tensions / scales[:, None]
-    if seed.taut.all():  # four taut: start from the three that carry most
-        released = int(np.argmin(seed.tensions))
-        active[:, released], mu[:, released] = 0, 0.0
     steps, done = np.zeros(rows.size, np.int64), np.zeros(rows.size, np.uint8)
     compiled.active_set_rows(lengths, rotation, position, mu, active, out.loads[rows] / scales[:, None], steps, done,
                              plant.attachments, plant.cog, plant.anchors, plant.moment_scale,
