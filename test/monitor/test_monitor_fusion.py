@@ -100,13 +100,20 @@ def test_replay_publishes_the_fused_tensions_and_equals_the_live_node(plant, low
     assert_same(live(MonitorPipeline(fused), items), outputs)  # the node, one message at a time
 
 
-def test_samples_made_winch_by_winch_are_estimated_as_the_node_estimates_them_to_the_bit(plant, tmp_path):
+@pytest.fixture(scope="module")
+def winch_by_winch(tmp_path_factory: pytest.TempPathFactory) -> list:
+    """20 s of every channel, each winch on its own topic, its messages logged as they come."""
+    bag = simulated(tmp_path_factory.mktemp("winch_by_winch"), "all_channels", "duration=20")
+    return list(BagReader(bag, fields.input_topics()))
+
+
+def test_samples_made_winch_by_winch_are_estimated_as_the_node_estimates_them_to_the_bit(plant, winch_by_winch):
     """Every channel, each winch on its own topic, its messages logged as they come: a sample is made at each
     winch's message, so the samples are not quite in stamp order. The inclinometer, carried to each sample's
     stamp by the model's tilt rate, takes the predictions of the samples up to it (not those stamped before
     it, which would take a later sample's in replay's windows but not in the node), so the node, one
     message at a time, and replay, in windows that end anywhere, give every sample the same bits."""
-    items = list(BagReader(simulated(tmp_path, "all_channels", "duration=20"), fields.input_topics()))
+    items = winch_by_winch
     node = live(MonitorPipeline(plant), items, received=True)
     stamps = np.array([o.stamp for o in node])
     assert len(node) > 700 and np.sum(np.diff(stamps) < 0) > 20  # samples out of stamp order
@@ -119,13 +126,13 @@ def test_samples_made_winch_by_winch_are_estimated_as_the_node_estimates_them_to
             assert a.solution.points_b.tobytes() == b.solution.points_b.tobytes()
 
 
-def test_a_sample_stamped_just_before_an_update_window_it_follows_stays_in_the_open_window(plant, tmp_path,
+def test_a_sample_stamped_just_before_an_update_window_it_follows_stays_in_the_open_window(plant, winch_by_winch,
                                                                                           monkeypatch):
     """Each winch on its own topic: where a sample is stamped a little before the one before it, across the
     start of an update window, it is estimated in the window open already, not in the one closed before
     (which would close the open one after a sample and start the model error's update over); the node and
     replay alike, to the bit."""
-    items = list(BagReader(simulated(tmp_path, "all_channels", "duration=20"), fields.input_topics()))
+    items = winch_by_winch
     stamps = [o.stamp for o in live(MonitorPipeline(plant), items, received=True)]
     k = next(k for k in range(200, len(stamps) - 1) if stamps[k + 1] < stamps[k])
     period = (stamps[k] + stamps[k + 1]) / 2.0 - stamps[0]  # a window starts between the two
