@@ -126,10 +126,9 @@ class SceneState(NamedTuple):
         def listed(values: np.ndarray | None) -> Any:
             return None if values is None else values.tolist()
 
-        pose = solution.ok and solution.position is not None and solution.rotation is not None
+        position, rotation = (solution.position, solution.rotation) if solution.ok else (None, None)
         clearance = alarm.clearance
-        return cls(solution.lengths.tolist(), listed(solution.position) if pose else None,
-                   solution.rotation[2].tolist() if pose and solution.rotation is not None else None,
+        return cls(solution.lengths.tolist(), listed(position), None if rotation is None else rotation[2].tolist(),
                    listed(solution.points_b), listed(solution.tensions), listed(solution.spans),
                    frozenset(solution.taut_set), alarm.level,
                    None if clearance is None else (float(clearance.value), clearance.point_name,
