@@ -41,6 +41,7 @@ _FOREVER = QosTime(0x7FFFFFFF, 0xFFFFFFFF)  # rosbag2's "infinite" deadline, lif
 LATCHED = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
               QosLiveliness.AUTOMATIC, _FOREVER, False)
 CHUNK_SPAN = 1_000_000_000  # [ns] of log time in one chunk at most
+NO_TIME = 2 ** 63 - 1  # [ns] the earliest log time of a chunk or bag with no message yet (rosbags' own)
 # opcode 0x06, record length, start and end time, uncompressed size and CRC, compression ('': length 0), compressed size
 CHUNK = struct.Struct("<BQQQQIIQ")
 MESSAGE_INDEX = struct.Struct("<BQHI")  # opcode 0x07, record length, channel, byte length of the (time, offset) pairs
@@ -68,8 +69,8 @@ class BagWriter:
         self._storage: McapWriter = writer.storage
         self._written: Counter[int] = Counter()  # messages per channel
         self._index: dict[int, array[int]] = {}  # the open chunk's (log time, offset) of each message, by channel
-        self._first, self._last = 2 ** 63 - 1, 0  # [ns] the open chunk's earliest and latest log time
-        self._span = [2 ** 63 - 1, 0]  # [ns] the bag's
+        self._first, self._last = NO_TIME, 0  # [ns] the open chunk's earliest and latest log time
+        self._span = [NO_TIME, 0]  # [ns] the bag's
         # rosbags' own close() ends the last chunk through it too (mypy: rosbags has no hook, its method is replaced)
         self._storage.close_chunk = self._close_chunk  # type: ignore[method-assign]
 
@@ -97,8 +98,8 @@ class BagWriter:
         storage.chunks.append(entry)
         if self._index:  # (rosbags' chunk may hold the records of connections alone)
             self._span = [min(self._span[0], start_time), max(self._span[1], end_time)]
-        storage.chunk = PendingChunk(2 ** 63 - 1, 0, BytesIO(), defaultdict(list))
-        self._index, self._first, self._last = {}, 2 ** 63 - 1, 0
+        storage.chunk = PendingChunk(NO_TIME, 0, BytesIO(), defaultdict(list))
+        self._index, self._first, self._last = {}, NO_TIME, 0
 
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes | memoryview, latched: bool = False) -> None:
         """CDR bytes as they are, at `log_time` [ns]; a `latched` topic is recorded as offered transient-local
