@@ -139,3 +139,24 @@ def test_not_following_a_rows_answer_does_not_depend_on_the_rows_solved_with_it(
     assert np.array_equal(cold.solution(0).tensions, solve_energy(plant, lengths[0]).tensions)
     later = solve_batch(plant, lengths[1:], cold.solution(0), follow=False)
     assert np.array_equal(later.tensions, cold.tensions[1:]) and np.array_equal(later.position, cold.position[1:])
+
+
+def test_a_seed_with_four_taut_ropes_starts_the_search_from_its_three_most_loaded(plant):
+    """Four taut rigid ropes are nearly singular, and the batched search leaves such a set to the per-sample
+    solver. A chunk seeded by a four-taut state (lengths that fit the platform exactly, as the lab robot's
+    often do) starts from the three ropes of the seed that carry most: the rows whose answer has three or two
+    taut are solved in the batch, with the per-sample solver's answers from the same seed. A row whose
+    answer still fits four taut ropes (the seed's own lengths) is the per-sample solver's: the three that
+    carry most, with the fourth at its length, also balance the load there, but with other tensions."""
+    lengths = lowering_samples(60)
+    first = solve_energy(plant, lengths[0])
+    fitted = lengths[0].copy()
+    fitted[~first.taut] = first.spans[~first.taut]  # the slack rope as long as its span: all four taut
+    seed = solve_energy(plant, fitted)
+    assert seed.ok and seed.taut.all()
+    rows = np.vstack([lengths, fitted])
+    batch = solve_batch(plant, rows, seed, follow=False)
+    solutions = [solve_energy(plant, row, warm_start=seed) for row in rows]
+    assert_same(plant, batch, solutions)
+    assert all(len(s.taut_set) in (2, 3) for s in solutions[:-1]) and solutions[-1].taut.all()
+    assert list(batch.fallback) == [len(lengths)]  # before: every row per sample
