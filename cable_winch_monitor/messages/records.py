@@ -97,16 +97,12 @@ def alarm_record(stamp: fields.Stamp, alarm: Alarm) -> Record:
     return _record(ALARM, fields.collision_alarm(stamp, alarm))
 
 
-def output_records(stamp: fields.Stamp, output: MonitorOutput, solved: list[Record] | None = None,
-                   alarmed: Record | None = None) -> list[Record]:
+def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: pose and /tf (only if solved),
     tension distribution, collision alarm, the model's error (where the sample was estimated), the tracked
-    plant parameters (at the first sample of each second of stamps), residuals (if any). `solved` and
-    `alarmed`: the first three
-    as `solution_records` gave them for the output's solution, the alarm's as `alarm_record` gave it,
-    where they were encoded already (replay encodes them ahead)."""
-    records = solution_records(stamp, output.solution, output.estimate) if solved is None else list(solved)
-    records.append(alarm_record(stamp, output.alarm) if alarmed is None else alarmed)
+    plant parameters (at the first sample of each second of stamps), residuals (if any)."""
+    records = solution_records(stamp, output.solution, output.estimate)
+    records.append(alarm_record(stamp, output.alarm))
     if output.model is not None:
         records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))
         if output.model.parameters_due and output.model.parameters is not None:
