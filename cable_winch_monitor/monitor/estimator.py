@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -51,7 +51,9 @@ from ..model.statics.result import Solution
 from .sensitivity import WindowSamples
 from .sensors import sensor_of
 from .tracking import ParameterTracker, ParameterView, TrackState
-from .updates import PendingUpdate, UpdateProcess
+
+if TYPE_CHECKING:  # the node's process for the window updates: replay, which works them out at once, need not import it
+    from .updates import PendingUpdate, UpdateProcess
 
 CARRIED = ("roll", "pitch")  # readings carried to the sample's stamp by the model's own rate of change
 CARRY_WINDOW = 1.0    # [s] of the model's predictions that give that rate
@@ -179,8 +181,12 @@ class MonitorEstimator:
     def __getstate__(self) -> dict[str, Any]:
         """What it has learnt, without the model (a user's effects need not pickle: whoever restores it gives
         the model back) and without the node's update process (its pending update taken)."""
-        pending = self.pending.result(self.base) if isinstance(self.pending, PendingUpdate) else self.pending
-        return {**self.__dict__, "model": None, "base": None, "background": None, "pending": pending}
+        return {**self.__dict__, "model": None, "base": None, "background": None, "pending": self._settled()}
+
+    def _settled(self) -> tuple[ErrorState, TrackState | None] | None:
+        """The pending window update's result: worked out already, or awaited from the node's update process."""
+        pending = self.pending
+        return pending if pending is None or isinstance(pending, tuple) else pending.result(self.base)
 
     def _last_solution(self) -> Solution | None:
         """The last sample that the forward kinematics solved, where one has been."""
@@ -478,9 +484,9 @@ class MonitorEstimator:
         window, self.window = self.window, None
         assert window is not None and self.origin is not None  # `run` closes only a window it opened
         end = self.origin + (window.index + 1) * self.error.spec.period
-        if self.pending is not None:
-            error, tracked = self.pending.result(self.base) if isinstance(self.pending, PendingUpdate) else self.pending
-            self._apply(error, tracked, end)
+        settled = self._settled()
+        if settled is not None:
+            self._apply(*settled, end)
         update = self._update(window, end)
         self.pending = self.background.submit(update) if self.background is not None else update.run(self.base)
         if window.misfits:

@@ -20,7 +20,7 @@ import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, cast
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -51,7 +51,9 @@ from .inputs import (
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import READING_LAG, LatestReadings, PayoutHistory, StuckReadings, sensor_of
 from .tracking import ParameterView
-from .updates import UpdateProcess
+
+if TYPE_CHECKING:  # the node's process for the window updates: replay need not import it
+    from .updates import UpdateProcess
 
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
 

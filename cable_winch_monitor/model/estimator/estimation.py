@@ -297,7 +297,7 @@ def _estimate(problem: Problem, warm: Rows | None, same_samples: bool = False,
     if warm is not None:
         best = _search(problem, warm, probe=False, misfit=not same_samples)
         kept = best.take(np.flatnonzero(_admissible(best)))
-        rest = np.setdiff1d(rest, kept.sample)
+        rest = rest[~np.isin(rest, kept.sample)]  # np.setdiff1d's rows, without its import of numpy.ma (13 ms)
         if not rest.size:
             return _assemble(problem, kept, {})
     if forward is None:
@@ -360,7 +360,7 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         owner, codes = _candidates(best, pending, visited, search) if stage or pinned is None else pinned
         fresh = np.flatnonzero(~solved)
         if not stage:  # the start's own set where the load pins rule it out: only if what they read fails
-            fresh = np.setdiff1d(fresh, deferred)
+            fresh = fresh[~np.isin(fresh, deferred)]  # np.setdiff1d's, without numpy.ma
         listed = np.concatenate([fresh, owner])
         current = np.where(solved & _admissible(best), best.cost, np.inf)
         hopeful = _pinned_cost(problem, best.sample[owner], codes) <= current[owner] * (1.0 + 1e-9)
@@ -380,7 +380,8 @@ def _search(problem: Problem, start: Rows, probe: bool, misfit: bool = True) -> 
         if not stage and deferred.size:
             _solve_deferred(problem, best, deferred, start_rows)
         solved[:] = True
-        searched = np.unique(listed)  # with the rows whose every candidate was hopeless
+        # the rows listed, with those whose every candidate was hopeless (np.unique's, without numpy.ma)
+        searched = np.flatnonzero(np.bincount(listed, minlength=count))
         pending = searched[_doubtful(best.take(searched), misfit=misfit and stage == 0)]
         if not pending.size:
             break
