@@ -98,16 +98,22 @@ def alarm_record(stamp: fields.Stamp, alarm: Alarm) -> Record:
 
 
 def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
-    """What the live node publishes for one solved sample, in its order: pose and /tf (only if solved),
-    tension distribution, collision alarm, the model's error (where the sample was estimated), the tracked
-    plant parameters (at the first sample of each second of stamps), residuals (if any)."""
+    """What the live node publishes for one solved sample, in its order: its `solved_records`, then its residuals
+    (if any)."""
+    return solved_records(stamp, output) + residual_records(stamp, output.residuals)
+
+
+def solved_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
+    """A solved sample's outputs but its residuals, in the node's order: pose and /tf (only if solved), tension
+    distribution, collision alarm, the model's error (where the sample was estimated), the tracked plant
+    parameters (at the first sample of each second of stamps)."""
     records = solution_records(stamp, output.solution, output.estimate)
     records.append(alarm_record(stamp, output.alarm))
     if output.model is not None:
         records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))
         if output.model.parameters_due and output.model.parameters is not None:
             records.append(_record(PARAMETERS, fields.model_parameters(stamp, output.model.parameters)))
-    return records + residual_records(stamp, output.residuals)
+    return records
 
 
 def diagnostics_record(values: Mapping[str, Any]) -> Record:

@@ -5,9 +5,10 @@ carried from window to window), its alarm and residuals, its records and scene -
 function of the merged samples in order (`WindowStages`), by the monitor's own code, which
 the node runs one sample at a time. What comes out per sample is bytes and a small outcome
 (`Encoded`), so that a second process can hand it back cheaply (second_process.py). A sample due a
-scene brings what the scene shows (its solution and alarm) instead of the scene itself: the scene
-is drawn where the replay writes (`drawn`), by the process that reads and writes, which has time
-to spare while the second one estimates.
+scene brings what the scene shows (its solution and alarm) instead of the scene itself, and its
+residuals come in its outcome, not encoded: the scene is drawn and the residuals encoded where the
+replay writes (`finished`), by the process that reads and writes, which has time to spare while the
+second one estimates.
 """
 from __future__ import annotations
 
@@ -26,8 +27,8 @@ from ..monitor.seconds import FirstOfEachSecond
 
 
 class Encoded(NamedTuple):
-    """A complete sample as replay writes it: its records (outputs; a scene once `drawn`), what its counts
-    and the residuals of the sensor messages after it need, and at the first sample of each second of
+    """A complete sample as replay writes it: its records (its outputs; once `finished`, its residuals and
+    scene too), what its counts and the residuals of the sensor messages after it need, and at the first sample of each second of
     stamps what /diagnostics says of it."""
 
     records: list[Record]
@@ -37,18 +38,18 @@ class Encoded(NamedTuple):
     output: MonitorOutput | None = None  # the sample's outputs themselves, where encoded in this process
 
 
-def drawn(encoded: Encoded, header: Stamp, builder: SceneBuilder) -> Encoded:
-    """`encoded` (header stamp `header`) with its scene drawn after its outputs, where one is due."""
-    if encoded.scene is None:
-        return encoded
-    return encoded._replace(records=encoded.records + records.scene_records(header, builder, encoded.scene),
-                            scene=None)
+def finished(encoded: Encoded, header: Stamp, builder: SceneBuilder) -> Encoded:
+    """`encoded` (header stamp `header`) with its residuals (the outcome has them) and then its scene, where one
+    is due, after its other outputs, as the node publishes them."""
+    residuals = records.residual_records(header, encoded.outcome.residuals)
+    scene = [] if encoded.scene is None else records.scene_records(header, builder, encoded.scene)
+    return encoded._replace(records=encoded.records + residuals + scene, scene=None)
 
 
 class WindowStages:
     """A window's merged samples estimated (or solved) together, judged one by one in order -- alarm,
-    residuals, what the alarm is based on -- and encoded, by the monitor's own code; the scenes are
-    drawn with its `builder` where the replay writes (`drawn`)."""
+    residuals, what the alarm is based on -- and encoded, by the monitor's own code; the residuals are encoded
+    and the scenes drawn (with its `builder`) where the replay writes (`finished`)."""
 
     def __init__(self, monitor: MonitorPipeline, scene_rate: float):
         self.monitor = monitor
@@ -66,7 +67,7 @@ class WindowStages:
             output, outcome = monitor.judge(sample, done, at)
             scene = SceneState.of(output.solution, output.alarm) if self.throttle.due(output.stamp) else None
             view = sample_view(output, monitor.fusing) if self.first_of_second(output.stamp) else None
-            out.append(Encoded(records.output_records(header, output), outcome, view, scene,
+            out.append(Encoded(records.solved_records(header, output), outcome, view, scene,
                                output if outputs else None))
         return out
 

@@ -55,7 +55,7 @@ from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import ReadingWait
 from ..stopping import interruptible
 from .second_process import SecondProcess
-from .stages import Encoded, WindowStages, drawn
+from .stages import Encoded, WindowStages, finished
 
 WINDOW = 2000  # messages read ahead
 FIRST_WINDOW = 250  # messages in the first and last windows read ahead, with a second process
@@ -328,7 +328,7 @@ class WindowScheduler:
             done = next(encoded)
             self.monitor.note(done.outcome)
             self.last_view = done.view or self.last_view
-            return drawn(done, outcome.header, self.stages.builder)
+            return finished(done, outcome.header, self.stages.builder)
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
         values = outcome if isinstance(outcome, dict) else None
