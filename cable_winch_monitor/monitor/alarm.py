@@ -76,16 +76,19 @@ class AlarmTracker:
     def __init__(self, policy: AlarmPolicy):
         self.policy = policy
         self.level = AlarmLevel.OK
-        self._thresholds = policy.thresholds()
+        self._thresholds = sorted(policy.thresholds().items())  # (level, clearance limit), the levels rising
 
     def _clearance_level(self, clearance: float) -> AlarmLevel:
-        thresholds = self._thresholds
-        raised = max((lvl for lvl, limit in thresholds.items() if clearance <= limit), default=AlarmLevel.OK)
-        if raised >= self.level:
-            return raised
-        held = max((lvl for lvl, limit in thresholds.items()
-                    if lvl <= self.level and clearance <= limit + self.policy.hysteresis), default=AlarmLevel.OK)
-        return max(raised, held)
+        """The highest level whose limit the clearance is within, or the one held while the clearance has not
+        recovered by the hysteresis above the limit (a plain loop: it runs at every sample)."""
+        raised = held = AlarmLevel.OK
+        hysteresis, level = self.policy.hysteresis, self.level
+        for lvl, limit in self._thresholds:
+            if clearance <= limit:
+                raised = lvl
+            if lvl <= level and clearance <= limit + hysteresis:
+                held = lvl
+        return raised if raised >= level else max(raised, held)
 
     def update(self, solution: Solution, clearance: Clearance | None, basis: str = "") -> Alarm:
         """The alarm for one solved sample; `basis` says what the clearance is based on (monitor.basis)."""

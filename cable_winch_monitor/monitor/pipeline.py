@@ -100,7 +100,7 @@ class MonitorOutput:
                        dict(view.faults) if view is not None else {}, predicted, self.residuals,
                        "" if self.solution.ok else self.solution.failure,
                        self.basis.summary if self.basis is not None else "",
-                       None if view is None else (tuple(map(float, view.length_error)), tuple(map(float, view.pin_error))))
+                       None if view is None else (tuple(view.length_error.tolist()), tuple(view.pin_error.tolist())))
 
 
 class Outcome(NamedTuple):
