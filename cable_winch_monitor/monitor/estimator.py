@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -248,7 +249,8 @@ class MonitorEstimator:
             self.last_solved = forward, int(solved[-1])
         measured = self._carried(samples, forward)
         left_out = tuple(sorted(self.left_out))
-        kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured]
+        kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured] \
+            if self.left_out else list(measured)
         if self.failing and len(samples) <= SPECULATED:
             batch, loosely = self._batches(lengths, kept, conditions, loads, (prior, _loosened(prior)), forward)
         else:
@@ -448,33 +450,33 @@ class MonitorEstimator:
         their states, which the sensors agree on)."""
         window = self.window
         assert window is not None  # `run` opens the window before estimating its samples
-        misfits = self._length_misfit(batch, prior)
-        for k, sample in enumerate(samples):
-            window.reported.append(sample.reported)
-            window.lengths.append(lengths[k])
-            window.measured.append(measured[k])
-            window.conditions.append(sample.conditions)
-            window.stamps.append(sample.stamp)
-            estimated = k not in batch.fallback and batch.status[k] == "solved"
-            if estimated:
-                window.misfits.append(float(misfits[k]))
-            solved = estimated and self._plausible(batch, k)
-            window.states.append((batch.taut[k], batch.rotation[k], batch.position[k], batch.tensions[k])
-                                 if solved else None)
-            window.followed.append(bool(followed[k]))
-            for sensor in {sensor_of(n) for n in measured[k]} | set(rejected[k]):
+        estimated = batch.status == "solved"
+        estimated[list(batch.fallback)] = False
+        window.misfits += self._length_misfit(batch, prior)[estimated].tolist()
+        solved = (estimated & self._plausible(batch)).tolist()
+        window.reported += [sample.reported for sample in samples]
+        window.lengths += list(lengths)
+        window.measured += measured
+        window.conditions += [sample.conditions for sample in samples]
+        window.stamps += [sample.stamp for sample in samples]
+        window.states += [(batch.taut[k], batch.rotation[k], batch.position[k], batch.tensions[k]) if solved[k] else None
+                          for k in range(len(samples))]
+        window.followed += followed.tolist()
+        for channels, rejects in zip(measured, rejected):
+            for sensor in _sensors_of(tuple(channels)).union(rejects):
                 window.measuring[sensor] = window.measuring.get(sensor, 0) + 1
-            for sensor in rejected[k]:
+            for sensor in rejects:
                 window.rejected[sensor] = window.rejected.get(sensor, 0) + 1
 
     @staticmethod
-    def _plausible(batch: BatchEstimate, k: int) -> bool:
-        """Whether sample k's estimate is one the model's error may be learnt from: its cost within the gate
-        of its measurements (a sample the search could only explain badly would pull the error astray)."""
+    def _plausible(batch: BatchEstimate) -> np.ndarray:
+        """(N,) whether each sample's estimate is one the model's error may be learnt from: its cost within the
+        gate of its measurements (a sample the search could only explain badly would pull the error astray)."""
         if batch.cost is None:
-            return True
-        dof = 4 + int(np.isfinite(batch.residuals[k]).sum())
-        return bool(batch.cost[k] <= chi_square_threshold(dof))
+            return np.ones(len(batch), bool)
+        dof = (4 + np.isfinite(batch.residuals).sum(axis=1)).tolist()
+        gates = {d: chi_square_threshold(d) for d in set(dof)}
+        return batch.cost <= np.array([gates[d] for d in dof])
 
     def _close(self, next_index: int) -> None:
         """The window's end: the update the window before worked out taken (so the next window's samples
@@ -562,6 +564,12 @@ class WindowUpdate:
         taut, rotation, position, tensions = _stacked(window, solved)
         rows = Rows(np.array(solved), taut, rotation, position, tensions / problem.scales[solved, None])
         return self.error.updated(problem, rows, lengths, self.end)
+
+
+@lru_cache(maxsize=256)  # every sample asks; a recording measures a few sets of channels
+def _sensors_of(channels: tuple[str, ...]) -> frozenset[str]:
+    """The sensors of these channels."""
+    return frozenset(sensor_of(name) for name in channels)
 
 
 def _stacked(window: _Window, rows: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -122,7 +122,7 @@ class Problem:
                 raise ValueError(f"observation {observation.name!r}: {value.size} values for {count} samples")
             values[:, k] = value.reshape(-1)
         wrenches = np.array(loads.loads_for(plant, load, count), dtype=float)
-        reason = next((r for r in map(loads.check, wrenches) if r), "")
+        reason = loads.check_rows(wrenches)
         if reason:
             raise ValueError(reason)
         if anchors is not None and np.shape(anchors) != (count, 4, 3):

@@ -30,6 +30,13 @@ def check(load: np.ndarray) -> str:
     return ""
 
 
+def check_rows(loads: np.ndarray) -> str:
+    """`check` of the first of many loads (n, 6) that cannot be carried ('' when all can), the rows tested
+    together (one row at a time, 2 us each, for every row of every batch the estimator solves)."""
+    bad = ~(np.isfinite(loads).all(axis=1) & (loads[:, 2] < 0.0))
+    return check(loads[int(np.argmax(bad))]) if bad.any() else ""
+
+
 def magnitude(load: np.ndarray) -> float:
     """|f| [N]: the scale of tensions (m g under gravity)."""
     return float(np.linalg.norm(load[:3]))
