@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -462,8 +461,12 @@ class MonitorEstimator:
         window.states += [(batch.taut[k], batch.rotation[k], batch.position[k], batch.tensions[k]) if solved[k] else None
                           for k in range(len(samples))]
         window.followed += followed.tolist()
+        sensors: dict[tuple[str, ...], frozenset[str]] = {}  # of each set of channels measured (a few in a run)
         for channels, rejects in zip(measured, rejected):
-            for sensor in _sensors_of(tuple(channels)).union(rejects):
+            names = tuple(channels)
+            if names not in sensors:
+                sensors[names] = frozenset(map(sensor_of, names))
+            for sensor in sensors[names].union(rejects):
                 window.measuring[sensor] = window.measuring.get(sensor, 0) + 1
             for sensor in rejects:
                 window.rejected[sensor] = window.rejected.get(sensor, 0) + 1
@@ -564,12 +567,6 @@ class WindowUpdate:
         taut, rotation, position, tensions = _stacked(window, solved)
         rows = Rows(np.array(solved), taut, rotation, position, tensions / problem.scales[solved, None])
         return self.error.updated(problem, rows, lengths, self.end)
-
-
-@lru_cache(maxsize=256)  # every sample asks; a recording measures a few sets of channels
-def _sensors_of(channels: tuple[str, ...]) -> frozenset[str]:
-    """The sensors of these channels."""
-    return frozenset(sensor_of(name) for name in channels)
 
 
 def _stacked(window: _Window, rows: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
