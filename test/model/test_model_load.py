@@ -3,12 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cable_winch_monitor.model.paper.traversal import solve_traversal
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.model.solvers.batched import solve_batch
 from cable_winch_monitor.model.solvers.elastic import solve_elastic
 from cable_winch_monitor.model.solvers.energy import solve_energy
+from cable_winch_monitor.model.statics import load
 from cable_winch_monitor.model.statics.result import SolveStatus, check_physics
 
 PLANT = load_plant()
@@ -62,3 +65,18 @@ def test_a_load_ropes_cannot_carry_is_refused(load):
 def test_traversal_refuses_a_side_pull_and_names_the_energy_solver():
     solution = solve_traversal(PLANT, LENGTHS, load=np.array([500.0, 0.0, -PLANT.weight, 0.0, 0.0, 0.0]))
     assert solution.status is SolveStatus.INVALID_INPUT and "energy solver" in solution.message
+
+
+LOAD_VALUES = st.one_of(st.floats(-2e5, 2e5), st.sampled_from([0.0, -0.0, np.nan, np.inf, -np.inf]))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(LOAD_VALUES, min_size=6, max_size=6), max_size=6))
+def test_a_batch_of_loads_is_refused_for_its_first_that_ropes_cannot_carry(rows):
+    """The rows checked together name the first load that hanging ropes cannot carry (not finite, or not pulling
+    down), as checking them one by one does; a batch that they can all carry passes."""
+    loads = np.array(rows, dtype=float).reshape(-1, 6)
+    first = next((reason for reason in map(load.check, loads) if reason), "")
+    assert load.check_rows(loads) == first
+    carried = np.isfinite(loads).all(axis=1) & (loads[:, 2] < 0.0)
+    assert (first == "") == bool(carried.all())
