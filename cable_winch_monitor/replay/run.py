@@ -152,8 +152,9 @@ def _fewer_collections(threshold: int = 100_000) -> Iterator[None]:
     every 10th time the older ones) so often that it took a quarter of the replay. The
     windows read ahead keep tens of thousands of objects alive, which every collection
     scans until they are promoted: at 20,000 the collections still took 80 ms of (a)'s
-    replay in one process (as a fleet's replays run), at 100,000 16 ms. Memory stays bounded: the collector still runs, only less
-    often. Start-up objects are frozen out of the scans.
+    replay in one process (as a fleet's replays run), at 100,000 16 ms. Memory stays
+    bounded: the collector still runs, only less often. Start-up objects are frozen out
+    of the scans.
     """
     before = gc.get_threshold()
     gc.freeze()

@@ -28,8 +28,8 @@ from ..monitor.seconds import FirstOfEachSecond
 
 class Encoded(NamedTuple):
     """A complete sample as replay writes it: its records (its outputs; once `finished`, its residuals and
-    scene too), what its counts and the residuals of the sensor messages after it need, and at the first sample of each second of
-    stamps what /diagnostics says of it."""
+    scene too), what its counts and the residuals of the sensor messages after it need, and at the first
+    sample of each second of stamps what /diagnostics says of it."""
 
     records: list[Record]
     outcome: Outcome
