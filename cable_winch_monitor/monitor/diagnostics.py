@@ -86,9 +86,13 @@ class DiagnosticsReporter:
         self._last_clock_jump_time = now
 
     def note_residuals(self, residuals: Residuals) -> None:
-        for channel, value, noise in zip(residuals.channels, residuals.values, residuals.noise):
-            history = self.residuals.setdefault(channel, (deque(maxlen=RESIDUAL_WINDOW), float(noise)))[0]
-            history.append(float(value))
+        """A message's residuals, into each channel's latest RESIDUAL_WINDOW (a channel's noise as first seen)."""
+        kept = self.residuals
+        for channel, measured, predicted, noise in zip(*residuals[1:]):
+            entry = kept.get(channel)
+            if entry is None:
+                entry = kept[channel] = (deque(maxlen=RESIDUAL_WINDOW), float(noise))
+            entry[0].append(float(measured - predicted))
 
     def note_callback_error(self, where: str, error: BaseException) -> None:
         self.callback_errors += 1
