@@ -215,10 +215,8 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                     else:
                         if isinstance(result, Encoded) and result.outcome.status is not SolveStatus.SOLVED:
                             summary.unsolved.setdefault(result.outcome.tension_state, result.outcome.failure)
-                for topic, msgtype, data in outputs:
-                    writer.write_raw(topic, msgtype, log_time, data)
-                for topic, msgtype, data in diagnostics:
-                    writer.write_raw(topic, msgtype, item.log_time, data)
+                writer.write_records(log_time, outputs)
+                writer.write_records(item.log_time, diagnostics)
                 bar.update(count)
         except KeyboardInterrupt as stop:
             summary.stopped = stop.signal if isinstance(stop, Stopped) else "SIGINT"
