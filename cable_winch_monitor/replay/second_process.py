@@ -10,7 +10,9 @@ A window's job and its results (about 1 kB a sample) go through files in the wor
 (worker.py: /dev/shm, or TMPDIR where that cannot be written), not a pipe, which would make
 either process wait for the other to read. With each window comes the stages' state after
 it, so that where the worker is lost -- it died, failed on a window, or stopped answering --
-the replay runs the rest itself from there. Only a fork can start it (the process inherits
+the replay runs the rest itself from there. Samples and outcomes cross as plain tuples, a window's
+lengths as one array (`_packed`, `_plain`): pickling a named tuple or a small array per sample
+cost more than the rest of the crossing. Only a fork can start it (the process inherits
 the plant model as it is, a user's effects included); where there is none, or no spool or
 process can be had, the replay runs the stages itself.
 """
@@ -18,20 +20,51 @@ from __future__ import annotations
 
 import functools
 import os
+from collections.abc import Sequence
 from typing import Any
+
+import numpy as np
 
 from ..messages.fields import Stamp
 from ..model.conditions import Conditions
-from ..monitor.pipeline import CompleteSample
+from ..monitor.pipeline import CompleteSample, Outcome
+from ..monitor.residuals import Residuals
 from .stages import Encoded, WindowStages
 from .worker import ForkedWorker, WorkerLost
 
+Packed = tuple[np.ndarray, list[tuple[Any, ...]]]  # a window's lengths (n, 4), each sample's other fields
 
-def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[list[Encoded], bytes]:
+
+def _packed(samples: Sequence[CompleteSample]) -> Packed:
+    """A window's samples as they cross to the worker: their lengths as one array, the rest plain tuples."""
+    return np.array([s.lengths for s in samples]), [(s.stamp, *s[2:]) for s in samples]
+
+
+def _unpacked(packed: Packed) -> list[CompleteSample]:
+    lengths, rows = packed
+    return [CompleteSample(row[0], row_lengths, *row[1:]) for row_lengths, row in zip(lengths, rows)]
+
+
+def _plain(encoded: Encoded) -> tuple[Any, ...]:
+    """A sample's `Encoded` from the worker (never with its outputs) as plain tuples, its residuals too."""
+    records, outcome, view, scene, _ = encoded
+    residuals = outcome.residuals
+    return records, (*outcome[:6], None if residuals is None else tuple(residuals), *outcome[7:]), view, scene
+
+
+def _encoded(plain: tuple[Any, ...]) -> Encoded:
+    records, outcome, view, scene = plain
+    residuals = outcome[6]
+    outcome = Outcome._make((*outcome[:6], None if residuals is None else Residuals._make(residuals), *outcome[7:]))
+    return Encoded(records, outcome, view, scene)
+
+
+def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[list[tuple[Any, ...]], bytes]:
     """The worker's job: a window's samples encoded (without the outputs themselves) and the stages' state
     after them."""
     samples, conditions, headers, batched = job
-    return stages.run(samples, conditions, headers, batched, outputs=False), stages.state()
+    encoded = stages.run(_unpacked(samples), conditions, headers, batched, outputs=False)
+    return [_plain(e) for e in encoded], stages.state()
 
 
 class SecondProcess:
@@ -59,7 +92,7 @@ class SecondProcess:
         job = (samples, conditions, headers, batched)
         if self.worker is not None:
             try:
-                self.worker.submit(job)
+                self.worker.submit((_packed(samples), conditions, headers, batched))
             except WorkerLost as lost:
                 self._lost(str(lost))
         self.pending.append((self.worker is not None, job))
@@ -71,7 +104,7 @@ class SecondProcess:
         if handed and self.worker is not None:
             try:
                 result, self.state = self.worker.result()
-                return result
+                return [_encoded(plain) for plain in result]
             except WorkerLost as lost:
                 self._lost(str(lost))
         if self.state is not None:
