@@ -17,6 +17,7 @@ recording's faults can be read back from its output bag.
 """
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Mapping
 from typing import Any, NamedTuple
@@ -68,7 +69,7 @@ class DiagnosticsReporter:
 
     def note_readings(self, cables: list[int], now: float) -> None:
         """Cables whose reading was just accepted, at node time `now` [s] (NaN: the clock has not started)."""
-        if not np.isfinite(now):
+        if not math.isfinite(now):
             return
         for cable in cables:
             self.arrivals[cable].append(now)

@@ -243,7 +243,8 @@ class MonitorPipeline:
         self.stats.winch += 1
         self.stats.winch_topics.add(sample.topic)
         merged = self.merger.add(sample)
-        self.stats.ignored_names.update(merged.ignored)
+        if merged.ignored:
+            self.stats.ignored_names.update(merged.ignored)
         if merged.rejected:
             self._reject(sample.topic, merged.rejected)
             self.stats.last_winch_rejection = self.stats.last_rejection
@@ -264,18 +265,18 @@ class MonitorPipeline:
         speeds = [r.velocity for r in cables]
         speed = small_mean(speeds)
         self.payouts.add(sample.stamp, small_mean(lengths.tolist()), speed if math.isfinite(speed) else 0.0)
-        complete = CompleteSample(sample.stamp, lengths, merged.accepted, [r.tension for r in cables], speeds)
+        tensions = [r.tension for r in cables]
         if not self.fusing:
-            return complete
+            return CompleteSample(sample.stamp, lengths, merged.accepted, tensions, speeds)
         pins, taken = {}, {}
-        for name, value in zip(channels.TENSION_CHANNELS, complete.tensions):
+        for name, value in zip(channels.TENSION_CHANNELS, tensions):
             if math.isfinite(value):
                 self.heard[name] = sample.stamp
                 if not self.pins.is_stuck(name):
                     pins[name], taken[name] = value, sample.stamp
         faults = stuck_faults(self.pins.stuck())
         faults.update(self._silent(sample.stamp, pins, self.heard, faults))
-        return complete._replace(sensors=pins, taken=taken, faults=faults)
+        return CompleteSample(sample.stamp, lengths, merged.accepted, tensions, speeds, pins, taken, faults)
 
     def read_sensors(self, sample: CompleteSample) -> CompleteSample:
         """A complete sample from `merge_winch` with the latest other readings stamped at least the lag before it,
@@ -287,7 +288,8 @@ class MonitorPipeline:
         faults = stuck_faults(self.readings.stuck_at(stamp))
         faults.update(sample.faults)
         faults.update(self._silent(stamp, values, self.readings.latest(stamp), faults))
-        return sample._replace(sensors={**values, **sample.sensors}, taken={**taken, **sample.taken}, faults=faults)
+        return CompleteSample(stamp, sample.lengths, sample.accepted, sample.tensions, sample.speeds,
+                              {**values, **sample.sensors}, {**taken, **sample.taken}, faults)
 
     def waits_for_readings(self, stamp: float) -> bool:
         """Whether a reading due at a sample stamped `stamp` has not come in yet (`LatestReadings.due`)."""

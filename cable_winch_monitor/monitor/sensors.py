@@ -94,11 +94,17 @@ class LatestReadings:
         self.stuck = StuckReadings()
 
     def add(self, stamp: float, values: Mapping[str, float]) -> None:
+        if not math.isfinite(stamp):
+            return
         for name, value in values.items():
-            if math.isfinite(value) and math.isfinite(stamp):
-                history = self.values.setdefault(name, deque(maxlen=HISTORY))
-                if history:
-                    intervals = self.intervals.setdefault(name, deque(maxlen=HISTORY - 1))
+            if math.isfinite(value):
+                history = self.values.get(name)
+                if history is None:
+                    history = self.values[name] = deque(maxlen=HISTORY)
+                elif (intervals := self.intervals.get(name)) is None:
+                    self.intervals[name] = deque([stamp - history[-1][0]], maxlen=HISTORY - 1)
+                    self.periods[name] = stamp - history[-1][0]
+                else:
                     intervals.append(stamp - history[-1][0])
                     self.periods[name] = min(intervals)
                 history.append((stamp, value))
