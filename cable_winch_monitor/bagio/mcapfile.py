@@ -77,6 +77,11 @@ def merge_by_log_time(chunks: Iterable[tuple[int, list[RawMessage]]]) -> Iterato
         yield heapq.heappop(heap)[3]
 
 
+def _check_magic(path: Path, head: bytes) -> None:
+    if head != MAGIC:
+        raise McapError(f"{path} is empty" if not head else f"{path} is not an MCAP file (it starts with {head[:8]!r})")
+
+
 class McapFile:
     """Schemas, channels and messages of one MCAP file, with every unreadable part in `damage`."""
 
@@ -93,12 +98,19 @@ class McapFile:
         self.message_count: int | None = None
         self.channel_counts: dict[int, int] | None = None  # messages per channel, as the summary lists them
         self._file = path.open("rb")
-        head = self._file.read(len(MAGIC))
-        if head != MAGIC:
+        try:
+            _check_magic(path, self._file.read(len(MAGIC)))
+        except McapError:
             self._file.close()
-            raise McapError(f"{path} is empty" if not head
-                            else f"{path} is not an MCAP file (it starts with {head[:8]!r})")
+            raise
         self._index = self._read_summary()
+
+    @staticmethod
+    def check(path: Path) -> None:
+        """McapError where `path` is not an MCAP file at all (OSError where it cannot be read): what opening
+        it would say, without reading its summary."""
+        with path.open("rb") as file:
+            _check_magic(path, file.read(len(MAGIC)))
 
     def close(self) -> None:
         self._file.close()

@@ -109,11 +109,12 @@ class BagReader:
         self.report.files = list(self.files)
 
     def _readable(self, files: list[Path]) -> list[Path]:
-        """The files that open as MCAP; BagError if none does, damage noted for the others."""
+        """The files that open as MCAP (their summaries are read as the messages are); BagError if none does,
+        damage noted for the others."""
         good, errors = [], []
         for file in files:
             try:
-                McapFile(file).close()
+                McapFile.check(file)
                 good.append(file)
             except McapError as error:
                 errors.append(str(error))
