@@ -29,7 +29,7 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
-            "cable-winch-monitor = cable_winch_monitor.cli:run",
+            "cable-winch-monitor = cable_winch_monitor.__main__:run",
             "winch_monitor = cable_winch_monitor.nodes.winch_monitor:main",
         ],
     },

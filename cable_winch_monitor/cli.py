@@ -2,14 +2,12 @@
 from __future__ import annotations
 
 import argparse
-import gc
 import json
 import math
 import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
 
 from .bagio.reader import BagError
 from .effects.base import EffectError
@@ -438,15 +436,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
-def run() -> NoReturn:
-    """The console script: `main`, then the process ends without a last garbage collection over what the
-    command made. The interpreter's collection at exit scanned it all (30 ms after a replay of recording
-    (a)), to free what the operating system frees anyway. `main` itself leaves the process it runs in (a
-    test's) as it was."""
-    status = main()
-    gc.freeze()
-    sys.exit(status)
-
-
 if __name__ == "__main__":
-    run()
+    sys.exit(main())
