@@ -29,9 +29,10 @@ def clearances_at_poses(plant: Plant, rotations: np.ndarray, positions: np.ndarr
     if not plant.outline:
         raise ValueError("the plant file has no 'outline': clearance needs the platform's deck points")
     body = plant.outline_array
-    world = positions[:, None, :] + body @ np.swapaxes(rotations, -1, -2)
-    offset = world[..., :2] - plant.shaft_centre
-    gaps = plant.shaft_radius - np.hypot(offset[..., 0], offset[..., 1])
+    world = body @ np.swapaxes(rotations, -1, -2)  # (N, points, 3): in place below, x and y apart (half the time)
+    world += positions[:, None, :]
+    centre_x, centre_y = plant.shaft_centre.tolist()
+    gaps = plant.shaft_radius - np.hypot(world[..., 0] - centre_x, world[..., 1] - centre_y)
     nearest = np.argmin(gaps, axis=1).tolist()
     values = gaps[np.arange(len(nearest)), nearest].tolist()
     return [Clearance(value, plant.outline[k].name, body[k], world[i, k])
