@@ -189,9 +189,11 @@ class WinchMonitorNode(Node):
         self.get_logger().info(f"monitoring plant '{plant.name}' with the {self.live.monitor.solver} solver")
 
     def destroy_node(self) -> None:
+        """Stop the solver thread and the window updates' process; neither keeps the node's exit waiting (an update
+        the solver awaits is worked out in the thread, monitor.updates)."""
         self._stopping.set()
-        self._worker.join(timeout=5.0)
         self.live.close()
+        self._worker.join(timeout=5.0)
         super().destroy_node()
 
     def _work(self) -> None:
