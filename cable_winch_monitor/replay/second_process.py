@@ -11,7 +11,7 @@ A window's job and its results (about 1 kB a sample) go through files in the wor
 either process wait for the other to read. With each window comes the stages' state after
 it, so that where the worker is lost -- it died, failed on a window, or stopped answering --
 the replay runs the rest itself from there. Samples and outcomes cross as plain tuples, a window's
-lengths as one array (`_packed`, `_plain`): pickling a named tuple or a small array per sample
+lengths and conditions as arrays (`_packed`, `_plain`): pickling a named tuple or a small array per sample
 cost more than the rest of the crossing. Only a fork can start it (the process inherits
 the plant model as it is, a user's effects included); where there is none, or no spool or
 process can be had, the replay runs the stages itself.
@@ -33,6 +33,8 @@ from .stages import Encoded, WindowStages
 from .worker import ForkedWorker, WorkerLost
 
 Packed = tuple[np.ndarray, list[tuple[Any, ...]]]  # a window's lengths (n, 4), each sample's other fields
+# a window's conditions: times (n,), speeds, accelerations, directions (n, 4), inputs; or the one all share
+PackedConditions = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[Any]] | Conditions
 
 
 def _packed(samples: Sequence[CompleteSample]) -> Packed:
@@ -43,6 +45,22 @@ def _packed(samples: Sequence[CompleteSample]) -> Packed:
 def _unpacked(packed: Packed) -> list[CompleteSample]:
     lengths, rows = packed
     return [CompleteSample(row[0], row_lengths, *row[1:]) for row_lengths, row in zip(lengths, rows)]
+
+
+def _packed_conditions(conditions: Sequence[Conditions]) -> PackedConditions:
+    """A window's conditions as they cross: the one every sample has where the plant reads none, else as arrays."""
+    if conditions and all(c is conditions[0] for c in conditions):
+        return conditions[0]
+    return (np.array([c.time for c in conditions]), np.array([c.speeds for c in conditions]),
+            np.array([c.accelerations for c in conditions]), np.array([c.direction for c in conditions]),
+            [c.inputs for c in conditions])
+
+
+def _unpacked_conditions(packed: PackedConditions, count: int) -> list[Conditions]:
+    if isinstance(packed, Conditions):
+        return [packed] * count
+    times, speeds, accelerations, directions, inputs = packed
+    return [Conditions(*row) for row in zip(times.tolist(), speeds, accelerations, directions, inputs)]
 
 
 def _plain(encoded: Encoded) -> tuple[Any, ...]:
@@ -63,7 +81,8 @@ def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[list[tuple[Any, ..
     """The worker's job: a window's samples encoded (without the outputs themselves) and the stages' state
     after them."""
     samples, conditions, headers, batched = job
-    encoded = stages.run(_unpacked(samples), conditions, headers, batched, outputs=False)
+    merged = _unpacked(samples)
+    encoded = stages.run(merged, _unpacked_conditions(conditions, len(merged)), headers, batched, outputs=False)
     return [_plain(e) for e in encoded], stages.state()
 
 
@@ -92,7 +111,7 @@ class SecondProcess:
         job = (samples, conditions, headers, batched)
         if self.worker is not None:
             try:
-                self.worker.submit((_packed(samples), conditions, headers, batched))
+                self.worker.submit((_packed(samples), _packed_conditions(conditions), headers, batched))
             except WorkerLost as lost:
                 self._lost(str(lost))
         self.pending.append((self.worker is not None, job))
