@@ -25,6 +25,7 @@ LAYERS = (  # bottom first
     {"fleet"},                          # many bags
     {"bench"},                          # benchmarks
     {"cli"},                            # the command line
+    {"__main__"},                       # the console script's process around it
 )
 MODEL_LAYERS = (  # model's parts, bottom first
     {"plantfile", "conditions"},        # the plant file; a sample's operating conditions
