@@ -21,6 +21,7 @@ import numpy as np
 
 from ..plantfile.plant import Plant
 from ..statics import load as loads_
+from ..statics.geometry import attachment_points
 from ..statics.result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
 from . import compiled
 from .energy import (
@@ -165,8 +166,7 @@ def _unsolve_unphysical(plant: Plant, out: BatchSolution, rows: np.ndarray) -> N
     """Batched answers among `rows` that fail the physics check go back to SOLVER_FAILED (the fallback's)."""
     rows = rows[out.ok[rows] & ~np.isin(rows, list(out.fallback))]
     rotation, position = out.rotation[rows], out.position[rows]
-    points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
-    point_c = position + rotation @ plant.cog
+    points_b, point_c = attachment_points(plant, rotation, position)
     check = check_physics_rows(plant, out.lengths[rows], points_b, point_c, out.tensions[rows], out.taut[rows],
                                out.loads[rows])
     out.status[rows[~passing_rows(check)]] = SolveStatus.SOLVER_FAILED.value

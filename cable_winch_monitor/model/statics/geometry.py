@@ -111,6 +111,12 @@ def fit_rotation(body: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.nd
     return rotation, world_centre - rotation @ body_centre
 
 
+def attachment_points(plant: Plant, rotation: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The attachments B_i (N, 4, 3) and the centre of gravity C (N, 3) in `shaft` of N stacked poses (rotations
+    (N, 3, 3), positions (N, 3))."""
+    return position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2), position + rotation @ plant.cog
+
+
 def structure_matrix(plant: Plant, points_b: np.ndarray, point_c: np.ndarray) -> np.ndarray:
     """J^T of eq. (8): column i is (u_i, CB_i x u_i), u_i the unit vector of A_i B_i. Shape (6, 4),
     or (..., 6, 4) for stacked points (..., 4, 3) and (..., 3).

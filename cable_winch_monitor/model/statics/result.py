@@ -9,7 +9,7 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 
 from ..plantfile.plant import CABLE_NAMES, Plant
-from .geometry import quaternion_from_rotation, roll_pitch_yaw, wrench_residuals
+from .geometry import attachment_points, quaternion_from_rotation, roll_pitch_yaw, wrench_residuals
 
 
 class SolveStatus(str, Enum):
@@ -236,8 +236,7 @@ def solved_rows(plant: Plant, method: str, lengths: np.ndarray, rotation: np.nda
     """`solved` for N stacked samples (lengths (N, 4), rotation (N, 3, 3), loads (N, 6) or None for
     gravity, anchors (N, 4, 3) where the geometry depends on the pose, else None for the plant's, ...):
     the points, spans and residuals of all rows are computed together."""
-    points_b = position[:, None, :] + plant.attachments @ np.swapaxes(rotation, -1, -2)
-    point_c = position + rotation @ plant.cog
+    points_b, point_c = attachment_points(plant, rotation, position)
     loads = np.broadcast_to(plant.wrench, (len(lengths), 6)) if loads is None else loads
     geometry = plant if anchors is None else plant.with_changes(anchors=anchors)  # stacked anchors broadcast
     force, moment = wrench_residuals(geometry, points_b, point_c, tensions, loads)
