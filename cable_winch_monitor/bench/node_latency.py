@@ -273,14 +273,29 @@ def _node_and_probe(domain_id: int, solver: str, plant_file: Path | None,
                     sim_time: bool) -> Iterator[tuple[subprocess.Popen, Probe]]:
     """The node in its own process and a probe node talking to it; both stopped on the way out."""
     with tempfile.TemporaryDirectory() as scratch:
-        node = start_node(domain_id, solver, Path(scratch) / "node.log", plant_file, sim_time=sim_time)
+        log = Path(scratch) / "node.log"
+        node = start_node(domain_id, solver, log, plant_file, sim_time=sim_time)
         probe = Probe(domain_id)
         try:
             yield node, probe
         finally:
             probe.close()
-            node.send_signal(signal.SIGINT)
-            node.wait(timeout=10)
+            stop(node, log)
+
+
+def stop(node: subprocess.Popen, log: Path, timeout: float = 10.0) -> None:
+    """SIGINT, as Ctrl-C would; a node that has not ended after `timeout` seconds has its threads' stacks
+    written to its log (SIGUSR1), printed, and is killed: the benchmark goes on with its other figures."""
+    node.send_signal(signal.SIGINT)
+    try:
+        node.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        node.send_signal(signal.SIGUSR1)
+        time.sleep(1.0)
+        print(f"winch_monitor did not end within {timeout:g} s of SIGINT (killed); its log and threads:\n"
+              f"{log.read_text(errors='replace')[-8000:]}", file=sys.stderr)
+        node.kill()
+        node.wait()
 
 
 def measure_recording(bag: Path, domain_id: int, plant_file: Path | None = None, seconds: float = math.inf,

@@ -9,8 +9,10 @@ is counted (diagnostics), logged with a throttle and skipped.
 """
 from __future__ import annotations
 
+import faulthandler
 import functools
 import importlib
+import signal
 import sys
 import threading
 from collections.abc import Callable
@@ -340,7 +342,11 @@ class WinchMonitorNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Entry point `winch_monitor`: ROS arguments (--ros-args -p ..., --params-file) are honoured."""
+    """Entry point `winch_monitor`: ROS arguments (--ros-args -p ..., --params-file) are honoured. SIGUSR1 writes
+    every thread's Python stack to the node's stderr, and the node goes on (a node that seems stuck, or does
+    not end on SIGINT, tells where it is)."""
+    if hasattr(signal, "SIGUSR1"):
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
     rclpy.init(args=args)
     try:
         node = WinchMonitorNode()

@@ -110,12 +110,16 @@ class NodeProcess:
         assert code is None, f"winch_monitor exited with {code}; its output:\n{self.output()[-3000:]}"
 
     def stop(self) -> int:
-        """SIGINT, as Ctrl-C would; the exit code (killed after 10 s)."""
+        """SIGINT, as Ctrl-C would; the exit code (killed after 10 s, its threads' stacks printed first: SIGUSR1
+        has the node write them to its log, and pytest shows what a fixture's teardown printed where it fails)."""
         if self.process.poll() is None:
             self.process.send_signal(signal.SIGINT)
             try:
                 self.process.wait(timeout=10.0)
             except subprocess.TimeoutExpired:
+                self.process.send_signal(signal.SIGUSR1)
+                time.sleep(1.0)
+                print(f"winch_monitor did not end within 10 s of SIGINT; its log and threads:\n{self.output()[-8000:]}")
                 self.process.kill()
                 self.process.wait()
         self.log.close()

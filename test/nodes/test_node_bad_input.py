@@ -6,6 +6,8 @@ good sample afterwards is still solved.
 """
 from __future__ import annotations
 
+import os
+import signal
 import time
 
 import pytest
@@ -223,3 +225,20 @@ def test_an_unusable_plant_file_stops_the_node_with_a_message_naming_the_key(tmp
     assert result.returncode != 0
     assert words in result.stderr and str(plant_file) in result.stderr, result.stderr
     assert "Traceback" not in result.stderr + result.stdout
+
+
+def test_sigusr1_writes_every_threads_stack_to_the_log_and_the_node_goes_on(live):
+    """A node that seems stuck, or does not end on SIGINT, tells where it is: SIGUSR1 writes each thread's
+    Python stack to its standard error (the log the harness keeps), and the node keeps solving."""
+    before = live.process.output().count("Thread 0x")
+    os.kill(live.process.pid, signal.SIGUSR1)
+    deadline = time.monotonic() + 10.0
+    while live.process.output().count("Thread 0x") <= before and time.monotonic() < deadline:
+        time.sleep(0.05)
+    written = live.process.output()
+    assert written.count("Thread 0x") > before, written[-2000:]
+    stacks = written.split("Thread 0x", before + 1)[-1]  # what this signal had written
+    assert " in _work" in stacks, "the solver thread's stack"
+    assert " in spin" in stacks, "the executor's (main) thread's stack"
+    assert live.client.solve(GOOD).pose is not None
+    live.process.assert_alive()
