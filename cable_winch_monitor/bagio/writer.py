@@ -104,19 +104,17 @@ class BagWriter:
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes | memoryview, latched: bool = False) -> None:
         """CDR bytes as they are, at `log_time` [ns]; a `latched` topic is recorded as offered transient-local
         (its first message decides)."""
-        channel = self._channels.get(topic)
-        if channel is None:
-            channel = self._connect(topic, msgtype, latched)
-        self._append(channel, log_time if log_time > 0 else 0, data)
+        self.write_records(log_time, ((topic, msgtype, data),), latched)
 
-    def write_records(self, log_time: int, records: Iterable[tuple[str, str, bytes | memoryview]]) -> None:
-        """`write_raw` for each (topic, message type, CDR bytes), all at `log_time` [ns] (a replay writes a
-        message's outputs so, several tens of thousands a second)."""
+    def write_records(self, log_time: int, records: Iterable[tuple[str, str, bytes | memoryview]],
+                      latched: bool = False) -> None:
+        """`write_raw` for each (topic, message type, CDR bytes), all at `log_time` [ns], in one call (a replay
+        writes a message's outputs so, several tens of thousands a second)."""
         time = log_time if log_time > 0 else 0
         channels, append = self._channels, self._append
         for topic, msgtype, data in records:
             channel = channels.get(topic)
-            append(self._connect(topic, msgtype, False) if channel is None else channel, time, data)
+            append(self._connect(topic, msgtype, latched) if channel is None else channel, time, data)
 
     def _connect(self, topic: str, msgtype: str, latched: bool) -> int:
         """The channel id of a new connection for `topic` (a Jazzy type the store starts without is added
