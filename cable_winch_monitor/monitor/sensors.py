@@ -101,10 +101,10 @@ class LatestReadings:
                 history = self.values.get(name)
                 if history is None:
                     history = self.values[name] = deque(maxlen=HISTORY)
-                elif (intervals := self.intervals.get(name)) is None:
-                    self.intervals[name] = deque([stamp - history[-1][0]], maxlen=HISTORY - 1)
-                    self.periods[name] = stamp - history[-1][0]
                 else:
+                    intervals = self.intervals.get(name)
+                    if intervals is None:
+                        intervals = self.intervals[name] = deque(maxlen=HISTORY - 1)
                     intervals.append(stamp - history[-1][0])
                     self.periods[name] = min(intervals)
                 history.append((stamp, value))
