@@ -33,18 +33,20 @@ from .stages import Encoded, WindowStages
 from .worker import ForkedWorker, WorkerLost
 
 Packed = tuple[np.ndarray, list[tuple[Any, ...]]]  # a window's lengths (n, 4), each sample's other fields
+LENGTHS = CompleteSample._fields.index("lengths")
+RESIDUALS = Outcome._fields.index("residuals")
 # a window's conditions: times (n,), speeds, accelerations, directions (n, 4), inputs; or the one all share
 PackedConditions = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[Any]] | Conditions
 
 
 def _packed(samples: Sequence[CompleteSample]) -> Packed:
     """A window's samples as they cross to the worker: their lengths as one array, the rest plain tuples."""
-    return np.array([s.lengths for s in samples]), [(s.stamp, *s[2:]) for s in samples]
+    return np.array([s.lengths for s in samples]), [(*s[:LENGTHS], *s[LENGTHS + 1:]) for s in samples]
 
 
 def _unpacked(packed: Packed) -> list[CompleteSample]:
     lengths, rows = packed
-    return [CompleteSample(row[0], row_lengths, *row[1:]) for row_lengths, row in zip(lengths, rows)]
+    return [CompleteSample._make((*row[:LENGTHS], row_lengths, *row[LENGTHS:])) for row_lengths, row in zip(lengths, rows)]
 
 
 def _packed_conditions(conditions: Sequence[Conditions]) -> PackedConditions:
@@ -67,13 +69,15 @@ def _plain(encoded: Encoded) -> tuple[Any, ...]:
     """A sample's `Encoded` from the worker (never with its outputs) as plain tuples, its residuals too."""
     records, outcome, view, scene, _ = encoded
     residuals = outcome.residuals
-    return records, (*outcome[:6], None if residuals is None else tuple(residuals), *outcome[7:]), view, scene
+    return records, (*outcome[:RESIDUALS], None if residuals is None else tuple(residuals),
+                     *outcome[RESIDUALS + 1:]), view, scene
 
 
 def _encoded(plain: tuple[Any, ...]) -> Encoded:
     records, outcome, view, scene = plain
-    residuals = outcome[6]
-    outcome = Outcome._make((*outcome[:6], None if residuals is None else Residuals._make(residuals), *outcome[7:]))
+    residuals = outcome[RESIDUALS]
+    outcome = Outcome._make((*outcome[:RESIDUALS], None if residuals is None else Residuals._make(residuals),
+                             *outcome[RESIDUALS + 1:]))
     return Encoded(records, outcome, view, scene)
 
 
