@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import fcntl
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -29,6 +28,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, JointState
 
+from cable_winch_monitor.bench.node_latency import stop as stop_node
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths
@@ -110,18 +110,10 @@ class NodeProcess:
         assert code is None, f"winch_monitor exited with {code}; its output:\n{self.output()[-3000:]}"
 
     def stop(self) -> int:
-        """SIGINT, as Ctrl-C would; the exit code (killed after 10 s, its threads' stacks printed first: SIGUSR1
-        has the node write them to its log, and pytest shows what a fixture's teardown printed where it fails)."""
+        """SIGINT, as Ctrl-C would; the exit code (killed after 10 s, its threads' stacks printed first, as the
+        bench stops its nodes: pytest shows what a fixture's teardown printed where it fails)."""
         if self.process.poll() is None:
-            self.process.send_signal(signal.SIGINT)
-            try:
-                self.process.wait(timeout=10.0)
-            except subprocess.TimeoutExpired:
-                self.process.send_signal(signal.SIGUSR1)
-                time.sleep(1.0)
-                print(f"winch_monitor did not end within 10 s of SIGINT; its log and threads:\n{self.output()[-8000:]}")
-                self.process.kill()
-                self.process.wait()
+            stop_node(self.process, Path(self.log.name))
         self.log.close()
         return self.process.returncode
 
