@@ -89,11 +89,13 @@ class DiagnosticsReporter:
     def note_residuals(self, residuals: Residuals) -> None:
         """A message's residuals, into each channel's latest RESIDUAL_WINDOW (a channel's noise as first seen)."""
         kept = self.residuals
-        for channel, value, noise in zip(residuals.channels, residuals.values, residuals.noise):
+        # measured - predicted, as Residuals.values gives it, without building that tuple (15,000 messages a replay)
+        for channel, measured, predicted, noise in zip(residuals.channels, residuals.measured, residuals.predicted,
+                                                       residuals.noise):
             entry = kept.get(channel)
             if entry is None:
                 entry = kept[channel] = (deque(maxlen=RESIDUAL_WINDOW), float(noise))
-            entry[0].append(float(value))
+            entry[0].append(float(measured - predicted))
 
     def note_callback_error(self, where: str, error: BaseException) -> None:
         self.callback_errors += 1
