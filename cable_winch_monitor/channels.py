@@ -1,10 +1,11 @@
 """Every measured channel, declared once: name, unit, noise key, where it is read, how the model predicts it.
 
 compare, diagnose, fit, the monitor's residuals (`/model/residuals`), the live node and
-replay take the channel list from here. The built-in channels are the load pins (one per
-cable, read with the winch's joint state), the inclinometer's roll and pitch and the
-depth gauge (x, y where measured). A sensor the package does not know is one more
-declaration, made in a user's effect module:
+replay take the channel list of their plant model (`PlantModel.channels`, a ChannelRegistry).
+The built-in channels are the load pins (one per cable, read with the winch's joint state),
+the inclinometer's roll and pitch and the depth gauge (x, y where measured). A sensor the
+package does not know is one more declaration, made in a user's effect module; it joins the
+registry of every model whose plant file names the module:
 
     declare(Channel("cage_load", "N", "cage_load", ("/cage/load",), "std_msgs/msg/Float64", "data",
                     predict=lambda solution, plant, conditions: ...))
@@ -20,7 +21,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -178,110 +180,130 @@ BUILTIN = (
 )
 
 
+BUILTIN_NAMES = {c.name: c for c in BUILTIN}
+
+
+def _checked(channel: Channel) -> Channel:
+    if not channel.topics or not all(t.startswith("/") for t in channel.topics):
+        raise ChannelError(f"channel '{channel.name}': topics must be absolute ROS topic names, got {channel.topics}")
+    return channel
+
+
 class ChannelRegistry:
-    """The channels known: the built-ins, then those declared (a user's sensors), with what is asked of them at
-    every sample worked out once per declaration."""
+    """The channels a plant model knows: the built-ins, then those its user modules declare (a user's sensors),
+    in order, with what every sample asks of them worked out once. Made whole, never changed: a model with
+    other modules has a registry of its own (effects.registry.Registry)."""
 
-    def __init__(self, builtin: Iterable[Channel]):
-        self.builtin = {c.name: c for c in builtin}
-        self.channels: dict[str, Channel] = dict(self.builtin)
-        self._changed()
-
-    def declare(self, channel: Channel) -> Channel:
-        """Add a channel (a user's sensor); a name may be declared again only with the same topics."""
-        known = self.channels.get(channel.name)
-        if known is not None and (known.topics, known.msgtype) != (channel.topics, channel.msgtype):
-            raise ChannelError(f"channel '{channel.name}' is declared twice, on {known.topics} and {channel.topics}")
-        if not channel.topics or not all(t.startswith("/") for t in channel.topics):
-            raise ChannelError(f"channel '{channel.name}': topics must be absolute ROS topic names, got "
-                               f"{channel.topics}")
-        self.channels[channel.name] = channel
-        self._changed()
-        return channel
-
-    def _changed(self) -> None:
-        """What the samples ask (by topic, whether any is a user's), worked out again."""
-        self.user = any(c is not self.builtin.get(c.name) for c in self.channels.values())
+    def __init__(self, declared: Iterable[Channel] = ()):
+        self.channels: dict[str, Channel] = dict(BUILTIN_NAMES)
+        for channel in declared:
+            known = self.channels.get(channel.name)
+            if known is not None and (known.topics, known.msgtype) != (channel.topics, channel.msgtype):
+                raise ChannelError(f"channel '{channel.name}' is declared twice, on {known.topics} and "
+                                   f"{channel.topics}")
+            self.channels[channel.name] = _checked(channel)
+        self.user = any(c is not BUILTIN_NAMES.get(name) for name, c in self.channels.items())
+        self.sensors = {name: name if name in TENSION_CHANNELS else c.topics[0] for name, c in self.channels.items()}
+        self._sensors_used: dict[tuple[str, ...], tuple[str, ...]] = {}
         self.by_topic: dict[str, tuple[Channel, ...]] = {}
         for channel in self.channels.values():
             if channel.read is not None:
                 for topic in channel.topics:
                     self.by_topic[topic] = (*self.by_topic.get(topic, ()), channel)
 
+    def declared(self) -> tuple[Channel, ...]:
+        """Every channel: the built-ins, then those user modules declared, in order."""
+        return tuple(self.channels.values())
 
-REGISTRY = ChannelRegistry(BUILTIN)  # the package's: what user modules declare into
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.channels)
+
+    def get(self, name: str) -> Channel:
+        return self.channels[name]
+
+    def sensor_of(self, channel: str) -> str:
+        """The sensor a channel belongs to: a load pin is its own, any other channel its topic's instrument (a
+        name not declared: its own)."""
+        return self.sensors.get(channel, channel)
+
+    def sensors_used(self, used: tuple[str, ...]) -> tuple[str, ...]:
+        """The sensors of these channels (an estimate's `used`), in the channels' declared order; worked out
+        once for each set of channels (every fused sample asks; a recording uses a few sets)."""
+        sensors = self._sensors_used.get(used)
+        if sensors is None:
+            names = set(used)
+            ordered = [name for name in self.channels if name in names] + sorted(names - set(self.channels))
+            sensors = self._sensors_used[used] = tuple(dict.fromkeys(map(self.sensor_of, ordered)))
+        return sensors
+
+    def noise_keys(self) -> tuple[str, ...]:
+        """Every key a plant file's `noise:` section may give: the encoders', then each channel's."""
+        return tuple(dict.fromkeys((LENGTH_NOISE, *(c.noise_key for c in self.channels.values()))))
+
+    def topic_types(self) -> dict[str, str]:
+        """Every topic a channel is read from, with its message type."""
+        return {topic: c.msgtype for c in self.channels.values() for topic in c.topics}
+
+    def on_topic(self, topic: str) -> tuple[Channel, ...]:
+        """The channels read from messages of `topic` by their own reader (not the winch merger's)."""
+        return self.by_topic.get(topic, ())
+
+    def predicted(self, solution: Solution, plant: Plant, conditions: Conditions) -> dict[str, float]:
+        """What every channel reads for a solved state under the plain model (no measurement effects):
+        load pins the tension (weightless ropes), the inclinometer the platform's roll and pitch, the
+        depth gauge the platform origin."""
+        return {name: channel.predict(solution, plant, conditions) for name, channel in self.channels.items()}
+
+    def predicted_states(self, states: States, conditions: Iterable[Conditions]) -> dict[str, np.ndarray]:
+        """`predicted` for stacked states (conditions[k] is state k's): arrays (n,), one per channel."""
+        out: dict[str, np.ndarray] = {}
+        alone = [c for c in self.channels.values() if c.predict_states is None]
+        solutions = states.solutions() if alone else []
+        for name, channel in self.channels.items():
+            if channel.predict_states is not None:
+                out[name] = np.array(channel.predict_states(states), dtype=float)
+            else:
+                out[name] = np.array([channel.predict(s, states.plant, at) for s, at in zip(solutions, conditions)],
+                                     float)
+        return out
+
+    def differentiable(self) -> bool:
+        """Every channel gives the derivative of its stacked prediction (`gradient_states`)."""
+        return all(c.gradient_states is not None for c in self.channels.values())
+
+    def gradients_states(self, states: States) -> dict[str, np.ndarray] | None:
+        """The derivative (n, 10) of every channel's `predicted_states`, one array per channel; None where a
+        channel declares none."""
+        out = {}
+        for name, channel in self.channels.items():
+            if channel.gradient_states is None:
+                return None
+            out[name] = np.asarray(channel.gradient_states(states), dtype=float).reshape(len(states), STATE_SIZE)
+        return out
+
+
+BUILTIN_CHANNELS = ChannelRegistry()  # the built-ins alone: a plant model without user modules
+_importing: list[list[Channel]] = []  # what the user modules being imported declare (`declared_by_import`)
+
+
+@contextmanager
+def declared_by_import() -> Iterator[list[Channel]]:
+    """The channels a user module declares while it is imported (effects.registry imports it in this)."""
+    declared: list[Channel] = []
+    _importing.append(declared)
+    try:
+        yield declared
+    finally:
+        _importing.pop()
 
 
 def declare(channel: Channel) -> Channel:
-    """Add a channel (a user's sensor) to the package's registry; a name may be declared again only with the
-    same topics."""
-    return REGISTRY.declare(channel)
-
-
-def user_declared() -> bool:
-    """Some channel is a user's: declared beside the built-ins, or in place of one."""
-    return REGISTRY.user
-
-
-def declared() -> tuple[Channel, ...]:
-    """Every channel: the built-ins, then those user modules declared, in order."""
-    return tuple(REGISTRY.channels.values())
-
-
-def names() -> tuple[str, ...]:
-    return tuple(REGISTRY.channels)
-
-
-def get(name: str) -> Channel:
-    return REGISTRY.channels[name]
-
-
-def noise_keys() -> tuple[str, ...]:
-    """Every key a plant file's `noise:` section may give: the encoders', then each declared channel's."""
-    return tuple(dict.fromkeys((LENGTH_NOISE, *(c.noise_key for c in REGISTRY.channels.values()))))
-
-
-def topic_types() -> dict[str, str]:
-    """Every topic a channel is read from, with its message type."""
-    return {topic: c.msgtype for c in REGISTRY.channels.values() for topic in c.topics}
-
-
-def on_topic(topic: str) -> tuple[Channel, ...]:
-    """The channels read from messages of `topic` by their own reader (not the winch merger's)."""
-    return REGISTRY.by_topic.get(topic, ())
-
-
-def predicted(solution: Solution, plant: Plant, conditions: Conditions) -> dict[str, float]:
-    """What every channel reads for a solved state under the plain model (no measurement effects):
-    load pins the tension (weightless ropes), the inclinometer the platform's roll and pitch, the
-    depth gauge the platform origin."""
-    return {name: channel.predict(solution, plant, conditions) for name, channel in REGISTRY.channels.items()}
-
-
-def predicted_states(states: States, conditions: Iterable[Conditions]) -> dict[str, np.ndarray]:
-    """`predicted` for stacked states (conditions[k] is state k's): arrays (n,), one per channel."""
-    out: dict[str, np.ndarray] = {}
-    alone = [c for c in REGISTRY.channels.values() if c.predict_states is None]
-    solutions = states.solutions() if alone else []
-    for name, channel in REGISTRY.channels.items():
-        if channel.predict_states is not None:
-            out[name] = np.array(channel.predict_states(states), dtype=float)
-        else:
-            out[name] = np.array([channel.predict(s, states.plant, at) for s, at in zip(solutions, conditions)], float)
-    return out
-
-
-def differentiable() -> bool:
-    """Every channel gives the derivative of its stacked prediction (`gradient_states`)."""
-    return all(c.gradient_states is not None for c in REGISTRY.channels.values())
-
-
-def gradients_states(states: States) -> dict[str, np.ndarray] | None:
-    """The derivative (n, 10) of every channel's `predicted_states`, one array per channel; None where a
-    channel declares none."""
-    out = {}
-    for name, channel in REGISTRY.channels.items():
-        if channel.gradient_states is None:
-            return None
-        out[name] = np.asarray(channel.gradient_states(states), dtype=float).reshape(len(states), STATE_SIZE)
-    return out
+    """Declare a user's sensor in an effect module: the channel joins the registry of each plant model whose
+    file lists the module (`plant.effect_modules`, or --effect-module). A script that builds its own registry
+    passes the channel to `ChannelRegistry([...])` instead."""
+    if not _importing:
+        raise ChannelError(f"channel '{channel.name}': declare() is for an effect module, imported as a plant "
+                           "file's effect_modules (or --effect-module) name it; a script makes its own "
+                           "registry, ChannelRegistry([channel])")
+    _importing[-1].append(_checked(channel))
+    return channel

@@ -13,7 +13,7 @@ from .bagio.reader import BagError
 from .effects.base import EffectError
 from .formatting import format_solution
 from .messages.scene import LIVE_RATE, REPLAY_RATE
-from .model.plantfile.plant import CABLE_NAMES, PlantConfigError, load_plant
+from .model.plantfile.plant import CABLE_NAMES, Plant, PlantConfigError, load_plant
 from .model.solvers.solve import METHODS
 from .monitor.sensors import READING_LAG
 from .paths import config_dir
@@ -39,18 +39,25 @@ def _check_writable(path: str | None, option: str) -> None:
         raise UsageError(f"{option} {path}: not writable (permission denied)")
 
 
-def _effect_names(text: str | None, option: str) -> list[str] | None:
-    """Comma-separated effect names, each one known (None for none given)."""
+def _effect_names(text: str | None, option: str, plant: Plant) -> list[str] | None:
+    """Comma-separated effect names, each one known to the plant's model (None for none given)."""
     if text is None:
         return None
-    from .effects.registry import effect_class
+    from .effects import BUILTIN
 
     names = [n.strip() for n in text.split(",") if n.strip()]
     if not names:
         raise UsageError(f"{option}: no effect name given")
+    registry = BUILTIN.with_modules(plant.effect_modules)
     for name in names:
-        effect_class(name)  # EffectError naming the known ones
+        registry.effect_class(name)  # EffectError naming the known ones
     return names
+
+
+def _plant_with_modules(args: argparse.Namespace) -> Plant:
+    """The plant file of --config with the user modules of --effect-module after its own `effect_modules`."""
+    plant = load_plant(args.config)
+    return plant.with_changes(effect_modules=(*plant.effect_modules, *(str(Path(m).resolve()) for m in args.effect_module)))
 
 
 def _length(text: str) -> float:
@@ -101,13 +108,10 @@ def _paper(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from .effects import load_module
     from .sim.scenario import load_scenario, scenario_path
     from .sim.simulate import simulate
 
-    for path in args.effect_module:
-        load_module(path)
-    print(simulate(load_scenario(scenario_path(args.scenario), args.set, args.seed), args.out).format())
+    print(simulate(load_scenario(scenario_path(args.scenario), args.set, args.seed, args.effect_module), args.out).format())
     return 0
 
 
@@ -209,12 +213,10 @@ def _analysis_inputs(args: argparse.Namespace):
     """The plant model (with its effects, user modules loaded) and the bag's measurements for compare and
     fit; UsageError if the bag holds none."""
     from .analysis.data import read_bag, require_measurements
-    from .effects import PlantModel, load_module
+    from .effects import PlantModel
 
-    for path in args.effect_module:
-        load_module(path)
-    model = PlantModel.from_plant(load_plant(args.config))
-    data = read_bag(args.bag, model.inputs)
+    model = PlantModel.from_plant(_plant_with_modules(args))
+    data = read_bag(args.bag, model)
     require_measurements(data)
     return model, data
 
@@ -246,17 +248,14 @@ def _compare(args: argparse.Namespace) -> int:
 def _diagnose(args: argparse.Namespace) -> int:
     from .analysis import report
     from .analysis.diagnose import diagnose_bag
-    from .effects import load_module
     from .fleet import diagnose_job, is_fleet
 
     _check_writable(args.json, "--json")
-    for path in args.effect_module:
-        load_module(path)
-    candidates = _effect_names(args.candidates, "--candidates")
+    plant = _plant_with_modules(args)
+    candidates = _effect_names(args.candidates, "--candidates", plant)
     if is_fleet(args.bag):
-        return _fleet(args, diagnose_job(load_plant(args.config), candidates, args.effect_module, args.budget),
-                      budget=args.budget)
-    result, data = diagnose_bag(args.bag, load_plant(args.config), candidates, args.budget, progress=True)
+        return _fleet(args, diagnose_job(plant, candidates, args.budget), budget=args.budget)
+    result, data = diagnose_bag(args.bag, plant, candidates, args.budget, progress=True)
     print(report.diagnose_text(result))
     _write_json(args.json, report.diagnose_json(result, data.bag, len(data)))
     return 0
@@ -270,7 +269,7 @@ def _fit(args: argparse.Namespace) -> int:
     _check_writable(args.json, "--json")
     _check_writable(args.write_config, "--write-config")
     model, data = _analysis_inputs(args)
-    names = _effect_names(args.effects, "--effects")
+    names = _effect_names(args.effects, "--effects", model.plant)
     assert names is not None  # the fit command requires --effects
     result = fit_command(model, data, names)
     print(report.fit_text(result))

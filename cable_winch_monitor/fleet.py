@@ -67,13 +67,10 @@ def replay_job(plant: Plant | None = None, solver: str = "energy", staleness: fl
 
 
 def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[str] | None,
-                  effect_modules: Sequence[str], budget: float | None) -> Row:
+                  budget: float | None) -> Row:
     from .analysis.diagnose import diagnose_bag
     from .analysis.report import diagnose_json
-    from .effects import load_module
 
-    for path in effect_modules:  # a Dask worker has not seen the client's modules
-        load_module(path)
     started = time.perf_counter()
     try:
         result, data = diagnose_bag(bag, plant, candidates, budget)
@@ -88,13 +85,12 @@ def _diagnose_row(bag: Path, out: Path, plant: Plant | None, candidates: list[st
             "report": report.name, "wall [s]": time.perf_counter() - started}
 
 
-def diagnose_job(plant: Plant | None = None, candidates: list[str] | None = None,
-                 effect_modules: Sequence[str] = (), budget: float | None = None) -> Job:
+def diagnose_job(plant: Plant | None = None, candidates: list[str] | None = None, budget: float | None = None) -> Job:
     """The per-bag diagnose as a picklable job, each bag within `budget` seconds (None: no limit): a row with
     the measurement rows, the held-out score before and after the effects it found, and the full result
-    (interface.md) in `<out folder>/<bag>.json`."""
-    return functools.partial(_diagnose_row, plant=plant, candidates=candidates,
-                             effect_modules=[str(Path(m).resolve()) for m in effect_modules], budget=budget)
+    (interface.md) in `<out folder>/<bag>.json`. A worker loads the user modules the plant names
+    (`effect_modules`, absolute paths) as its model is made."""
+    return functools.partial(_diagnose_row, plant=plant, candidates=candidates, budget=budget)
 
 
 @dataclass

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -18,11 +19,12 @@ from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.bagio.reader import BagError
 from cable_winch_monitor.bagio.writer import BagWriter
-from cable_winch_monitor.effects import EffectError, PlantModel, effect_class, load_module
+from cable_winch_monitor.channels import BUILTIN_CHANNELS, Channel, ChannelError, ChannelRegistry, declare
+from cable_winch_monitor.effects import EffectError, PlantModel, Registry, effect_class
 from cable_winch_monitor.messages.fields import header
 from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.model.conditions import Conditions, ConditionsTracker, derivatives
-from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant, plant_from_mapping
+from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, PlantConfigError, load_plant, plant_from_mapping
 from cable_winch_monitor.monitor.clearance import solution_clearance
 from cable_winch_monitor.monitor.inputs import JointSample
 from cable_winch_monitor.monitor.limits import synchronisation_limits
@@ -67,8 +69,8 @@ def test_payout_accelerations_from_speeds_and_from_lengths_alone():
 
 
 def test_a_load_effect_changes_the_tensions_by_m_times_a():
-    load_module(EXAMPLES / "platform_inertia.py")
-    model = PlantModel(load_plant(), (effect_class("platform_inertia")({"k": 1.0}),))
+    registry = Registry([EXAMPLES / "platform_inertia.py"])
+    model = PlantModel(load_plant(), (registry.effect_class("platform_inertia")({"k": 1.0}),), registry=registry)
     lengths = np.array([120.3, 120.1, 120.5, 120.2])
     still = model.solve(lengths, conditions=Conditions())
     braking = Conditions(accelerations=np.full(4, -0.4))  # a lowering braking: the ropes carry m (g + 0.4)
@@ -101,14 +103,15 @@ def write_bag(path: Path, temperature: bool = True, cage: bool = False) -> Path:
 
 
 def test_an_extra_input_reaches_the_effect_interpolated_in_analysis_and_latest_live(tmp_path):
-    load_module(EXAMPLES / "rope_temperature.py")
-    spec = effect_class("rope_temperature").inputs[0]
-    data = read_bag(write_bag(tmp_path / "warm"), (spec,))
+    registry = Registry([EXAMPLES / "rope_temperature.py"])
+    warm = PlantModel(load_plant(), (registry.effect_class("rope_temperature")(),), registry=registry)
+    spec = warm.inputs[0]
+    data = read_bag(write_bag(tmp_path / "warm"), warm)
     rows = data.kinds == 0
     inside = rows & (data.times > 0.5) & (data.times < 9.5)
     np.testing.assert_allclose(data.inputs[spec.key][inside], 20.0 + data.times[inside], atol=1e-9)
     with pytest.raises(BagError, match="/shaft/temperature"):
-        read_bag(write_bag(tmp_path / "no_temperature", temperature=False), (spec,))
+        read_bag(write_bag(tmp_path / "no_temperature", temperature=False), warm)
     plant = load_plant()
     config = {"plant": {**plant.raw["plant"], "effects": {"rope_temperature": {"alpha": 1.2e-5}},
                         "effect_modules": [str(EXAMPLES / "rope_temperature.py")]}}
@@ -125,17 +128,16 @@ def test_an_extra_input_reaches_the_effect_interpolated_in_analysis_and_latest_l
 
 def test_a_user_channel_takes_part_in_compare_and_in_the_residuals(tmp_path):
     module = tmp_path / "cage.py"
-    module.write_text(textwrap.dedent(CAGE_CHANNEL))
-    load_module_or_channels(module)
-    assert "cage_load" in channels.names()
-    assert channels.user_declared()
-    assert PlantModel.from_plant(load_plant()).reads_conditions  # no effect: the user's channel reads them
-    plant = plant_from_mapping({"plant": {**load_plant().raw["plant"], "noise": {
+    module.write_text(textwrap.dedent(CAGE_CHANNEL))  # a module that only declares a channel (no effect)
+    plant = plant_from_mapping({"plant": {**load_plant().raw["plant"], "effect_modules": [str(module)], "noise": {
         **load_plant().noise, "cage_load": 200.0}}})
-    data = read_bag(write_bag(tmp_path / "cage", cage=True))
+    model = PlantModel.from_plant(plant)
+    assert "cage_load" in model.channels.names() and model.channels.user
+    assert model.reads_conditions  # no effect: the user's channel reads them
+    data = read_bag(write_bag(tmp_path / "cage", cage=True), model)
     column = data.channels.index("cage_load")
     assert np.isfinite(data.measured[:, column]).sum() >= 40
-    result = compare(PlantModel.from_plant(plant), data)
+    result = compare(model, data)
     assert result.channels["cage_load"].rms == pytest.approx(500.0, abs=1.0)  # reads m g + 500 N
     assert result.channels["cage_load"].noise == 200.0
     pipeline = MonitorPipeline(plant)
@@ -144,12 +146,31 @@ def test_a_user_channel_takes_part_in_compare_and_in_the_residuals(tmp_path):
     assert residual.channels == ("cage_load",) and residual.values[0] == pytest.approx(500.0, abs=1e-6)
 
 
-def load_module_or_channels(path: Path) -> None:
-    """A module that only declares channels is loaded like an effect module (it defines no effect)."""
-    try:
-        load_module(path)
-    except EffectError as error:
-        assert "defines no Effect" in str(error)
+def test_a_users_module_changes_only_the_models_whose_plant_file_names_it(tmp_path):
+    """Two plant models in one process, one with a user's sensor: the other neither reads nor fuses it, and a
+    module's channels are taken by every model that names it, however often it is named."""
+    module = tmp_path / "cage.py"
+    module.write_text(textwrap.dedent(CAGE_CHANNEL))
+    raw = load_plant().raw["plant"]
+    caged = PlantModel.from_plant(plant_from_mapping({"plant": {**raw, "effect_modules": [str(module)]}}))
+    again = PlantModel.from_plant(plant_from_mapping({"plant": {**raw, "effect_modules": [str(module)]}}))
+    plain = PlantModel.from_plant(load_plant())
+    assert "cage_load" in caged.channels.names() and "cage_load" in again.channels.names()
+    assert "cage_load" not in plain.channels.names() and not plain.channels.user
+    assert plain.channels.names() == BUILTIN_CHANNELS.names()
+    assert MonitorPipeline(load_plant()).read_channels("/cage/load", SimpleNamespace(data=1.0)) == {}
+    with pytest.raises(PlantConfigError, match="plant.noise.cage_load"):  # a plain model's file cannot weigh it
+        PlantModel.from_plant(plant_from_mapping({"plant": {**raw, "noise": {**load_plant().noise, "cage_load": 1.0}}}))
+
+
+def test_a_channel_is_declared_in_a_module_or_given_to_a_registry_of_ones_own():
+    cage = Channel("cage_load", "N", "cage_load", ("/cage/load",), "std_msgs/msg/Float64", "data",
+                   predict=lambda solution, plant, conditions: 0.0)
+    with pytest.raises(ChannelError, match="declare\\(\\) is for an effect module"):
+        declare(cage)
+    assert ChannelRegistry([cage]).sensor_of("cage_load") == "/cage/load"
+    with pytest.raises(ChannelError, match="declared twice"):
+        ChannelRegistry([cage, replace(cage, topics=("/other/load",))])
 
 
 def test_traversal_is_kept_with_effects_and_refused_with_elastic_ropes():
@@ -184,8 +205,7 @@ def test_clearance_is_the_plant_with_its_effects():
     path.mkdir(exist_ok=True)
     module = path / "wider_decks_effect.py"
     module.write_text(narrow)
-    load_module(module)
-    config = {"plant": {**plant.raw["plant"], "effects": {"wider_decks": {"s": 1.05}}}}
+    config = {"plant": {**plant.raw["plant"], "effects": {"wider_decks": {"s": 1.05}}, "effect_modules": [str(module)]}}
     pipeline = MonitorPipeline(plant_from_mapping(config))
     output = pipeline.on_joint_state(JointSample(1.0, CABLE_NAMES, [120.0] * 4))
     nominal = solution_clearance(plant, output.solution)
@@ -205,7 +225,7 @@ def test_limits_use_the_plants_effects():
 
 
 def test_channel_list_is_the_one_declaration():
-    names = channels.names()
+    names = BUILTIN_CHANNELS.names()
     assert names[:4] == channels.TENSION_CHANNELS and {"roll", "pitch", "depth"} <= set(names)
     predicted = PlantModel(load_plant()).predict(PlantModel(load_plant()).solve([60.0] * 4))
     assert set(names) <= set(predicted) and all(math.isfinite(predicted[n]) for n in names)

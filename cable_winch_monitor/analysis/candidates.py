@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import PlantModel, available
+from ..effects import PlantModel
 from ..progress import Progress
 from .budget import Budget
 from .evaluate import Evaluator
@@ -116,7 +116,7 @@ class Round:
         """Fit `name` from the effect `start` (None: its defaults) alone on the current model, `quick`ly (the
         screening's steps on the screening rows: one fewer from a start found before) or to convergence;
         score it on the held-out rows."""
-        effect = start if start is not None else available()[name](plant=self.current.plant)
+        effect = start if start is not None else self.current.registry.effect_class(name)(plant=self.current.plant)
         part = 0 if quick else 1
         (train, held), ((train_chi2, _), (held_chi2, held_count)) = self.rows[part], self.chi2[part]
         fit = fit_effects(self.current, [effect], train, self.noise, deadline,

@@ -60,7 +60,7 @@ class Comparison:
 def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -> Comparison:
     """Solve the model at every row and compare with what was measured; rank what the error follows
     (among the bag's other topics' `fields` too, where given)."""
-    sigma, source = noise(model.plant, data)
+    sigma, source = noise(model, data)
     evaluator = Evaluator(data)
     reasons = require_solved(data.bag, evaluator.solutions(model), "compare")
     predicted = evaluator.predicted(model)
@@ -69,7 +69,7 @@ def compare(model: PlantModel, data: Dataset, fields: BagFields | None = None) -
     result.score = evaluator.score(model, sigma)
     result.regions = failure_regions(result)
     result.ill_conditioned = ill_conditioned(model, data, sigma)
-    result.follows = what_follows(data, result.residuals, sigma, fields=fields)
+    result.follows = what_follows(data, result.residuals, sigma, fields=fields, channels=model.channels)
     result.follows_notes = fields.remarks() if fields else []
     return result
 

@@ -20,9 +20,9 @@ from typing import cast
 
 import numpy as np
 
-from .. import channels
 from ..bagio.reader import BagError, BagReader
-from ..channels import JOINT_STATE, Input
+from ..channels import BUILTIN_CHANNELS, JOINT_STATE, TENSION_CHANNELS, Input
+from ..effects import PlantModel
 from ..messages import fields
 from ..messages.topics import missing_input, require_inputs
 from ..model.conditions import Conditions, derivatives, directions
@@ -46,7 +46,7 @@ class Dataset:
     speeds: np.ndarray
     accelerations: np.ndarray
     measured: np.ndarray
-    channels: tuple[str, ...] = field(default_factory=channels.names)
+    channels: tuple[str, ...] = BUILTIN_CHANNELS.names()
     sources: tuple[str, ...] = (WINCH,)
     inputs: dict[str, np.ndarray] = field(default_factory=dict)
     held: np.ndarray | None = None  # (n, 4) directions of motion found over the whole recording (subsets)
@@ -73,23 +73,25 @@ class Dataset:
                        {k: v[rows] for k, v in self.inputs.items()}, self.directions[rows])
 
 
-def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[Input, ...] = ()) -> Dataset:
-    """Every usable measurement of a bag as a Dataset, with the extra `inputs` the plant's effects read
-    (BagError if it is not a bag, or lacks an input's topic) and the `optional` ones it has (candidate
-    effects of diagnose)."""
+def read_bag(bag: str | Path, model: PlantModel | None = None, optional: tuple[Input, ...] = ()) -> Dataset:
+    """Every usable measurement of a bag as a Dataset: the channels of the plant `model` (without one, the
+    built-in ones) and the extra inputs its effects read (BagError if it is not a bag, or lacks an input's
+    topic), and the `optional` inputs it has (candidate effects of diagnose)."""
+    known, inputs = (BUILTIN_CHANNELS, ()) if model is None else (model.channels, model.inputs)
     require_inputs(bag, inputs)
     required = {spec.key for spec in inputs}
     inputs = tuple(inputs) + tuple(optional)
-    names = channels.names()
+    names = known.names()
     column = {name: k for k, name in enumerate(names)}
-    tension_columns = [column[name] for name in channels.TENSION_CHANNELS]
-    sensor_topics = [t for t, kind in channels.topic_types().items() if kind != JOINT_STATE]
+    tension_columns = [column[name] for name in TENSION_CHANNELS]
+    topics = {**fields.input_topics(model), **{spec.topic: spec.msgtype for spec in optional}}
+    sensor_topics = [t for t, kind in known.topic_types().items() if kind != JOINT_STATE]
     merger = CableLengthMerger(staleness=MAX_GAP)
     joints: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
     others: list[tuple[float, int, np.ndarray]] = []
     series: dict[str, list[tuple[float, float]]] = {spec.key: [] for spec in inputs}
     by_topic = {spec.topic: [s for s in inputs if s.topic == spec.topic] for spec in inputs}
-    for item in BagReader(bag, fields.input_topics(inputs)):
+    for item in BagReader(bag, topics):
         msg = item.message
         stamp = fields.message_seconds(msg, item.log_time)
         for spec in by_topic.get(item.topic, ()):
@@ -106,7 +108,7 @@ def read_bag(bag: str | Path, inputs: tuple[Input, ...] = (), optional: tuple[In
             joints.append((stamp, lengths, np.array([r.velocity for r in readings]), row))
         elif item.topic in sensor_topics:
             row = np.full(len(names), np.nan)
-            for channel in channels.on_topic(item.topic):
+            for channel in known.on_topic(item.topic):
                 assert channel.read is not None  # `on_topic` gives the channels with a reader
                 row[column[channel.name]] = channel.read(msg)
             if np.isfinite(row).any():

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..effects import Effect, PlantModel, available
+from ..effects import Effect, PlantModel
 from ..effects.model import refines
 from ..model.plantfile.plant import Plant, load_plant
 from ..progress import Progress
@@ -124,9 +124,8 @@ class Diagnosis:
         return self.final is not None and name in self.selected and self.final.honest(name) and not self.partial
 
 
-def _cost(name: str) -> int:
+def _cost(cls: type[Effect]) -> int:
     """Screening order: measurement effects reuse solutions, geometry that refines the pose costs most."""
-    cls = available()[name]
     return {"measurement": 0, "rope_law": 1, "load": 1}.get(cls.acts, 2) + refines(cls)
 
 
@@ -250,10 +249,11 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
     rows = ((Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_QUICK)), base),
              Evaluator(data.subset(thin(held_out, data.kinds, PER_KIND_QUICK_SCORE)), base)),
             (Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND_SCREEN)), base), held))
-    pool = sorted((n for n in (candidates or available()) if base.get(n) is None and available()[n].fittable()),
-                  key=_cost)
-    untried = {n: "the bag lacks " + ", ".join(i.key for i in available()[n].inputs if i.key not in data.inputs)
-               for n in pool if any(i.key not in data.inputs for i in available()[n].inputs)}
+    known = base.registry.available()
+    pool = sorted((n for n in (candidates or known) if base.get(n) is None and known[n].fittable()),
+                  key=lambda n: _cost(known[n]))
+    untried = {n: "the bag lacks " + ", ".join(i.key for i in known[n].inputs if i.key not in data.inputs)
+               for n in pool if any(i.key not in data.inputs for i in known[n].inputs)}
     pool = [n for n in pool if n not in untried]
     bar = Progress("diagnose", len(pool), enabled=progress, only_tty=True)
     current = base
@@ -301,7 +301,7 @@ def diagnose(base: PlantModel, data: Dataset, noise: np.ndarray, candidates: lis
         bar.update(bar.done, "checking identifiability")
         conditioning = ill_conditioned(current, data, noise)
     bar.finish()
-    follows = what_follows(data, held.residuals(current), noise, held_rows, fields)
+    follows = what_follows(data, held.residuals(current), noise, held_rows, fields, current.channels)
     return Diagnosis(ranking, ladder, final, current, len(train.data), len(held.data),
                      sum(e.solves for part in rows for e in part) + train.solves, channels, follows,
                      fields.remarks() if fields else [], conditioning, clock.unfinished, budget, untried, not_solved, refused)
@@ -316,7 +316,7 @@ def diagnose_bag(bag: str | Path, plant: Plant | None = None, candidates: list[s
     require_measurements(data)
     fields = read_fields(bag)
     left = None if budget is None else budget - (time.monotonic() - started)  # reading counts too
-    return diagnose(model, data, noise(model.plant, data)[0], candidates, fields, left, progress), data
+    return diagnose(model, data, noise(model, data)[0], candidates, fields, left, progress), data
 
 
 def diagnosis_inputs(bag: str | Path, plant: Plant | None = None,
@@ -325,5 +325,6 @@ def diagnosis_inputs(bag: str | Path, plant: Plant | None = None,
     the model's effects read and those of the candidates where the bag has them."""
     model = PlantModel.from_plant(plant or load_plant())
     own = {i.key for i in model.inputs}
-    wanted = {i.key: i for name in (candidates or available()) for i in available()[name].inputs if i.key not in own}
-    return model, read_bag(bag, model.inputs, tuple(wanted.values()))
+    known = model.registry.available()
+    wanted = {i.key: i for name in (candidates or known) for i in known[name].inputs if i.key not in own}
+    return model, read_bag(bag, model, tuple(wanted.values()))

@@ -25,12 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import channels
 from ..bagio.reader import BagError
 from ..effects import PlantModel
 from ..effects.estimate import estimate_recording, fuses
 from ..model.estimator import Estimate
-from ..model.plantfile.plant import Plant
 from ..model.statics.result import Solution
 from .data import Dataset
 
@@ -200,12 +198,12 @@ def channel_stats(residuals: np.ndarray, measured: np.ndarray, noise: np.ndarray
     return out
 
 
-def noise(plant: Plant, data: Dataset) -> tuple[np.ndarray, dict[str, str]]:
-    """1-sigma noise of each channel and where it came from: the plant file's `noise:` section, or an
+def noise(model: PlantModel, data: Dataset) -> tuple[np.ndarray, dict[str, str]]:
+    """1-sigma noise of each channel and where it came from: the model's plant file's `noise:` section, or an
     estimate from the data (second differences of consecutive samples, robust: 1.4826 MAD / sqrt 6)."""
     sigma, source = np.full(len(data.channels), np.nan), {}
     for c, name in enumerate(data.channels):
-        value = plant.noise.get(channels.get(name).noise_key, np.nan)
+        value = model.plant.noise.get(model.channels.get(name).noise_key, np.nan)
         if np.isfinite(value) and value > 0.0:
             sigma[c], source[name] = value, "plant file"
             continue

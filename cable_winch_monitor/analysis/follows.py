@@ -49,8 +49,7 @@ from typing import Any, TypeGuard
 import numpy as np
 from scipy import stats
 
-from .. import channels as declared
-from ..channels import TENSION_CHANNELS
+from ..channels import BUILTIN_CHANNELS, TENSION_CHANNELS, ChannelRegistry
 from .bagfields import BagFields
 from .data import Dataset
 
@@ -367,14 +366,15 @@ def follows(z: np.ndarray, channels: Sequence[str], candidates: Sequence[Regress
 
 
 def what_follows(data: Dataset, residuals: np.ndarray, noise: np.ndarray, rows: np.ndarray | None = None,
-                 fields: BagFields | None = None) -> list[Finding]:
+                 fields: BagFields | None = None, channels: ChannelRegistry = BUILTIN_CHANNELS) -> list[Finding]:
     """`follows` for residuals (rows, data.channels) with their channels' 1-sigma noise, at `rows` of a
-    dataset (all rows if None), against every regressor of the dataset and the bag's other topics."""
+    dataset (all rows if None), against every regressor of the dataset and the bag's other topics; the units
+    those of `channels` (the plant model's)."""
     rows = np.arange(len(data)) if rows is None else rows
     tensions = np.full((len(data), 4), np.nan)
     if all(name in data.channels for name in TENSION_CHANNELS):  # the model's: measured minus residual
         pins = [data.channels.index(name) for name in TENSION_CHANNELS]
         tensions[rows] = data.measured[rows][:, pins] - residuals[:, pins]
     candidates = [r.take(rows) for r in regressors(data, fields, tensions)]
-    scales = {name: (float(sigma), declared.get(name).unit) for name, sigma in zip(data.channels, noise)}
+    scales = {name: (float(sigma), channels.get(name).unit) for name, sigma in zip(data.channels, noise)}
     return follows(residuals / noise, list(data.channels), candidates, scales=scales)

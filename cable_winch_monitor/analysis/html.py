@@ -16,7 +16,7 @@ import numpy as np
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from .. import channels
+from ..channels import TENSION_CHANNELS
 from .compare import THRESHOLD, Comparison
 from .follows import NOTHING
 from .motion import MOTIONS, motions
@@ -48,10 +48,10 @@ def _channel_figure(c: Comparison, index: int, name: str, kinds: np.ndarray, sta
     """Residual against time, payout and (load pins) tension, and measured against predicted, by motion."""
     seen = np.isfinite(c.data.measured[:, index])
     residual, measured = c.residuals[:, index], c.data.measured[:, index]
-    unit, band = channels.get(name).unit, THRESHOLD * c.noise[index]
+    unit, band = c.model.channels.get(name).unit, THRESHOLD * c.noise[index]
     times, payout = c.data.times - start, c.data.lengths.mean(axis=1)
     panels = [("time", times, time_axis_title(start)), ("payout", payout, "payout [m]")]
-    if name in channels.TENSION_CHANNELS:
+    if name in TENSION_CHANNELS:
         panels.append(("tension", measured, "measured tension [N]"))
     fig = make_subplots(rows=1, cols=len(panels) + 1, horizontal_spacing=0.06,
                         subplot_titles=[f"residual vs {label}" for label, *_ in panels] + ["measured vs predicted"])

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..effects import PlantModel, effect_class
+from ..effects import PlantModel
 from .data import Dataset
 from .evaluate import ChannelStats, Evaluator, channel_stats, noise, split, thin
 from .fit import FitResult, fit_effects
@@ -40,9 +40,9 @@ def _scores(model: PlantModel, evaluator: Evaluator, sigma: np.ndarray) -> PartS
 
 def fit_command(base: PlantModel, data: Dataset, names: Sequence[str]) -> FitReport:
     """Fit `names` (added to, or refitted within, `base`) and score both models on both parts."""
-    sigma, source = noise(base.plant, data)
+    sigma, source = noise(base, data)
     train_rows, held_rows = split(data)
-    effects = [base.get(n) or effect_class(n)(plant=base.plant) for n in names]
+    effects = [base.get(n) or base.registry.effect_class(n)(plant=base.plant) for n in names]
     fit = fit_effects(base, effects, Evaluator(data.subset(thin(train_rows, data.kinds, PER_KIND)), base), sigma)
     parts = {"training": Evaluator(data.subset(train_rows), base), "held_out": Evaluator(data.subset(held_rows), base)}
     before = {k: _scores(base, e, sigma) for k, e in parts.items()}

@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .. import channels
+from ..channels import LENGTH_NOISE, TENSION_CHANNELS
 from ..model.conditions import Conditions, StackedConditions
 from ..model.estimator import BatchEstimate, Estimate, Observation, States, estimate, estimate_batch, forward_differences
 from ..model.estimator import observations as obs
@@ -34,7 +34,7 @@ from ..model.statics.result import Solution
 from .model import NO_CONDITIONS, REFINE_STEPS, REFINE_TOL, PlantModel
 
 BUILT_IN: dict[str, Callable[[float | np.ndarray, float], Observation]] = {
-    **{name: functools.partial(obs.load_pin, i) for i, name in enumerate(channels.TENSION_CHANNELS)},
+    **{name: functools.partial(obs.load_pin, i) for i, name in enumerate(TENSION_CHANNELS)},
     "roll": obs.roll, "pitch": obs.pitch,
     "x": lambda value, sigma: obs.position_component(0, value, sigma),
     "y": lambda value, sigma: obs.position_component(1, value, sigma),
@@ -44,7 +44,7 @@ BUILT_IN: dict[str, Callable[[float | np.ndarray, float], Observation]] = {
 
 def length_noise(model: PlantModel) -> float | None:
     """The encoders' 1-sigma noise [m] (`noise.length` in the plant file), None where not given."""
-    value = model.plant.noise.get(channels.LENGTH_NOISE)
+    value = model.plant.noise.get(LENGTH_NOISE)
     return float(value) if value is not None and math.isfinite(value) and value > 0.0 else None
 
 
@@ -95,12 +95,12 @@ def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarra
                      conditions: Sequence[Conditions] = (NO_CONDITIONS,)) -> list[Observation]:
     """The observations of the measured channels with a noise in the plant file: values a number, or
     arrays over a batch (NaN where a channel was not measured) with each sample's conditions."""
-    noise = model.plant.noise
+    noise, known = model.plant.noise, model.channels.channels
     direct = not model.measuring
     modelled = ModelledChannels(model, conditions)
     out = []
     for name, value in measured.items():
-        sigma = noise.get(channels.get(name).noise_key) if name in channels.names() else None
+        sigma = noise.get(known[name].noise_key) if name in known else None
         if sigma is None or not math.isfinite(sigma) or sigma <= 0.0 or not np.any(np.isfinite(value)):
             continue
         if direct and name in BUILT_IN:

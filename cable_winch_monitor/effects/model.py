@@ -8,7 +8,7 @@ pose-dependent geometry (the plant's pulleys, sheave tangent points) by fixed-po
 `PlantModel.solve_batch` does the same for many samples along a trajectory at once
 (model/batched*.py), where nothing makes the geometry depend on the pose.
 `PlantModel.predict` gives every declared channel's reading for a solved state
-(channels.predicted, then measurement effects), `predict_states` for stacked states.
+(its registry's channels, then measurement effects), `predict_states` for stacked states.
 The live node, replay, the analysis, `limits`, the command check and the wall clearance
 all go through this object; a model without effects is exactly the monitor's rigid model.
 """
@@ -17,14 +17,12 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .. import channels
-from ..channels import Input
+from ..channels import ChannelRegistry, Input
 from ..model.conditions import Conditions, StackedConditions
 from ..model.estimator import States
 from ..model.estimator.observations import STATE_SIZE
@@ -37,7 +35,7 @@ from ..model.solvers.solve import METHODS, solve
 from ..model.statics.result import Solution, SolveStatus, failed
 from .base import Effect, EffectError, RopeLaw
 from .pulley import wrap
-from .registry import USER_MODULES, effect_class, load_module
+from .registry import BUILTIN, Registry
 from .tracked import TrackedParameter, file_effect, tracked_parameters
 
 REFINE_STEPS = 6
@@ -55,9 +53,10 @@ def refines(cls: type[Effect]) -> bool:
     return overrides(cls, "refine") or overrides(cls, "refine_states")
 
 
-def effects_from_mapping(section: Any, where: str, plant: Plant | None = None) -> list[Effect]:
-    """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}},
-    their parameters resolved for `plant` (Effect)."""
+def effects_from_mapping(section: Any, where: str, plant: Plant | None = None, registry: Registry = BUILTIN
+                         ) -> list[Effect]:
+    """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}}, named in
+    `registry`, their parameters resolved for `plant` (Effect)."""
     if section is None:
         return []
     if not isinstance(section, Mapping):
@@ -69,7 +68,7 @@ def effects_from_mapping(section: Any, where: str, plant: Plant | None = None) -
         if not isinstance(enabled, bool):
             raise EffectError(f"key '{where}.{name}.enabled' must be true or false, got {enabled!r}")
         try:
-            effect = effect_class(str(name))(spec, plant)
+            effect = registry.effect_class(str(name))(spec, plant)
         except EffectError as error:
             raise EffectError(f"key '{where}.{name}': {error}") from None
         if enabled:
@@ -118,17 +117,17 @@ def _check_predicted(predicted: dict[str, np.ndarray], posed: np.ndarray, who: s
         raise EffectError(f"{who} gave {names[channel]} = {table[channel, state]} at a solved state")
 
 
-def _check_effect_bounds(plant: Plant) -> None:
+def _check_effect_bounds(plant: Plant, registry: Registry) -> None:
     """Every effect and parameter the plant file's effect_bounds names exists."""
     for name, params in plant.effect_bounds.items():
-        known = {p.name for p in effect_class(name).parameters}
+        known = {p.name for p in registry.effect_class(name).parameters}
         unknown = sorted(set(params) - known)
         if unknown:
             raise EffectError(f"key 'plant.effect_bounds.{name}.{unknown[0]}': effect '{name}' has no such parameter "
                               f"(known: {', '.join(sorted(known))})")
 
 
-def _check_noise_keys(plant: Plant) -> None:
+def _check_noise_keys(plant: Plant, channels: ChannelRegistry) -> None:
     """Every key of the plant file's noise section is a declared channel's (or the encoders')."""
     unknown = sorted(set(plant.noise) - set(channels.noise_keys()))
     if unknown:
@@ -138,11 +137,13 @@ def _check_noise_keys(plant: Plant) -> None:
 
 @dataclass(frozen=True)
 class PlantModel:
-    """The nominal plant, its enabled effects (at most one of each name) and the rigid-rope solver."""
+    """The nominal plant, its enabled effects (at most one of each name), the rigid-rope solver and the registry
+    its effects and channels are named in (the built-ins and the plant file's user modules)."""
 
     plant: Plant
     effects: tuple[Effect, ...] = field(default=())
     solver: str = "energy"
+    registry: Registry = field(default=BUILTIN, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.solver not in METHODS:
@@ -154,14 +155,15 @@ class PlantModel:
 
     @classmethod
     def from_plant(cls, plant: Plant, solver: str = "energy") -> PlantModel:
-        """The effects the plant file switches on (`plant.effects`, user modules in `plant.effect_modules`)."""
+        """The effects the plant file switches on (`plant.effects`), named among the built-ins and in the user
+        modules of `plant.effect_modules`."""
         try:
-            for path in plant.effect_modules:
-                load_module(path)
-            _check_effect_bounds(plant)
-            _check_noise_keys(plant)
-            tracked_parameters(plant)
-            model = cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant)), solver)
+            registry = BUILTIN.with_modules(plant.effect_modules)
+            _check_effect_bounds(plant, registry)
+            _check_noise_keys(plant, registry.channels)
+            tracked_parameters(plant, registry)
+            model = cls(plant, tuple(effects_from_mapping(plant.effects, "plant.effects", plant, registry)), solver,
+                        registry)
             _ = model.physical, model.rope_law  # the effects' plant and rope hooks, run once: a failure is said now
             return model
         except EffectError as error:
@@ -177,7 +179,7 @@ class PlantModel:
         """Add or replace effects by name."""
         replaced = {e.name: e for e in effects}
         kept = [replaced.pop(e.name, e) for e in self.effects]
-        return PlantModel(self.plant, tuple(kept + list(replaced.values())), self.solver)
+        return PlantModel(self.plant, tuple(kept + list(replaced.values())), self.solver, self.registry)
 
     def with_tracked(self, tracked: Sequence[TrackedParameter], values: np.ndarray, every: bool = False) -> PlantModel:
         """This model (the plant file's) with the tracked parameters at `values`: an effect that is off in the
@@ -191,9 +193,14 @@ class PlantModel:
             return self
         effects = []
         for name, values_of in changed.items():
-            effect = self.get(name) or file_effect(effect_class(name), self.plant)
+            effect = self.get(name) or file_effect(self.registry.effect_class(name), self.plant)
             effects.append(effect.replaced(**values_of))
         return self.with_effects(effects)
+
+    @property
+    def channels(self) -> ChannelRegistry:
+        """The channels this model predicts: the built-ins and those its user modules declare."""
+        return self.registry.channels
 
     @cached_property
     def physical(self) -> Plant:
@@ -246,7 +253,7 @@ class PlantModel:
     @property
     def reads_conditions(self) -> bool:
         """Something reads a sample's conditions: an effect, or a channel a user declared."""
-        return bool(self.effects) or channels.user_declared()
+        return bool(self.effects) or self.channels.user
 
     @property
     def plain(self) -> bool:
@@ -421,7 +428,7 @@ class PlantModel:
     def predict(self, solution: Solution, conditions: Conditions = NO_CONDITIONS) -> dict[str, float]:
         """What every declared channel reads for a solved state: the plain model, then measurement effects."""
         if not self._measurers:
-            return channels.predicted(solution, self.physical, conditions)
+            return self.channels.predicted(solution, self.physical, conditions)
         predicted = self.predict_states(States.of(self.physical, [solution]), StackedConditions.of((conditions,)))
         return {name: float(values[0]) for name, values in predicted.items()}
 
@@ -430,7 +437,7 @@ class PlantModel:
         """`predict` for each of many solutions at its conditions, all solved ones at once: arrays (n,) by
         channel, NaN where a solution is not solved."""
         solved = [k for k, solution in enumerate(solutions) if solution.ok]
-        out = {name: np.full(len(solutions), np.nan) for name in channels.names()}
+        out = {name: np.full(len(solutions), np.nan) for name in self.channels.names()}
         if solved:
             table = self.predict_states(States.of(self.physical, [solutions[k] for k in solved]),
                                         StackedConditions.of([conditions[k] for k in solved]))
@@ -445,7 +452,7 @@ class PlantModel:
     @property
     def differentiated(self) -> bool:
         """Every channel and every measurement effect gives its derivative (`predict_gradients` can answer)."""
-        return self._measure_differentiated and channels.differentiable()
+        return self._measure_differentiated and self.channels.differentiable()
 
     @cached_property
     def _measure_differentiated(self) -> bool:
@@ -459,7 +466,7 @@ class PlantModel:
         if not self._measure_differentiated:
             return None
         try:
-            gradients = channels.gradients_states(states)
+            gradients = self.channels.gradients_states(states)
         except Exception as error:
             raise EffectError(f"a channel's gradient raised {type(error).__name__}: {error}") from None
         if gradients is None:
@@ -479,7 +486,7 @@ class PlantModel:
         estimator predicts a few states at a time, many times a sample); where they fail, the prediction
         is made again, `checked` after each step, to name the step that gave them."""
         try:
-            predicted = channels.predicted_states(states, conditions)
+            predicted = self.channels.predicted_states(states, conditions)
         except Exception as error:
             raise EffectError(f"a channel's prediction raised {type(error).__name__}: {error}") from None
         if checked:
@@ -503,13 +510,8 @@ class PlantModel:
         return {e.name: {"enabled": True, **{k: float(v) for k, v in e.values.items()}} for e in self.effects}
 
     def user_modules(self) -> list[str]:
-        """Files of the user modules defining effects of this model (for `effect_modules:`)."""
-        import inspect
-
-        files = []
-        for effect in self.effects:
-            module = inspect.getmodule(type(effect))
-            if module is not None and module.__name__.startswith(USER_MODULES):
-                assert module.__file__ is not None  # a user module is imported from its file (`load_module`)
-                files.append(str(Path(module.__file__).resolve()))
-        return sorted(set(files))
+        """Files of the user modules this model needs (for `effect_modules:`): those defining its effects or
+        declaring channels."""
+        used = {type(effect) for effect in self.effects}
+        return sorted(path for path, module in self.registry.loaded.items()
+                      if used.intersection(module.effects) or module.channels)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from ..model.plantfile.plant import Plant
 from .base import Effect, EffectError
-from .registry import effect_class
+from .registry import BUILTIN, Registry
 
 DEFAULT_RELATIVE = 0.05  # tolerance: this share of the file's value where that is not zero
 DEFAULT_STEPS = 2.0      # else this many of the parameter's fit steps
@@ -40,15 +40,15 @@ class TrackedParameter:
         return f"{self.effect}.{self.name}"
 
 
-def tracked_parameters(plant: Plant) -> tuple[TrackedParameter, ...]:
-    """The parameters `plant.track` names, in its order; EffectError names a wrong key (unknown effect or
-    parameter, a setting that is not fitted, a relative tolerance of a zero value)."""
+def tracked_parameters(plant: Plant, registry: Registry = BUILTIN) -> tuple[TrackedParameter, ...]:
+    """The parameters `plant.track` names (effects of `registry`), in its order; EffectError names a wrong key
+    (unknown effect or parameter, a setting that is not fitted, a relative tolerance of a zero value)."""
     spec = plant.track
     out: list[TrackedParameter] = []
     for name in spec.names:
         effect_name, _, param = name.partition(".")
         try:
-            cls = effect_class(effect_name)
+            cls = registry.effect_class(effect_name)
         except EffectError as error:
             raise EffectError(f"key 'plant.track': {error}") from None
         effect = file_effect(cls, plant)

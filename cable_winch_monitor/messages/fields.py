@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import channels
-from ..channels import JOINT_STATE, WINCH_TOPICS, Input
+from ..channels import BUILTIN_CHANNELS, JOINT_STATE, WINCH_TOPICS, ChannelRegistry
+from ..effects import PlantModel
 from ..model.estimator import Estimate
 from ..model.plantfile.plant import CABLE_NAMES
 from ..model.statics.result import Solution, SolveStatus
@@ -21,7 +21,6 @@ from ..monitor.alarm import Alarm
 from ..monitor.inputs import JointSample
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
-from ..monitor.sensors import sensors_used
 from ..monitor.tracking import ParameterView
 
 FRAME = "shaft"
@@ -34,9 +33,11 @@ STATUS_NUMBERS = {SolveStatus.SOLVED: 0, SolveStatus.SINGLE_CABLE_INDETERMINATE:
                   SolveStatus.INVALID_INPUT: 3, SolveStatus.SOLVER_FAILED: 4}
 
 
-def input_topics(inputs: tuple[Input, ...] = ()) -> dict[str, str]:
-    """Every topic the monitor reads, with its message type: the winches, every declared channel's
-    topic (interface.md: inclinometer, depth gauge, ...) and the extra inputs of the plant's effects."""
+def input_topics(model: PlantModel | None = None) -> dict[str, str]:
+    """Every topic the monitor of a plant model reads, with its message type: the winches, every channel's
+    topic (interface.md: inclinometer, depth gauge, ...; a user's declared sensors) and the extra inputs of
+    the plant's effects; without a model, the built-in channels'."""
+    channels, inputs = (BUILTIN_CHANNELS, ()) if model is None else (model.channels, model.inputs)
     return {**{topic: JOINT_STATE for topic in WINCH_TOPICS}, **channels.topic_types(),
             **{spec.topic: spec.msgtype for spec in inputs}}
 
@@ -105,9 +106,11 @@ def pose_stamped(stamp: Stamp, solution: Solution) -> Fields:
     return {"header": header(stamp), "pose": pose(solution)}
 
 
-def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | None = None) -> Fields:
+def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | None = None,
+                         channels: ChannelRegistry = BUILTIN_CHANNELS) -> Fields:
     """Per-cable length, span, tension and taut flag, the tension state as a whole, and, for a fused
-    `estimate`, the sensors it used and how far it moved the lengths (in sigma)."""
+    `estimate`, the sensors it used (of `channels`, the plant model's) and how far it moved the lengths (in
+    sigma)."""
     fused = estimate if estimate is not None and estimate.fused else None
     taut = solution.taut_set
     cables = [{"name": name, "length": length, "span": span, "tension": tension, "taut": (i + 1) in taut}
@@ -117,7 +120,7 @@ def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | 
             "tension_state": solution.tension_state, "cables": cables,
             "equilibrium_residual": _larger(float(solution.force_residual), float(solution.moment_residual)),
             "solver": solution.method, "iterations": int(solution.iterations),
-            "sensors_used": sensors_used(fused) if fused is not None else [],
+            "sensors_used": list(channels.sensors_used(fused.used)) if fused is not None else [],
             "length_corrections_sigma": _floats(fused.corrections_sigma) if fused is not None else []}
 
 

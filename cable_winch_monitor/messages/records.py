@@ -17,6 +17,7 @@ from rosbags.typesys.store import Typestore
 
 from ..bagio.cdr import Encoder, encoder, fixed_encoder
 from ..bagio.typestore import knows, typestore
+from ..channels import ChannelRegistry
 from ..model.estimator import Estimate
 from ..model.statics.result import Solution
 from ..monitor.alarm import Alarm
@@ -85,29 +86,30 @@ def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[R
     return [] if residuals is None else [_record(RESIDUALS, fields.model_residuals(stamp, residuals))]
 
 
-def solution_records(stamp: fields.Stamp, solution: Solution, estimate: Estimate | None) -> list[Record]:
-    """What a sample's solution (and its fused estimate) alone decides, whatever the monitor's state:
-    pose and /tf (only if solved), tension distribution."""
+def solution_records(stamp: fields.Stamp, solution: Solution, estimate: Estimate | None,
+                     channels: ChannelRegistry) -> list[Record]:
+    """What a sample's solution (and its fused estimate, its sensors those of `channels`) alone decides,
+    whatever the monitor's state: pose and /tf (only if solved), tension distribution."""
     records = [_record(POSE, fields.pose_stamped(stamp, solution)),
                _record(TF, frames.platform_tf(stamp, solution))] if solution.ok else []
-    return records + [_record(TENSION, fields.tension_distribution(stamp, solution, estimate))]
+    return records + [_record(TENSION, fields.tension_distribution(stamp, solution, estimate, channels))]
 
 
 def alarm_record(stamp: fields.Stamp, alarm: Alarm) -> Record:
     return _record(ALARM, fields.collision_alarm(stamp, alarm))
 
 
-def output_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
+def output_records(stamp: fields.Stamp, output: MonitorOutput, channels: ChannelRegistry) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: its `solved_records`, then its residuals
     (if any)."""
-    return solved_records(stamp, output) + residual_records(stamp, output.residuals)
+    return solved_records(stamp, output, channels) + residual_records(stamp, output.residuals)
 
 
-def solved_records(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
+def solved_records(stamp: fields.Stamp, output: MonitorOutput, channels: ChannelRegistry) -> list[Record]:
     """A solved sample's outputs but its residuals, in the node's order: pose and /tf (only if solved), tension
     distribution, collision alarm, the model's error (where the sample was estimated), the tracked plant
     parameters (at the first sample of each second of stamps)."""
-    records = solution_records(stamp, output.solution, output.estimate)
+    records = solution_records(stamp, output.solution, output.estimate, channels)
     records.append(alarm_record(stamp, output.alarm))
     if output.model is not None:
         records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))

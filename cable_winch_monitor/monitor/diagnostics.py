@@ -24,12 +24,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..channels import ChannelRegistry
 from ..model.plantfile.plant import CABLE_NAMES
 from ..model.statics.result import SolveStatus
 from .alarm import AlarmLevel
 from .pipeline import MonitorOutput, MonitorPipeline
 from .residuals import Residuals
-from .sensors import sensors_used
 from .tracking import ParameterView
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3  # diagnostic_msgs/DiagnosticStatus levels
@@ -120,7 +120,7 @@ class DiagnosticsReporter:
         node's own counters (complete samples, skipped, winch messages, lost before the node, waiting); `last`:
         what they say of the latest sample (default: the pipeline's own latest output); `winch`: the winches'
         inputs as they were at `now` (default: the pipeline's now; replay merges them ahead)."""
-        last = last if last is not None else sample_view(pipeline.last, pipeline.fusing)
+        last = last if last is not None else sample_view(pipeline.last, pipeline.fusing, pipeline.model.channels)
         winch = winch or winch_view(pipeline, self.rates(now))
         statuses = [self._solver(pipeline, now, node, last, winch), self.inputs(pipeline, now, winch),
                     self._alarm(pipeline, last, now), self._model(), self._status("sensor fusion", *last.fusion)]
@@ -258,8 +258,8 @@ class SampleView(NamedTuple):
     tracking: tuple[int, str, dict[str, object]] | None = None  # the tracked plant parameters (None: none)
 
 
-def sample_view(output: MonitorOutput | None, fusing: bool) -> SampleView:
-    """The diagnostics of a sample's outputs (None: no sample yet)."""
+def sample_view(output: MonitorOutput | None, fusing: bool, channels: ChannelRegistry) -> SampleView:
+    """The diagnostics of a sample's outputs (None: no sample yet), its sensors those of `channels`."""
     if output is None:
         fusion: tuple[int, str, dict[str, object]] = (
             OK, "no estimate yet" if fusing else "lengths taken as exact (no noise.length in the plant file)", {})
@@ -280,10 +280,10 @@ def sample_view(output: MonitorOutput | None, fusing: bool) -> SampleView:
                    for pair, error in zip(alarm.sync_error_pairs, alarm.sync_errors)})
     parameters = output.model.parameters if output.model is not None else None
     return SampleView(solver, (ALARM_DIAGNOSTIC[alarm.level], f"{alarm.level.name}: {alarm.reason}", values),
-                      _fusion(output, fusing), output.stamp, None if parameters is None else tracking(parameters))
+                      _fusion(output, fusing, channels), output.stamp, None if parameters is None else tracking(parameters))
 
 
-def _fusion(output: MonitorOutput, fusing: bool) -> tuple[int, str, dict[str, object]]:
+def _fusion(output: MonitorOutput, fusing: bool, channels: ChannelRegistry) -> tuple[int, str, dict[str, object]]:
     """The sample's estimate: the sensors used, those left out (contradicting the others, stuck at a
     constant, silent) and why; the model's estimated error per rope."""
     if not fusing:
@@ -294,7 +294,7 @@ def _fusion(output: MonitorOutput, fusing: bool) -> tuple[int, str, dict[str, ob
     if estimate is None or view is None or not estimate.fused:
         message = "no estimate yet" if estimate is None else f"lengths only: {estimate.solution.tension_state}"
     else:
-        used = sensors_used(estimate)
+        used = channels.sensors_used(estimate.used)
         values["sensors used"] = ", ".join(used)
         for name, error, sigma, pin, pin_sigma in zip(CABLE_NAMES, view.length_error, view.length_sigma,
                                                        view.pin_error, view.pin_sigma):

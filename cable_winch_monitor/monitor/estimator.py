@@ -49,7 +49,6 @@ from ..model.solvers.batched import BatchSolution
 from ..model.statics.geometry import roll_pitch_yaw
 from ..model.statics.result import Solution
 from .sensitivity import WindowSamples
-from .sensors import sensor_of
 from .tracking import ParameterTracker, ParameterView, TrackState
 
 if TYPE_CHECKING:  # the node's process for the window updates: replay, which works them out at once, need not import it
@@ -248,6 +247,7 @@ class MonitorEstimator:
             self.last_solved = forward, int(solved[-1])
         measured = self._carried(samples, forward)
         left_out = tuple(sorted(self.left_out))
+        sensor_of = model.channels.sensor_of
         kept = [{name: value for name, value in row.items() if sensor_of(name) not in self.left_out} for row in measured] \
             if self.left_out else list(measured)
         if self.failing and len(samples) <= SPECULATED:
@@ -331,6 +331,7 @@ class MonitorEstimator:
         measured = np.isfinite(batch.residuals).sum(axis=1)
         verdict = np.nan_to_num(batch.cost, nan=0.0) > _THRESHOLDS[np.minimum(measured, len(_THRESHOLDS) - 1)]
         groups: dict[str, list[int]] = {}
+        sensor_of = self.model.channels.sensor_of
         for k, name in enumerate(batch.names):
             groups.setdefault(sensor_of(name), []).append(k)
         for columns in groups.values():
@@ -404,6 +405,7 @@ class MonitorEstimator:
         """The suspect samples estimated again without each of their sensors under the model as it is and under
         it loosely held (`priors`, in one batch): for each, the (sample, sensor) pairs, the readings kept, the
         estimates, and whether the other sensors (and, under the first, the lengths) then agree."""
+        sensor_of = self.model.channels.sensor_of
         pairs = [(int(i), sensor) for i in suspects for sensor in sorted({sensor_of(n) for n in measured[i]})]
         if not pairs:
             return [([], [], None, np.zeros(0, bool)) for _ in priors]
@@ -428,7 +430,7 @@ class MonitorEstimator:
             return
         window = self.window
         assert window is not None  # `run` opens the window before estimating its samples
-        offset = len(window.stamps)
+        offset, sensor_of = len(window.stamps), self.model.channels.sensor_of
         tries = [(k, sensor) for k in range(len(samples)) if (offset + k) % RETRY_EVERY == 0 and k not in batch.fallback
                  for sensor in sorted(self.left_out) if any(sensor_of(n) == sensor for n in measured[k])]
         if not tries:
@@ -462,6 +464,7 @@ class MonitorEstimator:
                           for k in range(len(samples))]
         window.followed += followed.tolist()
         sensors: dict[tuple[str, ...], frozenset[str]] = {}  # of each set of channels measured (a few in a run)
+        sensor_of = self.model.channels.sensor_of
         for channels, rejects in zip(measured, rejected):
             names = tuple(channels)
             if names not in sensors:

@@ -25,8 +25,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .. import channels
-from ..channels import Input
+from ..channels import TENSION_CHANNELS, ChannelRegistry, Input
 from ..effects import PlantModel
 from ..effects.estimate import fuses
 from ..effects.model import NO_CONDITIONS
@@ -49,7 +48,7 @@ from .inputs import (
     small_mean,
 )
 from .residuals import Residuals, noise_levels, residuals
-from .sensors import READING_LAG, LatestReadings, PayoutHistory, StuckReadings, sensor_of
+from .sensors import READING_LAG, LatestReadings, PayoutHistory, StuckReadings
 from .tracking import ParameterView
 
 if TYPE_CHECKING:  # the node's process for the window updates: replay need not import it
@@ -192,9 +191,9 @@ class MonitorStats:
                 entry[2], entry[3] = stamp, why
 
 
-def stuck_faults(stuck: Mapping[str, tuple[float, float]]) -> dict[str, str]:
+def stuck_faults(stuck: Mapping[str, tuple[float, float]], channels: ChannelRegistry) -> dict[str, str]:
     """The sensors of channels stuck at a constant (channel: value, since when [s]), with why they are left out."""
-    return {sensor_of(name): f"stuck at {value:.6g} since {since:.3f} s" for name, (value, since) in stuck.items()}
+    return {channels.sensor_of(name): f"stuck at {value:.6g} since {since:.3f} s" for name, (value, since) in stuck.items()}
 
 
 class MonitorPipeline:
@@ -216,7 +215,7 @@ class MonitorPipeline:
         self.inputs = {spec.key: InputSeries() for spec in self.model.inputs}
         self.last_predicted: dict[str, float] | None = None
         self.last_solved_stamp = math.nan
-        self.noise = noise_levels(plant)
+        self.noise = noise_levels(plant, self.model.channels)
         self.fusing = solver == "energy" and fuses(self.model)
         self.readings = LatestReadings(staleness, lag)  # a sample fuses the readings stamped `lag` before it
         self.pins = StuckReadings()
@@ -256,7 +255,7 @@ class MonitorPipeline:
                 reading = readings[cable]
                 assert reading is not None  # the message just gave it
                 if math.isfinite(reading.tension):
-                    self.pins.add(channels.TENSION_CHANNELS[cable], reading.tension, sample.stamp)
+                    self.pins.add(TENSION_CHANNELS[cable], reading.tension, sample.stamp)
         lengths, waiting = self.merger.complete(sample.stamp)
         self.stats.waiting = waiting
         if lengths is None:
@@ -269,12 +268,12 @@ class MonitorPipeline:
         if not self.fusing:
             return CompleteSample(sample.stamp, lengths, merged.accepted, tensions, speeds)
         pins, taken = {}, {}
-        for name, value in zip(channels.TENSION_CHANNELS, tensions):
+        for name, value in zip(TENSION_CHANNELS, tensions):
             if math.isfinite(value):
                 self.heard[name] = sample.stamp
                 if not self.pins.is_stuck(name):
                     pins[name], taken[name] = value, sample.stamp
-        faults = stuck_faults(self.pins.stuck())
+        faults = stuck_faults(self.pins.stuck(), self.model.channels)
         faults.update(self._silent(sample.stamp, pins, self.heard, faults))
         return CompleteSample(sample.stamp, lengths, merged.accepted, tensions, speeds, pins, taken, faults)
 
@@ -285,7 +284,7 @@ class MonitorPipeline:
             return sample
         stamp = sample.stamp
         values, taken = self.readings.at(stamp, small_mean(sample.lengths.tolist()), self.payouts.at)
-        faults = stuck_faults(self.readings.stuck_at(stamp))
+        faults = stuck_faults(self.readings.stuck_at(stamp), self.model.channels)
         faults.update(sample.faults)
         faults.update(self._silent(stamp, values, self.readings.latest(stamp), faults))
         return CompleteSample(stamp, sample.lengths, sample.accepted, sample.tensions, sample.speeds,
@@ -300,7 +299,7 @@ class MonitorPipeline:
         """The sensors heard before (`heard`: channel -> its latest stamp) with no reading at a sample stamped
         `stamp` for SILENT staleness limits (one reading late is not a fault), with why; those `faulty`
         already (stuck) left as they are."""
-        out = {}
+        out, sensor_of = {}, self.model.channels.sensor_of
         for name, when in heard.items():
             sensor = sensor_of(name)
             if name not in measured and sensor not in faulty and stamp - when > SILENT * self.staleness:
@@ -402,7 +401,7 @@ class MonitorPipeline:
         solution, clearance, fused, predicted, view = solved
         basis = self._basis(clearance, fused, view)
         alarm = self.alarms.update(solution, basis.clearance, basis.text if view is not None else "")
-        pins = {channels.TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+        pins = {TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
         resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
         output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, view, basis)
         self.last = output
@@ -424,7 +423,7 @@ class MonitorPipeline:
             return Basis(clearance, "")
         used = fused.used if fused is not None else ()
         tilt = "roll" in used and "pitch" in used
-        pins = sum(name in used for name in channels.TENSION_CHANNELS)
+        pins = sum(name in used for name in TENSION_CHANNELS)
         sigma = max(self.noise.get("roll", math.nan), self.noise.get("pitch", math.nan))
         return judged(clearance if fused is not None and fused.ok else None, view.clearance, tilt,
                       pins >= CORROBORATING_PINS, sigma if math.isfinite(sigma) else view.tilt_sigma, view.tilt_sigma)
@@ -453,11 +452,10 @@ class MonitorPipeline:
         assert self.last_predicted is not None  # kept with the stamp of the last solved sample (`note`)
         return residuals(self.noise, stamp, values, self.last_predicted)
 
-    @staticmethod
-    def read_channels(topic: str, message: Any) -> dict[str, float]:
+    def read_channels(self, topic: str, message: Any) -> dict[str, float]:
         """What the channels read off a message of `topic` (NaN where a field holds no number)."""
         values = {}
-        for c in channels.on_topic(topic):
+        for c in self.model.channels.on_topic(topic):
             assert c.read is not None  # `on_topic` gives the channels with a reader of their own
             values[c.name] = c.read(message)
         return values

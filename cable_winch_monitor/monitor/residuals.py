@@ -5,7 +5,7 @@ import math
 from collections.abc import Mapping
 from typing import NamedTuple
 
-from .. import channels
+from ..channels import ChannelRegistry
 from ..model.plantfile.plant import Plant
 
 
@@ -25,8 +25,8 @@ class Residuals(NamedTuple):
         return tuple(m - p for m, p in zip(self.measured, self.predicted))
 
 
-def noise_levels(plant: Plant) -> dict[str, float]:
-    """1-sigma noise of every declared channel from the plant file's `noise:` section (NaN if absent)."""
+def noise_levels(plant: Plant, channels: ChannelRegistry) -> dict[str, float]:
+    """1-sigma noise of every channel of `channels` from the plant file's `noise:` section (NaN if absent)."""
     return {c.name: float(plant.noise.get(c.noise_key, math.nan)) for c in channels.declared()}
 
 
@@ -35,7 +35,7 @@ def residuals(noise: Mapping[str, float], stamp: float, measured: Mapping[str, f
     """Residuals of the finite measured channels; None if nothing to compare.
 
     `predicted` is what the sensors read for the solved pose (effects.PlantModel.predict);
-    `noise` is `noise_levels(plant)`.
+    `noise` is `noise_levels(plant, channels)`.
     """
     rows = [(k, v, predicted[k], noise.get(k, math.nan)) for k, v in measured.items()
             if k in predicted and math.isfinite(v)]

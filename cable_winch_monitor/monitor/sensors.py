@@ -29,10 +29,6 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable, Mapping
-from functools import lru_cache
-
-from .. import channels
-from ..model.estimator import Estimate
 
 CARRIED = {"depth": -1.0}  # channel: its change per metre of mean payout (the shaft's z axis points up)
 STUCK = 5  # a sensor repeating its reading to the bit this many times running is stuck
@@ -44,37 +40,6 @@ HISTORY = 64
 READING_LAG = 0.03  # [s] a sample fuses the readings stamped at least this long before it
 LATE = 3.0  # [periods] a channel's reading is due at most this long after its latest: later, the sensor is late or silent
 PAYOUTS = 1024  # complete samples whose payout is kept: a staleness limit's worth at up to 2 kHz
-
-
-_SENSORS: dict[str, str] = {}  # declared channel -> its sensor (a declared channel keeps its topics)
-
-
-def sensor_of(channel: str) -> str:
-    """The sensor a channel belongs to: a load pin is its own, any other channel its topic's instrument."""
-    sensor = _SENSORS.get(channel)
-    if sensor is not None:
-        return sensor
-    if channel in channels.TENSION_CHANNELS:
-        sensor = channel
-    else:
-        try:
-            sensor = channels.get(channel).topics[0]
-        except KeyError:  # not declared (yet): its own sensor, not remembered
-            return channel
-    _SENSORS[channel] = sensor
-    return sensor
-
-
-def sensors_used(estimate: Estimate) -> list[str]:
-    """The sensors whose channels an estimate used, in the channels' declared order."""
-    return list(_sensors_used(estimate.used, channels.names()))
-
-
-@lru_cache(maxsize=256)  # every fused sample asks; a recording uses a few sets of channels
-def _sensors_used(used_names: tuple[str, ...], declared: tuple[str, ...]) -> tuple[str, ...]:
-    used = set(used_names)
-    ordered = [name for name in declared if name in used] + sorted(used - set(declared))
-    return tuple(dict.fromkeys(sensor_of(name) for name in ordered))
 
 
 class LatestReadings:

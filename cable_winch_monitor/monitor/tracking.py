@@ -116,7 +116,8 @@ class ParameterTracker:
         plant = model.plant
         if not plant.track.enabled:
             return None
-        return cls(tracked_parameters(plant), plant.track, plant.model_error.walk(), plant.model_error.period)
+        return cls(tracked_parameters(plant, model.registry), plant.track, plant.model_error.walk(),
+                   plant.model_error.period)
 
     @property
     def in_use(self) -> np.ndarray:

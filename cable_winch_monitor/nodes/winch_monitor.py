@@ -37,7 +37,6 @@ from visualization_msgs.msg import MarkerArray
 from cable_winch_monitor_msgs.msg import CollisionAlarm, ModelError, ModelParameters, ModelResiduals, TensionDistribution
 from cable_winch_monitor_msgs.srv import CheckCableLengths, WritePlantFile
 
-from .. import channels
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..live.scheduler import BACKLOG, LiveScheduler
@@ -165,7 +164,7 @@ class WinchMonitorNode(Node):
         # takes them in this order, and a winch callback empties their queues before it merges (`_read_waiting`),
         # so that a sample has the readings sent before it (as a replay in log order).
         self._readers: list[tuple[Subscription, Callable[[Any], None]]] = []
-        for topic, msgtype in channels.topic_types().items():  # inclinometer, depth gauge, declared sensors
+        for topic, msgtype in self.live.monitor.model.channels.topic_types().items():  # inclinometer, depth, a user's
             if topic not in WINCH_TOPICS:
                 handler = self._guarded(topic, self._on_measurement, topic)
                 self._readers.append((self.create_subscription(message_class(msgtype), topic, handler, SENSOR_QOS),
@@ -280,7 +279,7 @@ class WinchMonitorNode(Node):
         """The sample's outputs as replay records them (messages.records: pose and /tf only if solved), sent as
         their CDR bytes: building rclpy messages instead took four times as long."""
         self._note_residuals(output.residuals)
-        self._send(records.output_records(stamp, output))
+        self._send(records.output_records(stamp, output, self.live.monitor.model.channels))
         if self.scene_throttle.due(output.stamp):
             self.scene_pub.publish(records.scene_cdr(stamp, self.scene, SceneState.of(output.solution, output.alarm)))
 

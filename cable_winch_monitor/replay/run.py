@@ -188,7 +188,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
     stamp_window, clock_note = clock_offset(bag, stamp_window or StampWindow())
     scheduler = WindowScheduler(plant, solver, staleness, batched, stamp_window=stamp_window,
                                 second_process=second_process, scene_rate=scene_rate, lag=lag)
-    inputs = fields.input_topics(scheduler.monitor.model.inputs)
+    inputs = fields.input_topics(scheduler.monitor.model)
     reader = BagReader(bag, inputs)
     reader.report.notes += [clock_note] if clock_note else []
     summary = ReplaySummary(Path(bag), Path(out), reader.report, scheduler.monitor.stats)

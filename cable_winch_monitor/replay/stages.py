@@ -66,8 +66,8 @@ class WindowStages:
         for sample, at, header, done in zip(samples, conditions, headers, solved):
             output, outcome = monitor.judge(sample, done, at)
             scene = SceneState.of(output.solution, output.alarm) if self.throttle.due(output.stamp) else None
-            view = sample_view(output, monitor.fusing) if self.first_of_second(output.stamp) else None
-            out.append(Encoded(records.solved_records(header, output), outcome, view, scene,
+            view = sample_view(output, monitor.fusing, monitor.model.channels) if self.first_of_second(output.stamp) else None
+            out.append(Encoded(records.solved_records(header, output, monitor.model.channels), outcome, view, scene,
                                output if outputs else None))
         return out
 

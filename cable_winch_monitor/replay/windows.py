@@ -41,7 +41,6 @@ from collections import Counter, deque
 from collections.abc import Generator, Iterable, Iterator
 from typing import Any, NamedTuple
 
-from .. import channels
 from ..messages import fields
 from ..messages.records import Record, diagnostics_record
 from ..messages.scene import REPLAY_RATE
@@ -293,7 +292,7 @@ class WindowScheduler:
             yield item, result, [] if due is None else [self._diagnostics(item, *due)]
 
     def _diagnostics(self, item: Any, now: float, winch: WinchView) -> Record:
-        last = self.last_view or sample_view(None, self.monitor.fusing)
+        last = self.last_view or sample_view(None, self.monitor.fusing, self.monitor.model.channels)
         values = self.reporter.build(self.monitor, now, divmod(item.log_time, 1_000_000_000), last=last, winch=winch)
         return diagnostics_record(values)
 
@@ -301,7 +300,7 @@ class WindowScheduler:
         """Step 1 for one message: a winch message merged (its complete sample, if it makes one), a
         sensor's readings kept for the samples to come (and returned, for its residuals)."""
         if item.msgtype != fields.JOINT_STATE:
-            if channels.on_topic(item.topic) and item.topic not in self.input_specs:
+            if self.monitor.model.channels.on_topic(item.topic) and item.topic not in self.input_specs:
                 try:
                     stamp = fields.message_seconds(item.message, item.log_time)
                 except Exception:

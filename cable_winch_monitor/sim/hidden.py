@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from ..effects import Effect, EffectError, available, load_module
+from ..effects import Effect, EffectError, Registry
 from ..model.plantfile.plant import Plant
 from . import physics
 from .keys import ScenarioError
@@ -17,9 +17,9 @@ from .keys import ScenarioError
 Hidden = tuple[dict[str, dict[str, float]], dict[str, Effect]]
 
 
-def effects_section(section: Any, where: str, hidden: Hidden | None = None) -> Hidden:
-    """The enabled truth effects {name: parameters} and user measurement effects {name: effect} of one
-    `effects:` section, over (and replacing by name) those of `hidden`."""
+def effects_section(section: Any, where: str, registry: Registry, hidden: Hidden | None = None) -> Hidden:
+    """The enabled truth effects {name: parameters} and user measurement effects {name: effect}, named in
+    `registry`, of one `effects:` section, over (and replacing by name) those of `hidden`."""
     truth, users = ({}, {}) if hidden is None else (dict(hidden[0]), dict(hidden[1]))
     if section is None:
         return truth, users
@@ -42,18 +42,19 @@ def effects_section(section: Any, where: str, hidden: Hidden | None = None) -> H
             if enabled:
                 truth[str(name)] = values
         else:
-            effect = _user_effect(str(name), spec, key)
+            effect = _user_effect(registry, str(name), spec, key)
             users.pop(effect.name, None)
             if enabled:
                 users[effect.name] = effect
     return truth, users
 
 
-def _user_effect(name: str, spec: Mapping[str, Any], key: str) -> Effect:
-    cls = available().get(name)
+def _user_effect(registry: Registry, name: str, spec: Mapping[str, Any], key: str) -> Effect:
+    cls = registry.available().get(name)
     if cls is None:
         raise ScenarioError(f"key '{key}': unknown effect '{name}' (the truth's effects: "
-                            f"{', '.join(physics.PARAMETERS)}; a user's measurement effect needs --effect-module)")
+                            f"{', '.join(physics.PARAMETERS)}; a user's measurement effect needs its module in "
+                            "effect_modules or --effect-module)")
     try:
         effect = cls(spec)
     except EffectError as error:
@@ -70,12 +71,11 @@ def hidden_effects(plant: Plant, config: Mapping[str, Any]) -> tuple[dict[str, d
     effects, then the scenario's; user measurement effects in their order."""
     section = plant.raw.get("plant", {}) if isinstance(plant.raw, Mapping) else {}
     try:
-        for path in plant.effect_modules:
-            load_module(path)
+        registry = Registry(config.get("effect_modules", ())).with_modules(plant.effect_modules)
     except EffectError as error:
         raise ScenarioError(f"plant file: {error}") from None
     ropes = {"rope_elasticity": {"EA": config["ropes"]["EA"]}} if config["ropes"]["model"] == "elastic" else {}
-    hidden = effects_section(ropes, "ropes")
-    hidden = effects_section(section.get("effects"), "plant.effects", hidden)
-    truth, users = effects_section(config.get("effects"), "effects", hidden)
+    hidden = effects_section(ropes, "ropes", registry)
+    hidden = effects_section(section.get("effects"), "plant.effects", registry, hidden)
+    truth, users = effects_section(config.get("effects"), "effects", registry, hidden)
     return truth, sorted(users.values(), key=lambda e: e.order)

@@ -30,6 +30,8 @@ DEFAULTS: dict[str, Any] = {
         "EA": 5.0e8,            # [N] axial stiffness of each rope (elastic)
     },
     "effects": {},              # physical effects hidden in the truth (sim/physics.py): {name: {parameter: value, enabled: bool}}
+    "effect_modules": [],       # user modules (paths; a relative one beside the scenario) whose measurement effects
+                                # `effects` may name; --effect-module adds to them
     "shaft_air": {              # air temperature in the shaft: mean + drift t + amplitude sin(2 pi t / period)
         "temperature": 15.0,    # [deg C] at t = 0
         "amplitude": 0.0,       # [K] ventilation cycle
@@ -91,7 +93,8 @@ def _fault(item: Any, where: str) -> dict:
     return check_fault(item, where)
 
 
-LIST_ITEMS = {"profile.segments": _segment,
+LIST_ITEMS = {"effect_modules": lambda item, where: check_value(item, str, where),
+              "profile.segments": _segment,
               "sync.events": lambda item, where: check_item(item, EVENT, where, EVENT_OPTIONAL),
               "sensors.faults": _fault}
 
@@ -124,9 +127,14 @@ def _merge(defaults: Mapping[str, Any], given: Any, where: str) -> dict[str, Any
 
 
 def _check_physics(config: dict[str, Any]) -> None:
+    from ..effects import EffectError, Registry
     from .hidden import effects_section
 
-    effects_section(config["effects"], "effects")
+    try:
+        registry = Registry(config["effect_modules"])
+    except EffectError as error:
+        raise ScenarioError(f"key 'effect_modules': {error}") from None
+    effects_section(config["effects"], "effects", registry)
     if config["ropes"]["model"] not in ROPE_MODELS:
         raise ScenarioError(f"key 'ropes.model' must be one of {', '.join(ROPE_MODELS)}, "
                             f"got {config['ropes']['model']!r}")
@@ -196,8 +204,10 @@ def scenario_path(name: str) -> Path:
     return bundled if not path.exists() and bundled.is_file() else path
 
 
-def load_scenario(path: str | Path, overrides: Sequence[str] = (), seed: int | None = None) -> dict[str, Any]:
-    """The checked scenario: file, then `--set` overrides, then `seed` if given."""
+def load_scenario(path: str | Path, overrides: Sequence[str] = (), seed: int | None = None,
+                  effect_modules: Sequence[str | Path] = ()) -> dict[str, Any]:
+    """The checked scenario: file, then `--set` overrides, then `seed` if given; `effect_modules` (--effect-module)
+    after the file's own."""
     path = Path(path)
     try:
         raw = load_yaml_file(path) or {}
@@ -213,6 +223,8 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), seed: int | N
         if seed is not None:
             raw["seed"] = seed
         config = _merge(DEFAULTS, raw, "")
+        config["effect_modules"] = [str((path.parent / module).resolve()) for module in config["effect_modules"]] + \
+            [str(Path(module).resolve()) for module in effect_modules]
         _check_physics(config)
     except ScenarioError as error:
         raise ScenarioError(f"scenario {path}: {error}") from None

@@ -38,7 +38,7 @@ def test_the_correct_rigid_model_scores_at_the_noise_and_selects_nothing(plant, 
     assert fused.score <= 1.3 < 3.0 < exact.score
     pins = fused.channels["tension_cable_1"]
     assert pins.rms <= 2.0 * NOISE["tension"] and pins.failed == 0
-    diagnosis = diagnose(model, data, noise(model.plant, data)[0], list(CANDIDATES))
+    diagnosis = diagnose(model, data, noise(model, data)[0], list(CANDIDATES))
     assert diagnosis.selected == [] and diagnosis.ladder[0].score_heldout <= 1.3
     assert {c.name for c in diagnosis.ranking} == set(CANDIDATES)  # each was screened, none worth its parameters
 
@@ -79,14 +79,14 @@ def _assert_encoders_recovered(diagnosis):
 def test_encoder_scale_and_offset_are_found_among_their_confounders(plant, miscalibrated_bag):
     model = PlantModel.from_plant(noisy(plant))
     data = read_bag(miscalibrated_bag)
-    _assert_encoders_recovered(diagnose(model, data, noise(model.plant, data)[0], list(CONFOUNDERS)))
+    _assert_encoders_recovered(diagnose(model, data, noise(model, data)[0], list(CONFOUNDERS)))
 
 
 @pytest.mark.slow
 def test_encoder_scale_and_offset_are_found_among_every_effect(plant, miscalibrated_bag):
     model = PlantModel.from_plant(noisy(plant))
     data = read_bag(miscalibrated_bag)
-    _assert_encoders_recovered(diagnose(model, data, noise(model.plant, data)[0]))
+    _assert_encoders_recovered(diagnose(model, data, noise(model, data)[0]))
 
 
 EA, WEIGHT = 7.5e7, 60.0  # [N], [N/m]
@@ -115,7 +115,7 @@ def test_the_correct_elastic_model_scores_at_the_noise_and_selects_nothing(plant
     model = _elastic_model(plant)
     data = read_bag(elastic_bag)
     assert compare(model, data).score <= 1.3
-    diagnosis = diagnose(model, data, noise(model.plant, data)[0], list(ELASTIC_CANDIDATES))
+    diagnosis = diagnose(model, data, noise(model, data)[0], list(ELASTIC_CANDIDATES))
     assert diagnosis.selected == [] and diagnosis.ladder[0].score_heldout <= 1.3
     assert {c.name for c in diagnosis.ranking} == set(ELASTIC_CANDIDATES)
 
@@ -124,5 +124,5 @@ def test_the_correct_elastic_model_scores_at_the_noise_and_selects_nothing(plant
 def test_the_correct_elastic_model_selects_nothing_among_every_effect(plant, elastic_bag):
     model = _elastic_model(plant)
     data = read_bag(elastic_bag)
-    diagnosis = diagnose(model, data, noise(model.plant, data)[0])
+    diagnosis = diagnose(model, data, noise(model, data)[0])
     assert diagnosis.selected == [] and diagnosis.ladder[0].score_heldout <= 1.3

@@ -29,7 +29,7 @@ from simbags import assert_clean, run_cli
 
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
-from cable_winch_monitor.effects import PlantModel, effect_class, load_module
+from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.paths import default_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario, scenario_path
@@ -71,12 +71,12 @@ def _diagnose(bag: Path, *options: str | Path) -> tuple[dict, str]:
 
 def _heldout_score(bag: Path, plant: Path | None, effects: dict, module: Path | None = None) -> float:
     """The true model's score on the held-out rows diagnose scores on: what 'down to the noise' is here."""
-    if module is not None:
-        load_module(module)
-    model = PlantModel.from_plant(load_plant(plant) if plant else load_plant())
-    model = model.with_effects([effect_class(name)(values, model.plant) for name, values in effects.items()])
-    data = read_bag(bag, model.inputs)
-    return Evaluator(data.subset(thin(split(data)[1], data.kinds, 150)), model).score(model, noise(model.plant, data)[0])
+    file = load_plant(plant) if plant else load_plant()
+    model = PlantModel.from_plant(file.with_changes(effect_modules=(str(module),)) if module is not None else file)
+    model = model.with_effects([model.registry.effect_class(name)(values, model.plant)
+                                for name, values in effects.items()])
+    data = read_bag(bag, model)
+    return Evaluator(data.subset(thin(split(data)[1], data.kinds, 150)), model).score(model, noise(model, data)[0])
 
 
 def _assert_found(report: dict, text: str, hidden: dict) -> None:

@@ -22,7 +22,7 @@ BAG = Path(__file__).parents[2] / "bags" / "all_channels"
 def bag():
     model = PlantModel.from_plant(load_plant())
     data = read_bag(BAG)
-    return model, data, noise(model.plant, data)[0]
+    return model, data, noise(model, data)[0]
 
 
 def test_fit_past_its_deadline_keeps_the_best_values_met_and_is_not_found(bag):

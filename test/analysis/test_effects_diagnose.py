@@ -50,7 +50,7 @@ def _diagnosis(tmp_path, plants, name, hidden, plant, profile):
         bag = simulate_bag(tmp_path, name, plants[plant], {name: hidden}, **kwargs)
     base = PlantModel.from_plant(load_plant(plants[plant]))
     data = read_bag(bag)
-    return diagnose(base, data, noise(base.plant, data)[0], list(CASES))
+    return diagnose(base, data, noise(base, data)[0], list(CASES))
 
 
 def test_every_builtin_has_a_case():
@@ -68,7 +68,7 @@ def test_mounting_offset_is_found(tmp_path, plants, name):
     data = read_bag(bag)
     for channel, offset in offsets.items():
         data.measured[:, data.channels.index(channel)] += offset
-    result = diagnose(base, data, noise(base.plant, data)[0], [name, *confounders])
+    result = diagnose(base, data, noise(base, data)[0], [name, *confounders])
     assert result.selected == [name], [(c.name, c.score_after) for c in result.ranking]
     params = result.final.params(name)
     for key, true in offsets.items():
@@ -97,7 +97,7 @@ def test_nothing_hidden_selects_nothing(tmp_path, plants):
     bag = simulate_bag(tmp_path, "nominal", plants["elastic"], {})
     base = PlantModel.from_plant(load_plant(plants["elastic"]))
     data = read_bag(bag)
-    result = diagnose(base, data, noise(base.plant, data)[0], list(CASES))
+    result = diagnose(base, data, noise(base, data)[0], list(CASES))
     assert result.selected == [] and result.final is None
     assert result.ladder[0].score_heldout < 1.15
     assert len(result.ranking) == len(CASES) - 1  # every candidate was screened and none was significant

@@ -33,7 +33,7 @@ def rigid(tmp_path_factory):
                        ropes={"model": "elastic", "EA": 6.8e7})
     base = PlantModel.from_plant(load_plant(plant))
     data = read_bag(bag)
-    return base, data.subset(thin(split(data)[0], data.kinds, 50)), noise(base.plant, data)[0]
+    return base, data.subset(thin(split(data)[0], data.kinds, 50)), noise(base, data)[0]
 
 
 @pytest.mark.parametrize("reference", [False, True], ids=["cold", "from the base"])
@@ -55,7 +55,7 @@ def test_model_over_swivel_pulleys_scores_the_same_whatever_came_before(referenc
     assert base.refining  # the plant's pulleys make the geometry depend on the pose
     data = read_bag(ROOT / "bags" / "lab_robot")
     rows = data.subset(thin(split(data)[0], data.kinds, 50))
-    sigma = noise(plant, data)[0]
+    sigma = noise(base, data)[0]
     elastic = base.with_effects([effect_class("rope_elasticity")({"EA": 2e4}, plant)])
     a_first, a_again, a_after_b, b_then, b_fresh = _scores(base, elastic, base, rows, sigma,
                                                            base if reference else None)

@@ -17,7 +17,7 @@ from cable_winch_monitor.analysis.data import Dataset, read_bag
 from cable_winch_monitor.analysis.follows import LOAD_PINS, Regressor, follows, what_follows
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.writer import BagWriter
-from cable_winch_monitor.channels import TENSION_CHANNELS, names
+from cable_winch_monitor.channels import BUILTIN_CHANNELS, TENSION_CHANNELS
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.model.conditions import derivatives, directions, motion_direction
@@ -26,7 +26,7 @@ from cable_winch_monitor.sim.profile import Profile
 
 RATE = 10.0  # [Hz]
 ROWS = 2000
-CHANNELS = names()
+CHANNELS = BUILTIN_CHANNELS.names()
 
 
 def _smooth(rng: np.random.Generator, tau: float, n: int = ROWS) -> np.ndarray:

@@ -31,7 +31,7 @@ def heavy(tmp_path_factory):
     bag = simulate_bag(directory, "heavy", plant, {"payload_mass": {"dm": HIDDEN_DM}}, duration=60.0)
     base = PlantModel.from_plant(load_plant(plant))
     data = read_bag(bag)
-    return base, data, noise(base.plant, data)[0]
+    return base, data, noise(base, data)[0]
 
 
 def test_value_stopped_by_a_bound_is_no_estimate(heavy):
@@ -73,7 +73,7 @@ def test_a_refused_candidate_is_passed_over_and_the_ladder_goes_on(tmp_path):
                        duration=60.0)
     base = PlantModel.from_plant(load_plant(plant))
     data = read_bag(bag)
-    result = diagnose(base, data, noise(base.plant, data)[0], ["payload_mass", "encoder_offset"])
+    result = diagnose(base, data, noise(base, data)[0], ["payload_mass", "encoder_offset"])
     mass = next(c for c in result.ranking if c.name == "payload_mass")
     offset = next(c for c in result.ranking if c.name == "encoder_offset")
     assert mass.score_after < offset.score_after and mass.gains  # the best gain in the first round ...

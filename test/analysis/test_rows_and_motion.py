@@ -106,4 +106,4 @@ def test_a_thinned_subset_keeps_the_direction_each_winch_last_moved_in(tmp_path)
     model = PlantModel.from_plant(load_plant(LAB_PLANT))
     truth = model.with_effects([effect_class(name)(values, model.plant) for name, values in HIDDEN.items()]
                                + [effect_class("rope_elasticity")({"EA": EA}, model.plant)])
-    assert Evaluator(subset, model).score(truth, noise(model.plant, data)[0]) < 1.3  # the truth explains them
+    assert Evaluator(subset, model).score(truth, noise(model, data)[0]) < 1.3  # the truth explains them

@@ -9,7 +9,6 @@ import pytest
 from effectbags import ELASTIC, SEED002, plant_file, simulate_bag
 from simbags import assert_clean, run_cli
 
-from cable_winch_monitor.effects import load_module
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 
@@ -40,9 +39,9 @@ def user_bag(tmp_path_factory):
     directory = tmp_path_factory.mktemp("user_effect")
     module = directory / "my_effects.py"
     module.write_text(textwrap.dedent(USER_EFFECT))
-    load_module(module)
     plant = plant_file(directory, "elastic", SEED002, ELASTIC)
-    bag = simulate_bag(directory, "biased", plant, {"load_pin_bias": BIAS}, duration=90.0)
+    bag = simulate_bag(directory, "biased", plant, {"load_pin_bias": BIAS}, duration=90.0,
+                       effect_modules=[str(module)])
     return directory, module, plant, bag
 
 

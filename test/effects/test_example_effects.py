@@ -23,7 +23,7 @@ from cable_winch_monitor.analysis.bagfields import read_fields
 from cable_winch_monitor.analysis.compare import compare
 from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.diagnose import diagnose_bag
-from cable_winch_monitor.effects import PlantModel, available, load_module
+from cable_winch_monitor.effects import PlantModel, available
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
@@ -69,7 +69,7 @@ def test_without_the_module_the_report_names_what_the_error_follows(bags, case):
     plant, bag = bags[0], bags[1][case]
     *_, condition = CASES[case]
     model = PlantModel.from_plant(load_plant(plant))
-    result = compare(model, read_bag(bag, model.inputs), read_fields(bag))
+    result = compare(model, read_bag(bag, model), read_fields(bag))
     assert result.score > 1.3  # the plant file lacks the effect
     assert result.follows, "no finding"
     best = result.follows[0]
@@ -80,10 +80,10 @@ def test_without_the_module_the_report_names_what_the_error_follows(bags, case):
 @pytest.mark.parametrize("case", CASES)
 def test_diagnose_with_the_module_finds_the_effect_and_its_parameter(bags, case):
     module, name, parameter, value, *_ = CASES[case]
-    load_module(EXAMPLES / module)
     plant, bag = bags[0], bags[1][case]
     library = [n for n in available() if n not in {c[1] for c in CASES.values()}]
-    diagnosis, _ = diagnose_bag(bag, load_plant(plant), library + [name])
+    with_module = load_plant(plant).with_changes(effect_modules=(str(EXAMPLES / module),))
+    diagnosis, _ = diagnose_bag(bag, with_module, library + [name])
     assert diagnosis.ranking[0].name == name
     assert diagnosis.selected == [name]  # no library effect beside it
     fitted = diagnosis.final.params(name)[parameter]["value"]

@@ -52,7 +52,7 @@ def _central(model: PlantModel, states: States, conditions: StackedConditions) -
     """Central differences; at a slack rope's tension (0) the one-sided one into taut, the only side a
     state takes (a sensor reading bending has a kink there)."""
     here = model.predict_states(states, conditions)
-    out = {name: np.zeros((len(states), 10)) for name in channels.names()}
+    out = {name: np.zeros((len(states), 10)) for name in model.channels.names()}
     for k, h in enumerate(STEPS):
         step = np.zeros((len(states), 10))
         step[:, k] = h

@@ -106,6 +106,5 @@ def test_a_users_effect_is_tracked_by_its_name(tmp_path):
     path = plant_file(tmp_path, effect_modules=[str(ROOT / "examples" / "rope_temperature.py")],
                       track=["rope_temperature"], track_tolerance={"rope_temperature.alpha": {"absolute": 1e-6}})
     plant = load_plant(path)
-    PlantModel.from_plant(plant)
-    [alpha] = tracked_parameters(plant)
+    [alpha] = tracked_parameters(plant, PlantModel.from_plant(plant).registry)
     assert (alpha.key, alpha.start, alpha.tolerance, alpha.enabled) == ("rope_temperature.alpha", 0.0, 1e-6, False)

@@ -170,7 +170,7 @@ def test_a_sensor_as_fast_as_the_winches_holds_no_sample_behind_the_lag(tmp_path
     takes the same readings whether the inclinometer's messages came in log order or up to 20 ms late."""
     bag = simulated(tmp_path, "site_elastic", "duration=8.0", "sensors.joint_states.rate=50")
     plant = load_plant()  # the bundled rigid plant file, which fuses every sensor
-    items = list(BagReader(bag, fields.input_topics(PlantModel.from_plant(plant).inputs)))
+    items = list(BagReader(bag, fields.input_topics(PlantModel.from_plant(plant))))
     in_order = [(entry.log_time * 1e-9, entry) for entry in items]
     _, _, unlagged = fed(plant, in_order, wait=1.0, lag=0.0)
     lagged, outputs, scheduler = fed(plant, in_order, wait=1.0)
@@ -241,7 +241,7 @@ def tracked_values(plant, bag, in_process: bool, on_arrival: Callable[[float, Li
         -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Each sample's tensions and tracked parameters (values, sigmas) from a live scheduler fed the recording in
     log order (`fed`)."""
-    topics = fields.input_topics(PlantModel.from_plant(plant).inputs)
+    topics = fields.input_topics(PlantModel.from_plant(plant))
     arrivals = [(item.log_time * 1e-9, item) for item in BagReader(bag, topics)]
     _, outputs, _ = fed(plant, arrivals, wait=0.0, in_process=in_process, on_arrival=on_arrival)
     return [(output.solution.tensions, output.model.parameters.values, output.model.parameters.sigmas)
@@ -336,7 +336,7 @@ def batched_outputs(plant, bag: Path, sizes: np.random.Generator) -> dict[int, t
             out[round(output.stamp * 1e9)] = (output.solution.tensions, output.solution.position, output.alarm.level)
 
     due = int(sizes.integers(1, 8))
-    for item in BagReader(bag, fields.input_topics(scheduler.monitor.model.inputs)):
+    for item in BagReader(bag, fields.input_topics(scheduler.monitor.model)):
         clock[0] = item.log_time * 1e-9
         stamp = fields.message_seconds(item.message, item.log_time)
         if item.topic in inputs:

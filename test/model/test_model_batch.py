@@ -94,7 +94,7 @@ def test_pose_dependent_geometry_solved_sample_by_sample(plant):
 def test_evaluator_solves_the_realistic_plant_in_batches(tmp_path, plant):
     exact = {key: value for key, value in plant.noise.items() if key != "length"}  # the solves, not the fused estimate
     model = PlantModel.from_plant(realistic(plant).with_changes(noise=exact))
-    data = read_bag(simulated(tmp_path, "benchmark", "duration=40.0"), model.inputs)
+    data = read_bag(simulated(tmp_path, "benchmark", "duration=40.0"), model)
     evaluator = Evaluator(data)
     got = evaluator.solutions(model)
     assert evaluator.solves == len(data) > 300

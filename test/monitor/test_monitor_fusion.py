@@ -22,13 +22,13 @@ from simbags import simulated
 
 from cable_winch_monitor import channels
 from cable_winch_monitor.bagio.reader import BagReader
+from cable_winch_monitor.channels import BUILTIN_CHANNELS
 from cable_winch_monitor.messages import fields
 from cable_winch_monitor.model.estimator import DEFAULT_PROBABILITY, DEFAULT_THRESHOLDS, chi_square_threshold
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor import estimator
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
-from cable_winch_monitor.monitor.sensors import sensors_used
 from cable_winch_monitor.replay import second_process, worker
 from cable_winch_monitor.replay.stages import Encoded
 from cable_winch_monitor.replay.windows import WindowScheduler
@@ -85,8 +85,8 @@ def test_replay_publishes_the_fused_tensions_and_equals_the_live_node(plant, low
         assert check_physics(fused, output.solution).passes()  # balance, tensions >= 0, slack not overstretched
         assert not output.refused  # no sensor contradicts the others
     for output in outputs[1:]:  # the inclinometer's first reading comes after the first sample
-        assert {*channels.TENSION_CHANNELS, "/platform/imu"} <= set(sensors_used(output.estimate))
-    assert sum("/platform/position" in sensors_used(o.estimate) for o in outputs) > 0.15 * len(outputs)
+        assert {*channels.TENSION_CHANNELS, "/platform/imu"} <= set(BUILTIN_CHANNELS.sensors_used(output.estimate.used))
+    assert sum("/platform/position" in BUILTIN_CHANNELS.sensors_used(o.estimate.used) for o in outputs) > 0.15 * len(outputs)
     # once the model's error is learnt (its first update windows: a model error that grows with the payout
     # is learnt from a few metres of it), poses as good as the lengths taken as exact
     exact = replayed(WindowScheduler(plant.with_changes(noise={**NOISE, "length": float("nan")})), items)
@@ -117,7 +117,7 @@ def test_samples_made_winch_by_winch_are_estimated_as_the_node_estimates_them_to
     node = live(MonitorPipeline(plant), items, received=True)
     stamps = np.array([o.stamp for o in node])
     assert len(node) > 700 and np.sum(np.diff(stamps) < 0) > 20  # samples out of stamp order
-    assert all(o.estimate.fused and "/platform/imu" in sensors_used(o.estimate) for o in node[10:])
+    assert all(o.estimate.fused and "/platform/imu" in BUILTIN_CHANNELS.sensors_used(o.estimate.used) for o in node[10:])
     for window in (97, 2000):
         replay = replayed(WindowScheduler(plant, window=window), items)
         assert [o.stamp for o in replay] == stamps.tolist()

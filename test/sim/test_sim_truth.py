@@ -31,8 +31,10 @@ def rig(**changes) -> Rig:
 
 
 def truth_model(tmp_path, effects: dict, ropes: dict | None = None) -> TruthModel:
+    """The truth of a scenario hiding `effects`, a user's among them where its module is in `tmp_path`."""
     path = tmp_path / "scenario.yaml"
-    path.write_text(yaml.safe_dump({"effects": effects, **({"ropes": ropes} if ropes else {})}))
+    modules = sorted(p.name for p in tmp_path.glob("*.py"))
+    path.write_text(yaml.safe_dump({"effects": effects, "effect_modules": modules, **({"ropes": ropes} if ropes else {})}))
     return TruthModel(PLANT, load_scenario(path))
 
 
@@ -170,37 +172,50 @@ def test_effect_errors_name_the_key(tmp_path, effects, message):
     assert message in str(error.value)
 
 
+SHIFTED_ANCHORS = """
+from cable_winch_monitor.effects import Effect
+
+
+class ShiftedAnchors(Effect):
+    name = "test_shifted_anchors"
+    acts = "geometry"
+"""
+PIN_BIAS = """
+from cable_winch_monitor.effects import Effect, Parameter
+
+
+class PinBias(Effect):
+    name = "test_pin_bias"
+    acts = "measurement"
+    parameters = (Parameter("b", "N", 0.0, (-1e4, 1e4), 100.0),)
+
+    def measure(self, channels, solution, plant, conditions):
+        channels["tension_cable_2"] += self["b"] + conditions.inputs["/shaft/temperature.temperature"]
+"""
+
+
 def test_a_users_geometry_effect_cannot_enter_the_truth(tmp_path):
     """Only measurement effects of a user's module are applied to the truth's channels: a geometry effect
     would make the truth the package's model again."""
-    from cable_winch_monitor.effects import Effect, register
-
-    @register
-    class ShiftedAnchors(Effect):
-        name = "test_shifted_anchors"
-        acts = "geometry"
-
+    (tmp_path / "anchors.py").write_text(SHIFTED_ANCHORS)
     path = tmp_path / "scenario.yaml"
-    path.write_text(yaml.safe_dump({"effects": {ShiftedAnchors.name: {}}}))
+    path.write_text(yaml.safe_dump({"effects": {"test_shifted_anchors": {}}, "effect_modules": ["anchors.py"]}))
     with pytest.raises(ScenarioError, match="only measurement effects of a user's module .* acts on the geometry"):
+        load_scenario(path)
+
+
+def test_a_users_effect_needs_its_module_named(tmp_path):
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump({"effects": {"test_pin_bias": {"b": 1.0}}}))
+    with pytest.raises(ScenarioError, match="unknown effect 'test_pin_bias'.*effect_modules or --effect-module"):
         load_scenario(path)
 
 
 def test_a_users_measurement_effect_edits_the_truths_channels(tmp_path):
     """A user's measurement effect is applied after the built-in ones, seeing the sample's conditions."""
-    from cable_winch_monitor.effects import Effect, Parameter, register
-
-    @register
-    class PinBias(Effect):
-        name = "test_pin_bias"
-        acts = "measurement"
-        parameters = (Parameter("b", "N", 0.0, (-1e4, 1e4), 100.0),)
-
-        def measure(self, channels, solution, plant, conditions):
-            channels["tension_cable_2"] += self["b"] + conditions.inputs["/shaft/temperature.temperature"]
-
+    (tmp_path / "bias.py").write_text(PIN_BIAS)
     plain = truth_model(tmp_path, {"rope_weight": {"w": 50.0}})
-    biased = truth_model(tmp_path, {"rope_weight": {"w": 50.0}, PinBias.name: {"b": 700.0}})
+    biased = truth_model(tmp_path, {"rope_weight": {"w": 50.0}, "test_pin_bias": {"b": 700.0}})
     sample = Sample(0.0, np.zeros(4), 0.0, 12.0)
     lengths = np.array([40.0, 40.01, 40.0, 39.99])
     (_, want), (_, got) = plain(lengths, sample), biased(lengths, sample)
