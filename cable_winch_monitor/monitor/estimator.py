@@ -402,23 +402,29 @@ class MonitorEstimator:
     def _without_each(self, suspects: np.ndarray, lengths: np.ndarray, measured: list[dict[str, float]],
                       samples: Sequence[SampleInput], loads: np.ndarray, priors: tuple[Prior, Prior],
                       forward: BatchSolution) -> list[Trial]:
-        """The suspect samples estimated again without each of their sensors under the model as it is and under
-        it loosely held (`priors`, in one batch): for each, the (sample, sensor) pairs, the readings kept, the
-        estimates, and whether the other sensors (and, under the first, the lengths) then agree."""
-        sensor_of = self.model.channels.sensor_of
-        pairs = [(int(i), sensor) for i in suspects for sensor in sorted({sensor_of(n) for n in measured[i]})]
-        if not pairs:
-            return [([], [], None, np.zeros(0, bool)) for _ in priors]
-        rows = np.array([i for i, _ in pairs], dtype=int)
-        trial = [{n: v for n, v in measured[i].items() if sensor_of(n) != sensor} for i, sensor in pairs]
-        weights = [prior.take(rows) for prior in priors]
-        estimates = self._batches(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows], weights,
-                                  _take(forward, rows))
+        """The suspect samples estimated again without each of their sensors under the model as it is (the
+        lengths agreeing too), then, those none of whose leavings-out made the others agree, under it loosely
+        held (`priors`): for each, the (sample, sensor) pairs, the readings kept, the estimates, and whether
+        the other sensors then agree. A sample that found its sensor under the first is not tried under the
+        second (`_screen` takes the first's): a sensor disagreeing for a window of samples cost the lab robot's
+        replay a third of its estimating process, tried under both."""
         out: list[Trial] = []
-        for without, weight, with_lengths in zip(estimates, weights, (True, False)):
+        sensor_of = self.model.channels.sensor_of
+        for prior, with_lengths in zip(priors, (True, False)):
+            pairs = [(int(i), sensor) for i in suspects for sensor in sorted({sensor_of(n) for n in measured[i]})]
+            if not pairs:
+                out.append(([], [], None, np.zeros(0, bool)))
+                continue
+            rows = np.array([i for i, _ in pairs], dtype=int)
+            trial = [{n: v for n, v in measured[i].items() if sensor_of(n) != sensor} for i, sensor in pairs]
+            weight = prior.take(rows)
+            without = self._batch(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows], weight,
+                                  _take(forward, rows))
             agrees = ~self._failing(without, weight, lengths=with_lengths) & \
                 np.array([k not in without.fallback for k in range(len(pairs))])
             out.append((pairs, trial, without, agrees))
+            found = {i for (i, _), agreeing in zip(pairs, agrees.tolist()) if agreeing}
+            suspects = np.array([i for i in suspects.tolist() if i not in found], dtype=int)
         return out
 
     def _try_left_out(self, lengths: np.ndarray, measured: list[dict[str, float]], kept: list[dict[str, float]],
