@@ -55,7 +55,7 @@ class Registry:
     def __init__(self, modules: Iterable[str | Path] = (), group: str = GROUP):
         self.modules = tuple(dict.fromkeys(str(Path(path).resolve()) for path in modules))
         self.group = group
-        self.loaded = {path: import_module(path) for path in self.modules}
+        self.loaded = {path: import_user_module(path) for path in self.modules}
         self.classes: dict[str, type[Effect]] = {cls.name: cls for cls in BUILTINS}
         for module in self.loaded.values():
             for cls in module.effects:
@@ -112,7 +112,7 @@ def _add(classes: dict[str, type[Effect]], cls: type[Effect]) -> None:
     classes[cls.name] = cls
 
 
-def check(cls: type[Effect]) -> type[Effect]:
+def _checked(cls: type[Effect]) -> type[Effect]:
     """An effect class as a registry takes it: an Effect subclass with a snake_case name and a known `acts`."""
     if not (isinstance(cls, type) and issubclass(cls, Effect)) or not cls.name:
         raise EffectError(f"{cls!r} is not an Effect subclass with a name")
@@ -129,7 +129,7 @@ def installed(group: str = GROUP) -> tuple[type[Effect], ...]:
     classes: list[type[Effect]] = []
     for point in entry_points(group=group):
         loaded = point.load()
-        classes += [check(cls) for cls in ([loaded] if isinstance(loaded, type) else _effect_classes(loaded))]
+        classes += [_checked(cls) for cls in ([loaded] if isinstance(loaded, type) else _effect_classes(loaded))]
     return tuple(classes)
 
 
@@ -149,7 +149,7 @@ def _effect_classes(module: ModuleType) -> list[type[Effect]]:
 _IMPORTED: dict[str, UserModule] = {}  # a user module is imported once a process, as Python imports a package
 
 
-def import_module(path: str | Path) -> UserModule:
+def import_user_module(path: str | Path) -> UserModule:
     """Import a user's effect module from its file (once a process): its effect classes and declared channels."""
     path = Path(path).resolve()
     if str(path) in _IMPORTED:
@@ -168,7 +168,7 @@ def import_module(path: str | Path) -> UserModule:
     except Exception as error:
         del sys.modules[module_name]
         raise EffectError(f"effect module {path}: {type(error).__name__}: {error}") from None
-    classes = tuple(check(cls) for cls in _effect_classes(module))
+    classes = tuple(_checked(cls) for cls in _effect_classes(module))
     if not classes and not declared:
         raise EffectError(f"effect module {path}: defines no Effect subclass with a name and declares no channel")
     _IMPORTED[str(path)] = UserModule(classes, tuple(declared))
