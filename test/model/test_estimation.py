@@ -264,7 +264,7 @@ def test_bad_input_is_a_status(plant):
     (np.full((4, 4), np.nan), "finite"),
 ])
 def test_a_prior_that_is_no_covariance_is_refused_by_name(plant, covariance, message):
-    good = Prior.noise_only(2, 1e-3, 150.0)
-    bad = Prior(good.lengths, np.array(good.length_covariance), good.pins, np.stack([np.eye(4), covariance]))
+    eye = np.stack([np.eye(4)] * 2)
+    bad = Prior(np.zeros((2, 4)), eye * 1e-3 ** 2, np.zeros((2, 4)), np.stack([np.eye(4), covariance]))
     with pytest.raises(ValueError, match=f"prior pin_covariance must be {message}"):
         estimate_batch(plant, np.full((2, 4), 200.0), prior=bad)

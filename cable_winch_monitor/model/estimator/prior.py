@@ -34,12 +34,6 @@ class Prior:
     pins: np.ndarray
     pin_covariance: np.ndarray
 
-    @classmethod
-    def noise_only(cls, count: int, sigma_length: float, sigma_pin: float) -> Prior:
-        """A model taken as exact: corrections expected zero with the sensors' own noise."""
-        eye = np.broadcast_to(np.eye(4), (count, 4, 4))
-        return cls(np.zeros((count, 4)), eye * sigma_length ** 2, np.zeros((count, 4)), eye * sigma_pin ** 2)
-
     def __len__(self) -> int:
         return len(self.lengths)
 
