@@ -180,7 +180,7 @@ BUILTIN = (
 )
 
 
-BUILTIN_NAMES = {c.name: c for c in BUILTIN}
+_BUILTIN_BY_NAME = {c.name: c for c in BUILTIN}
 
 
 def _checked(channel: Channel) -> Channel:
@@ -195,14 +195,14 @@ class ChannelRegistry:
     other modules has a registry of its own (effects.registry.Registry)."""
 
     def __init__(self, declared: Iterable[Channel] = ()):
-        self.channels: dict[str, Channel] = dict(BUILTIN_NAMES)
+        self.channels: dict[str, Channel] = dict(_BUILTIN_BY_NAME)
         for channel in declared:
             known = self.channels.get(channel.name)
             if known is not None and (known.topics, known.msgtype) != (channel.topics, channel.msgtype):
                 raise ChannelError(f"channel '{channel.name}' is declared twice, on {known.topics} and "
                                    f"{channel.topics}")
             self.channels[channel.name] = _checked(channel)
-        self.user = any(c is not BUILTIN_NAMES.get(name) for name, c in self.channels.items())
+        self.user = any(c is not _BUILTIN_BY_NAME.get(name) for name, c in self.channels.items())
         self.sensors = {name: name if name in TENSION_CHANNELS else c.topics[0] for name, c in self.channels.items()}
         self._sensors_used: dict[tuple[str, ...], tuple[str, ...]] = {}
         self.by_topic: dict[str, tuple[Channel, ...]] = {}

@@ -43,12 +43,12 @@ def _effect_names(text: str | None, option: str, plant: Plant) -> list[str] | No
     """Comma-separated effect names, each one known to the plant's model (None for none given)."""
     if text is None:
         return None
-    from .effects import BUILTIN
+    from .effects import BUILTIN_REGISTRY
 
     names = [n.strip() for n in text.split(",") if n.strip()]
     if not names:
         raise UsageError(f"{option}: no effect name given")
-    registry = BUILTIN.with_modules(plant.effect_modules)
+    registry = BUILTIN_REGISTRY.with_modules(plant.effect_modules)
     for name in names:
         registry.effect_class(name)  # EffectError naming the known ones
     return names

@@ -35,7 +35,7 @@ from ..model.solvers.solve import METHODS, solve
 from ..model.statics.result import Solution, SolveStatus, failed
 from .base import Effect, EffectError, RopeLaw
 from .pulley import wrap
-from .registry import BUILTIN, Registry
+from .registry import BUILTIN_REGISTRY, Registry
 from .tracked import TrackedParameter, file_effect, tracked_parameters
 
 REFINE_STEPS = 6
@@ -53,7 +53,7 @@ def refines(cls: type[Effect]) -> bool:
     return overrides(cls, "refine") or overrides(cls, "refine_states")
 
 
-def effects_from_mapping(section: Any, where: str, plant: Plant | None = None, registry: Registry = BUILTIN
+def effects_from_mapping(section: Any, where: str, plant: Plant | None = None, registry: Registry = BUILTIN_REGISTRY
                          ) -> list[Effect]:
     """The enabled effects of an `effects:` mapping {name: {enabled: bool, parameter: value, ...}}, named in
     `registry`, their parameters resolved for `plant` (Effect)."""
@@ -143,7 +143,7 @@ class PlantModel:
     plant: Plant
     effects: tuple[Effect, ...] = field(default=())
     solver: str = "energy"
-    registry: Registry = field(default=BUILTIN, compare=False, repr=False)
+    registry: Registry = field(default=BUILTIN_REGISTRY, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.solver not in METHODS:
@@ -158,7 +158,7 @@ class PlantModel:
         """The effects the plant file switches on (`plant.effects`), named among the built-ins and in the user
         modules of `plant.effect_modules`."""
         try:
-            registry = BUILTIN.with_modules(plant.effect_modules)
+            registry = BUILTIN_REGISTRY.with_modules(plant.effect_modules)
             _check_effect_bounds(plant, registry)
             _check_noise_keys(plant, registry.channels)
             tracked_parameters(plant, registry)

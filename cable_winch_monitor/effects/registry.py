@@ -88,18 +88,18 @@ class Registry:
         return cls
 
 
-BUILTIN = Registry()  # the built-ins alone: a plant model without user modules
+BUILTIN_REGISTRY = Registry()  # the built-ins alone: a plant model without user modules
 
 
 def available() -> dict[str, type[Effect]]:
     """The built-in and installed effects by name (a plant model's own, user modules' among them:
     `model.registry.available()`)."""
-    return BUILTIN.available()
+    return BUILTIN_REGISTRY.available()
 
 
 def effect_class(name: str) -> type[Effect]:
     """A built-in or installed effect class by name (a plant model's own: `model.registry.effect_class`)."""
-    return BUILTIN.effect_class(name)
+    return BUILTIN_REGISTRY.effect_class(name)
 
 
 def _add(classes: dict[str, type[Effect]], cls: type[Effect]) -> None:

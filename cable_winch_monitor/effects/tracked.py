@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from ..model.plantfile.plant import Plant
 from .base import Effect, EffectError
-from .registry import BUILTIN, Registry
+from .registry import BUILTIN_REGISTRY, Registry
 
 DEFAULT_RELATIVE = 0.05  # tolerance: this share of the file's value where that is not zero
 DEFAULT_STEPS = 2.0      # else this many of the parameter's fit steps
@@ -40,7 +40,7 @@ class TrackedParameter:
         return f"{self.effect}.{self.name}"
 
 
-def tracked_parameters(plant: Plant, registry: Registry = BUILTIN) -> tuple[TrackedParameter, ...]:
+def tracked_parameters(plant: Plant, registry: Registry = BUILTIN_REGISTRY) -> tuple[TrackedParameter, ...]:
     """The parameters `plant.track` names (effects of `registry`), in its order; EffectError names a wrong key
     (unknown effect or parameter, a setting that is not fitted, a relative tolerance of a zero value)."""
     spec = plant.track

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cable_winch_monitor.effects import BUILTIN, EffectError, PlantModel, Registry, registry
+from cable_winch_monitor.effects import BUILTIN_REGISTRY, EffectError, PlantModel, Registry, registry
 from cable_winch_monitor.effects.rope import RopeElasticity
 from cable_winch_monitor.model.plantfile.plant import load_plant, plant_from_mapping
 
@@ -34,16 +34,16 @@ def installed(tmp_path, monkeypatch):
 def test_an_installed_packages_entry_point_adds_its_effect(installed):
     """A built-in is found without reading the installed packages' metadata; a name only an entry point
     declares is found there, and listed with the built-ins."""
-    assert BUILTIN.effect_class("rope_elasticity") is RopeElasticity and registry.installed.cache_info().currsize == 0
-    cls = BUILTIN.effect_class("rope_temperature")
+    assert BUILTIN_REGISTRY.effect_class("rope_elasticity") is RopeElasticity and registry.installed.cache_info().currsize == 0
+    cls = BUILTIN_REGISTRY.effect_class("rope_temperature")
     assert registry.installed.cache_info().currsize == 1
     assert cls.__module__ == "rope_temperature" and cls.name == "rope_temperature"
-    assert {"rope_elasticity", "rope_temperature"} <= set(BUILTIN.available())
+    assert {"rope_elasticity", "rope_temperature"} <= set(BUILTIN_REGISTRY.available())
 
 
 def test_a_name_nobody_declares_lists_what_is_known(installed):
     with pytest.raises(EffectError, match="unknown effect 'rope_colour'.*rope_temperature"):
-        BUILTIN.effect_class("rope_colour")
+        BUILTIN_REGISTRY.effect_class("rope_colour")
 
 
 SHADOW = '''
@@ -64,7 +64,7 @@ def test_a_user_effect_named_like_a_built_in_is_refused(tmp_path, cls):
     module.write_text(SHADOW.format(cls=cls, name="rope_weight"))
     with pytest.raises(EffectError, match="effect 'rope_weight' is defined twice"):
         Registry([module])
-    assert BUILTIN.effect_class("rope_weight").__module__ == "cable_winch_monitor.effects.rope"
+    assert BUILTIN_REGISTRY.effect_class("rope_weight").__module__ == "cable_winch_monitor.effects.rope"
 
 
 def test_two_user_modules_cannot_define_one_name(tmp_path):
