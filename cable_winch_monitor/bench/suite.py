@@ -6,9 +6,10 @@ baseline of every ratio is seed 002's traversal, one solve per sample, timed in 
 run on the same lowering samples. Figures: the per-sample solve warm-started along the
 lowering (the node's), the batched solver (replay's and the analysis'), replay of a
 10,000-sample bag end to end (each plant replays a recording of its own physics, with
-the sensors at site noise: the fused estimate is what replay publishes) and, beside them, site
-recording (a), whose sensors contradict its plant file (elastic ropes replayed with the bundled
-rigid plant), with its safety outputs judged against the simulator's truth, peak memory replaying a large bag (copies of the
+the sensors at site noise: the fused estimate is what replay publishes) and, beside them, the
+acceptance's site recordings (a)-(d), whose plant files are wrong the way a site's are (elastic ropes
+replayed with the bundled rigid plant, with EA 10 % high; encoder errors the file does not know) or
+right, with their safety outputs judged against the simulator's truth, peak memory replaying a large bag (copies of the
 10,000-sample stream with shifted stamps; 1 GiB is the acceptance run, smaller by
 default), fleet replay on 1 and 2 workers, diagnose of a 20-minute bag when a diagnose
 job is given, and the live node's latency at 50 Hz when ROS 2 is available (on each plant's
@@ -44,6 +45,7 @@ from .plants import (
     REALISTIC_EFFECTS,
     SITE_CASES,
     SITE_EA,
+    SiteCase,
     plant_file,
     realistic,
     realistic_plant_file,
@@ -166,24 +168,31 @@ def replay_rows(bag: Path, directory: Path, label: str, plant_file: Path | None,
     return rows
 
 
-def site_recordings(directory: Path) -> tuple[Path, Path, Path]:
-    """Site recording (a) -- elastic ropes (EA 6.8e7 N, 58 N/m) at site noise, lag events that take a deck
-    within the CRITICAL margin -- its plant file (the bundled rigid one: its model contradicts the sensors),
-    and its first NODE_SECONDS with the winches at NODE_RATE, for the node."""
-    case = SITE_CASES[0]
-    bag, fast = directory / "site_a", directory / "site_a_fast"
-    simulate(load_scenario(scenario_path(case.scenario)), bag)
-    simulate(load_scenario(scenario_path(case.scenario), [f"duration={NODE_SECONDS + 5.0}",
-                                                          f"sensors.joint_states.rate={NODE_RATE}"]), fast)
-    return bag, fast, plant_file(directory / "site_a.yaml", case.effects)
+def site_recordings(directory: Path) -> tuple[dict[str, tuple[Path, Path]], Path]:
+    """The acceptance's site recordings (plants.SITE_CASES), each with the plant file it is replayed with:
+    (a) elastic ropes (EA 6.8e7 N, 58 N/m) at site noise, lag events that take a deck within the CRITICAL
+    margin, with the bundled rigid plant file (its model contradicts the sensors); (b) with EA 10 % high;
+    (c) stiff ropes with encoder errors the rigid file does not know; (d) with the true file. Also the
+    first NODE_SECONDS of (a) with the winches at NODE_RATE, for the node."""
+    bags: dict[str, Path] = {}
+    for scenario in dict.fromkeys(case.scenario for case in SITE_CASES):
+        bags[scenario] = directory / scenario
+        simulate(load_scenario(scenario_path(scenario)), bags[scenario])
+    fast = directory / "site_a_fast"
+    simulate(load_scenario(scenario_path(SITE_CASES[0].scenario), [f"duration={NODE_SECONDS + 5.0}",
+                                                                    f"sensors.joint_states.rate={NODE_RATE}"]), fast)
+    return {case.name: (bags[case.scenario], plant_file(directory / f"site_{case.name}.yaml", case.effects))
+            for case in SITE_CASES}, fast
 
 
-def site_rows(bag: Path, plant: Path, directory: Path, traversal_ms: float) -> list[Row]:
-    """Recording (a) replayed end to end as the agreeing ones are, and its safety outputs against the
+def site_rows(bag: Path, plant: Path, directory: Path, traversal_ms: float, case: SiteCase) -> list[Row]:
+    """A site recording replayed end to end as the agreeing ones are, and its safety outputs against the
     simulator's truth (not the model's own answer)."""
-    row, runs = replay_speed(bag, directory, "site (a)", plant, traversal_ms, "replay site recording, rigid plant file")
-    result = score(directory / "site (a)_out0", bag)
-    return [row, ("  safety outputs against the truth [site (a)]",
+    label = f"site ({case.name})"
+    name = "replay site recording, rigid plant file" if case.name == "a" else f"replay site recording, {case.what}"
+    row, runs = replay_speed(bag, directory, label, plant, traversal_ms, name)
+    result = score(directory / f"{label}_out0", bag)
+    return [row, (f"  safety outputs against the truth [{label}]",
                   f"clearance p99 {1e3 * result.clearance_p99:.1f} mm",
                   f"CRITICAL raised on {100 * result.recall:.1f} % of {result.critical} samples within the margin, "
                   f"{100 * result.false_share:.2f} % false; slack flags right {100 * result.slack_right:.2f} %",
@@ -277,8 +286,10 @@ def run_suite(samples: int = 1000, large_mb: float = 64.0, fleet_bags: int = 4,
         byte_compile_package()
         for label in plants:
             rows += _progress(replay_rows(bags[label], directory, label, files[label], large_mb, traversal_ms))
-        site, site_fast, site_plant = site_recordings(directory)
-        rows += _progress(site_rows(site, site_plant, directory, traversal_ms))
+        sites, site_fast = site_recordings(directory)
+        for case in SITE_CASES:
+            rows += _progress(site_rows(*sites[case.name], directory, traversal_ms, case))
+        site, site_plant = sites["a"]
         tracking = tracking_plant_file(directory / "site_a_tracking.yaml", TRACKING_EA)
         untracked = tracking_plant_file(directory / "site_a_untracked.yaml", TRACKING_EA, track=False)
         rows += _progress([replay_speed(site, directory, "site (a), tracking", tracking, traversal_ms,
