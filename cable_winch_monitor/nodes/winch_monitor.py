@@ -22,7 +22,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.clock import JumpThreshold, ROSClock, TimeJump
+from rclpy.clock import Clock, ClockType, JumpThreshold, ROSClock, TimeJump
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import ParameterException
@@ -68,6 +68,10 @@ LATCHED_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=History
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_THROTTLE = 5.0  # [s] between log lines about rejected input
 WORKER_POLL = 0.1  # [s] the solving worker checks this often whether the node is shutting down
+# [s] of the steady clock: the executor returns from its wait at least this often, so that a SIGINT whose own
+# wake-up of the wait is lost is still taken (Python raises it when the main thread runs again). Under
+# use_sim_time, with no /clock coming, nothing else wakes it: a node was seen waiting for ever after a SIGINT.
+STOP_WAKE = 1.0
 # The publishers go without rclpy's default QoS-event handlers (a warning logged here on an incompatible
 # subscriber, which warns on its own side too): each publisher's two are waitables the executor polls at
 # every wake, and the twenty cost the node 0.6-0.9 ms of its publish-to-pose latency. The subscriptions
@@ -181,6 +185,7 @@ class WinchMonitorNode(Node):
         self.create_service(CheckCableLengths, "~/check_cable_lengths", self._check_cable_lengths)
         self.create_service(WritePlantFile, "~/write_plant_file", self._write_plant_file)
         self.create_timer(value("diagnostics_period"), self._guarded("diagnostics", self._publish_diagnostics))
+        self.create_timer(STOP_WAKE, lambda: None, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._clock_jumps = self.get_clock().create_jump_callback(  # a bag played again (--loop) under sim time
             JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-int(value("staleness") * 1e9)),
                           on_clock_change=False), post_callback=self._guarded("clock", self._on_clock_jump))

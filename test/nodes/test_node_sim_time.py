@@ -1,18 +1,23 @@
 """The live node under `use_sim_time`, with a real /clock publisher over loopback DDS: a clock that jumps back
 (a bag played with --loop) resets the stamp history and says so; readings stamped far ahead of the clock are
-an error; the alarm turns to no data once its sample is stale; messages before the first /clock are used.
+an error; the alarm turns to no data once its sample is stale; messages before the first /clock are used; a
+SIGINT stops the node with no /clock coming even where the signal's own wake-up of the executor is lost.
 
 Before, every message after a jump back was refused as "stamp not increasing" for the whole loop while
 /diagnostics showed the alarm frozen at its last level, and messages before the first /clock were refused as
 stamped 1000 s ahead of a clock reading 0."""
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 from builtin_interfaces.msg import Time
-from ros_harness import INPUTS_STATUS, LiveNode, input_value, rejected_count, stamp_from_ns
+from ros_harness import INPUTS_STATUS, PARAMS_FILE, LiveNode, input_value, rejected_count, ros_env, stamp_from_ns
 from rosgraph_msgs.msg import Clock
 
 pytestmark = pytest.mark.timeout(90)
@@ -138,3 +143,32 @@ def test_the_alarm_is_no_data_once_its_sample_is_stale(sim):
     statuses = live.client.diagnostics(lambda s: s[ALARM_STATUS][0] == STALE_LEVEL, "the alarm with no data")
     message = statuses[ALARM_STATUS][1]
     assert message.startswith("no data: the last sample is ") and " s old (it was OK" in message, message
+
+
+WITHOUT_SIGINT_WAKE = Path(__file__).resolve().parents[1] / "helpers" / "node_without_sigint_wake.py"
+
+
+def test_a_sigint_stops_the_node_with_no_clock_even_where_its_wake_up_is_lost(domain_id, tmp_path):
+    """A node under use_sim_time whose executor no SIGINT wakes (rclpy's signal guard condition taken away,
+    as a node was once seen waiting for ever after one) and that no /clock wakes either: its steady wake-up
+    lets Python raise the pending KeyboardInterrupt, and it ends cleanly within two seconds."""
+    log = tmp_path / "node.log"
+    with open(log, "w") as out:
+        node = subprocess.Popen([sys.executable, str(WITHOUT_SIGINT_WAKE), "--ros-args", "--params-file",
+                                 str(PARAMS_FILE), "-p", "use_sim_time:=true"], env=ros_env(domain_id), stdout=out,
+                                stderr=subprocess.STDOUT)
+        try:
+            deadline = time.monotonic() + 30.0
+            while "monitoring plant" not in log.read_text():
+                assert node.poll() is None and time.monotonic() < deadline, log.read_text()[-2000:]
+                time.sleep(0.05)
+            time.sleep(0.5)  # spinning: the executor waits with nothing to wake it but the signal
+            node.send_signal(signal.SIGINT)
+            started = time.monotonic()
+            code = node.wait(timeout=10.0)
+        finally:
+            if node.poll() is None:
+                node.kill()
+                node.wait()
+    assert code == 0 and time.monotonic() - started < 2.0, log.read_text()[-2000:]
+    assert "Traceback" not in log.read_text()
