@@ -61,13 +61,14 @@ class WindowStages:
         """What replay writes for each sample (header stamps `headers`); solved together where `batched`; with
         the outputs themselves where `outputs` (a second process sends back only what replay writes)."""
         monitor = self.monitor
+        channels = monitor.model.channels
         solved = monitor.solve_samples(samples, conditions) if batched else [None] * len(samples)
         out = []
         for sample, at, header, done in zip(samples, conditions, headers, solved):
             output, outcome = monitor.judge(sample, done, at)
             scene = SceneState.of(output.solution, output.alarm) if self.throttle.due(output.stamp) else None
-            view = sample_view(output, monitor.fusing, monitor.model.channels) if self.first_of_second(output.stamp) else None
-            out.append(Encoded(records.solved_records(header, output, monitor.model.channels), outcome, view, scene,
+            view = sample_view(output, monitor.fusing, channels) if self.first_of_second(output.stamp) else None
+            out.append(Encoded(records.solved_records(header, output, channels), outcome, view, scene,
                                output if outputs else None))
         return out
 
