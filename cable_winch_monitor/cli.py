@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .bagio.reader import BagError
+from .effects import BUILTIN_REGISTRY, Registry
 from .effects.base import EffectError
 from .formatting import format_solution
 from .messages.scene import LIVE_RATE, REPLAY_RATE
@@ -39,16 +40,13 @@ def _check_writable(path: str | None, option: str) -> None:
         raise UsageError(f"{option} {path}: not writable (permission denied)")
 
 
-def _effect_names(text: str | None, option: str, plant: Plant) -> list[str] | None:
-    """Comma-separated effect names, each one known to the plant's model (None for none given)."""
+def _effect_names(text: str | None, option: str, registry: Registry) -> list[str] | None:
+    """Comma-separated effect names, each one known to `registry` (the plant model's; None for none given)."""
     if text is None:
         return None
-    from .effects import BUILTIN_REGISTRY
-
     names = [n.strip() for n in text.split(",") if n.strip()]
     if not names:
         raise UsageError(f"{option}: no effect name given")
-    registry = BUILTIN_REGISTRY.with_modules(plant.effect_modules)
     for name in names:
         registry.effect_class(name)  # EffectError naming the known ones
     return names
@@ -252,7 +250,7 @@ def _diagnose(args: argparse.Namespace) -> int:
 
     _check_writable(args.json, "--json")
     plant = _plant_with_modules(args)
-    candidates = _effect_names(args.candidates, "--candidates", plant)
+    candidates = _effect_names(args.candidates, "--candidates", BUILTIN_REGISTRY.with_modules(plant.effect_modules))
     if is_fleet(args.bag):
         return _fleet(args, diagnose_job(plant, candidates, args.budget), budget=args.budget)
     result, data = diagnose_bag(args.bag, plant, candidates, args.budget, progress=True)
@@ -269,7 +267,7 @@ def _fit(args: argparse.Namespace) -> int:
     _check_writable(args.json, "--json")
     _check_writable(args.write_config, "--write-config")
     model, data = _analysis_inputs(args)
-    names = _effect_names(args.effects, "--effects", model.plant)
+    names = _effect_names(args.effects, "--effects", model.registry)
     assert names is not None  # the fit command requires --effects
     result = fit_command(model, data, names)
     print(report.fit_text(result))
