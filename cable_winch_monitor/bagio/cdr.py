@@ -11,16 +11,22 @@ strings and sequences, whose lengths vary.
 scene's markers share a dozen empty strings, sequences and constant sub-messages): those
 are not looked up but packed when the code is generated, runs of them as one bytes
 literal.
+
+`StackedEncoder` encodes many messages of one shape (the same strings and sequence lengths)
+at once from columns of their numbers: copies of one message's bytes, the numbers written
+into them as numpy columns. A replay encodes a window's poses so.
 """
 from __future__ import annotations
 
+import copy
 import math
 from array import array
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from functools import cache, lru_cache
 from struct import Struct, pack
 from typing import Any
 
+import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
@@ -33,7 +39,11 @@ ELEMENT = {**SCALAR, "byte": "B"}  # rosbags packs byte arrays as uint8
 SIZE = {name: Struct("<" + code).size for name, code in SCALAR.items()}
 ARRAY_CODES = {code for code in "bBhHiIqQfd" if array(code).itemsize == Struct("<" + code).size}
 
+NUMPY_SCALAR = {"bool": "?", "byte": "u1", "char": "u1", "int8": "i1", "uint8": "u1", "int16": "<i2", "uint16": "<u2",
+                "int32": "<i4", "uint32": "<u4", "int64": "<i8", "uint64": "<u8", "float32": "<f4", "float64": "<f8"}
+
 Encoder = Callable[[Mapping[str, Any]], bytes]
+FieldPath = tuple[str | int, ...]  # field names and list indices from a message's top to one of its scalars
 
 
 class Layout:
@@ -260,3 +270,67 @@ def fixed_encoder(msgtype: str, fixed: Mapping[str, Mapping[str, Any]], store: T
     namespace.update({name: Struct(fmt) for fmt, name in generator.structs.items()})
     exec(compile(source, f"<cdr encoder {msgtype}>", "exec"), namespace)
     return namespace["encode"]
+
+
+class StackedEncoder:
+    """Many messages of `msgtype` encoded at once: each the nested field mapping `template` (as for `encoder`)
+    but for the scalars at `columns`, which vary from message to message; its strings and sequence lengths
+    are every message's. The bytes are `encoder(msgtype)`'s: the template is encoded once by it, and each
+    column's place is read off those bytes (where encoding that scalar changed moves them), so the layout is
+    the compiled encoder's own; `encode` writes the columns of n messages into n copies of the template."""
+
+    def __init__(self, msgtype: str, template: Mapping[str, Any], columns: Sequence[FieldPath],
+                 store: Typestore | None = None):
+        store = store or typestore()
+        encode = encoder(msgtype, store)
+        formats = [np.dtype(NUMPY_SCALAR[_scalar_type(store, msgtype, path)]) for path in columns]
+        zeroed = _replaced(template, {path: 0 for path in columns})
+        base = encode(zeroed)
+        offsets = []
+        for path, dtype in zip(columns, formats):
+            probe = np.frombuffer(b"\x01" if dtype.kind == "b" else b"\x11" * dtype.itemsize, dtype)[0].item()
+            probed = encode(_replaced(zeroed, {path: probe}))
+            moved = [k for k, (a, b) in enumerate(zip(base, probed)) if a != b]
+            if len(probed) != len(base) or moved != list(range(moved[0], moved[0] + dtype.itemsize)):
+                raise ValueError(f"{msgtype}: the field {path} does not keep its place from message to message")
+            offsets.append(moved[0])
+        self.template = np.frombuffer(base, np.uint8)
+        self.dtype = np.dtype({"names": [f"c{k}" for k in range(len(columns))], "formats": formats,
+                               "offsets": offsets, "itemsize": len(base)})
+
+    def encode(self, *columns: np.ndarray) -> list[bytes]:
+        """The messages whose scalars are `columns` (one (n,) column for each of the constructor's, in order)."""
+        count = len(columns[0]) if columns else 0
+        buffer = np.tile(self.template, count)
+        rows = buffer.view(self.dtype)
+        for name, column in zip(self.dtype.names or (), columns):
+            rows[name] = column
+        data, size = buffer.tobytes(), self.dtype.itemsize
+        return [data[start:start + size] for start in range(0, count * size, size)]
+
+
+def _scalar_type(store: Typestore, msgtype: str, path: FieldPath) -> str:
+    """The base type of the scalar at `path` in a message of `msgtype` (TypeError where it holds none)."""
+    node: int = Nodetype.NAME
+    argument: Any = msgtype  # as `node` says: a message type's name, a base type, an array's (element, length)
+    for step in path:
+        if isinstance(step, int) and node in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+            (node, argument), _ = argument
+        elif isinstance(step, str) and node == Nodetype.NAME:
+            node, argument = dict(store.fielddefs[argument][1])[step]
+        else:
+            raise TypeError(f"{msgtype}: no field at {path}")
+    if node != Nodetype.BASE or argument[0] not in NUMPY_SCALAR:
+        raise TypeError(f"{msgtype}: {path} is not a number")
+    return argument[0]
+
+
+def _replaced(values: Mapping[str, Any], changes: Mapping[FieldPath, Any]) -> Any:
+    """A deep copy of nested field values with the scalars at the paths of `changes` set as it says."""
+    out: Any = copy.deepcopy(values)
+    for path, value in changes.items():
+        holder = out
+        for step in path[:-1]:
+            holder = holder[step]
+        holder[path[-1]] = value
+    return out

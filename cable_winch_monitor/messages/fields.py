@@ -8,6 +8,7 @@ two cannot disagree about what goes where.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -98,12 +99,19 @@ def _floats(values: np.ndarray | None) -> list[float]:
 def pose(solution: Solution) -> Fields:
     """geometry_msgs/Pose of `platform` in `shaft` (NaN position, identity orientation without a pose)."""
     q = solution.quaternion
-    x, y, z, w = (0.0, 0.0, 0.0, 1.0) if q is None else q.tolist()
-    return {"position": point(solution.position), "orientation": {"x": x, "y": y, "z": z, "w": w}}
+    return pose_of(point(solution.position), (0.0, 0.0, 0.0, 1.0) if q is None else q.tolist())
 
 
-def pose_stamped(stamp: Stamp, solution: Solution) -> Fields:
-    return {"header": header(stamp), "pose": pose(solution)}
+def pose_of(position: Fields, quaternion: Sequence[float]) -> Fields:
+    """geometry_msgs/Pose from a Point's fields and a quaternion (x, y, z, w)."""
+    x, y, z, w = quaternion
+    return {"position": position, "orientation": {"x": x, "y": y, "z": z, "w": w}}
+
+
+def pose_stamped(stamp: Stamp, position: Sequence[float], quaternion: Sequence[float]) -> Fields:
+    """geometry_msgs/PoseStamped of `platform` in `shaft` at `position` [m], turned by `quaternion` (x, y, z, w)."""
+    x, y, z = position
+    return {"header": header(stamp), "pose": pose_of({"x": x, "y": y, "z": z}, quaternion)}
 
 
 def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | None = None,

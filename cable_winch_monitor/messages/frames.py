@@ -10,7 +10,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ..model.plantfile.plant import Plant
-from ..model.statics.result import Solution
 from .fields import FRAME, Fields, Stamp, header
 
 PLATFORM_FRAME = "platform"
@@ -32,13 +31,9 @@ def transform_stamped(stamp: Stamp, child: str, translation: Sequence[float],
                           "rotation": {"x": qx, "y": qy, "z": qz, "w": qw}}}
 
 
-def platform_tf(stamp: Stamp, solution: Solution) -> Fields:
-    """/tf for a solved pose: `shaft` -> `platform` (only for a solution with a pose)."""
-    if not solution.ok:
-        raise ValueError(f"no transform without a solved pose ({solution.tension_state})")
-    assert solution.position is not None and solution.quaternion is not None  # solved: a pose
-    return {"transforms": [transform_stamped(stamp, PLATFORM_FRAME, solution.position.tolist(),
-                                             solution.quaternion.tolist())]}
+def platform_tf(stamp: Stamp, position: Sequence[float], quaternion: Sequence[float]) -> Fields:
+    """/tf of a solved pose: `shaft` -> `platform` at `position` [m], turned by `quaternion` (x, y, z, w)."""
+    return {"transforms": [transform_stamped(stamp, PLATFORM_FRAME, position, quaternion)]}
 
 
 def static_tf(stamp: Stamp, plant: Plant) -> Fields:

@@ -7,7 +7,7 @@ that lives in messages/fields.py, shared with the live node.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from functools import cache
 from typing import Any
 
@@ -15,12 +15,11 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from ..bagio.cdr import Encoder, encoder, fixed_encoder
+from ..bagio.cdr import Encoder, StackedEncoder, encoder, fixed_encoder
 from ..bagio.typestore import knows, typestore
 from ..channels import ChannelRegistry
-from ..model.estimator import Estimate
+from ..model.statics.geometry import quaternions_from_rotations
 from ..model.statics.result import Solution
-from ..monitor.alarm import Alarm
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from . import fields, frames
@@ -86,36 +85,57 @@ def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[R
     return [] if residuals is None else [_record(RESIDUALS, fields.model_residuals(stamp, residuals))]
 
 
-def solution_records(stamp: fields.Stamp, solution: Solution, estimate: Estimate | None,
-                     channels: ChannelRegistry) -> list[Record]:
-    """What a sample's solution (and its fused estimate, its sensors those of `channels`) alone decides,
-    whatever the monitor's state: pose and /tf (only if solved), tension distribution."""
-    records = [_record(POSE, fields.pose_stamped(stamp, solution)),
-               _record(TF, frames.platform_tf(stamp, solution))] if solution.ok else []
-    return records + [_record(TENSION, fields.tension_distribution(stamp, solution, estimate, channels))]
+def pose_records(stamps: Sequence[fields.Stamp], solutions: Sequence[Solution]) -> list[list[Record]]:
+    """The pose and /tf of each solved pose (header stamp `stamps`), encoded together (`pose_encoders`)."""
+    if not solutions:
+        return []
+    stamp = np.array(stamps, dtype=np.int64).reshape(-1, 2)
+    position = np.array([s.position for s in solutions])
+    quaternion = quaternions_from_rotations(np.array([s.rotation for s in solutions]))
+    columns = (stamp[:, 0], stamp[:, 1], *position.T, *quaternion.T)
+    pose, tf = pose_encoders()
+    return [[(POSE, OUTPUT_TYPES[POSE], p), (TF, OUTPUT_TYPES[TF], t)]
+            for p, t in zip(pose.encode(*columns), tf.encode(*columns))]
 
 
-def alarm_record(stamp: fields.Stamp, alarm: Alarm) -> Record:
-    return _record(ALARM, fields.collision_alarm(stamp, alarm))
+@cache
+def pose_encoders() -> tuple[StackedEncoder, StackedEncoder]:
+    """The encoders of a solved pose's PoseStamped and /tf from columns: the header stamp (sec, nanosec), the
+    position (x, y, z) [m] and the orientation (x, y, z, w), as `fields.pose_stamped` and `frames.platform_tf`
+    lay them out."""
+    at_rest = ((0, 0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    stamp = (("header", "stamp", "sec"), ("header", "stamp", "nanosec"))
+    pose = (*stamp, *(("pose", "position", a) for a in "xyz"), *(("pose", "orientation", a) for a in "xyzw"))
+    tf = tuple(("transforms", 0, *path) for path in (
+        *stamp, *(("transform", "translation", a) for a in "xyz"), *(("transform", "rotation", a) for a in "xyzw")))
+    return (StackedEncoder(OUTPUT_TYPES[POSE], fields.pose_stamped(*at_rest), pose),
+            StackedEncoder(OUTPUT_TYPES[TF], frames.platform_tf(*at_rest), tf))
 
 
 def output_records(stamp: fields.Stamp, output: MonitorOutput, channels: ChannelRegistry) -> list[Record]:
     """What the live node publishes for one solved sample, in its order: its `solved_records`, then its residuals
     (if any)."""
-    return solved_records(stamp, output, channels) + residual_records(stamp, output.residuals)
+    return solved_records([stamp], [output], channels)[0] + residual_records(stamp, output.residuals)
 
 
-def solved_records(stamp: fields.Stamp, output: MonitorOutput, channels: ChannelRegistry) -> list[Record]:
-    """A solved sample's outputs but its residuals, in the node's order: pose and /tf (only if solved), tension
-    distribution, collision alarm, the model's error (where the sample was estimated), the tracked plant
-    parameters (at the first sample of each second of stamps)."""
-    records = solution_records(stamp, output.solution, output.estimate, channels)
-    records.append(alarm_record(stamp, output.alarm))
-    if output.model is not None:
-        records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))
-        if output.model.parameters_due and output.model.parameters is not None:
-            records.append(_record(PARAMETERS, fields.model_parameters(stamp, output.model.parameters)))
-    return records
+def solved_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput],
+                   channels: ChannelRegistry) -> list[list[Record]]:
+    """Each solved sample's outputs but its residuals (header stamps `stamps`), in the node's order: pose and /tf
+    (only if solved; those of the run encoded together), tension distribution (the sensors of `channels`),
+    collision alarm, the model's error (where the sample was estimated), the tracked plant parameters (at the
+    first sample of each second of stamps)."""
+    posed = [k for k, output in enumerate(outputs) if output.solution.ok]
+    out: list[list[Record]] = [[] for _ in outputs]
+    for k, records in zip(posed, pose_records([stamps[k] for k in posed], [outputs[k].solution for k in posed])):
+        out[k] = records
+    for stamp, output, records in zip(stamps, outputs, out):
+        records.append(_record(TENSION, fields.tension_distribution(stamp, output.solution, output.estimate, channels)))
+        records.append(_record(ALARM, fields.collision_alarm(stamp, output.alarm)))
+        if output.model is not None:
+            records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))
+            if output.model.parameters_due and output.model.parameters is not None:
+                records.append(_record(PARAMETERS, fields.model_parameters(stamp, output.model.parameters)))
+    return out
 
 
 def diagnostics_record(values: Mapping[str, Any]) -> Record:

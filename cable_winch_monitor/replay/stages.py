@@ -63,13 +63,13 @@ class WindowStages:
         monitor = self.monitor
         channels = monitor.model.channels
         solved = monitor.solve_samples(samples, conditions) if batched else [None] * len(samples)
+        judged = [monitor.judge(sample, done, at) for sample, at, done in zip(samples, conditions, solved)]
+        encoded = records.solved_records(headers, [output for output, _ in judged], channels)
         out = []
-        for sample, at, header, done in zip(samples, conditions, headers, solved):
-            output, outcome = monitor.judge(sample, done, at)
+        for (output, outcome), written in zip(judged, encoded):
             scene = SceneState.of(output.solution, output.alarm) if self.throttle.due(output.stamp) else None
             view = sample_view(output, monitor.fusing, channels) if self.first_of_second(output.stamp) else None
-            out.append(Encoded(records.solved_records(header, output, channels), outcome, view, scene,
-                               output if outputs else None))
+            out.append(Encoded(written, outcome, view, scene, output if outputs else None))
         return out
 
     def state(self) -> bytes:

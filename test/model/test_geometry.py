@@ -7,6 +7,7 @@ from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.model.solvers.batched import solve_batch
 from cable_winch_monitor.model.statics.geometry import (
     quaternion_from_rotation,
+    quaternions_from_rotations,
     roll_pitch_of_quaternion,
     roll_pitch_yaw,
     rotation_from_vector,
@@ -39,6 +40,23 @@ def test_quaternion_turns_vectors_as_its_matrix(index):
     assert abs(np.linalg.norm(q) - 1.0) < 1e-12 and q[3] >= 0.0
     for v in np.eye(3):
         assert np.allclose(rotate_by_quaternion(q, v), rotation @ v, atol=1e-12)
+
+
+def test_stacked_quaternions_take_every_branch_of_shepperds_method():
+    """A stack with rotations of near a half turn about each axis (each diagonal element the largest in turn,
+    the trace negative) and of small angles (the trace positive): each quaternion turns vectors as its
+    matrix, is a unit one with w >= 0, and is the one its rotation gives alone."""
+    axes = [*np.eye(3), *(RNG.normal(size=(30, 3)))]
+    rotations = np.array([rotation_from_vector(axis / np.linalg.norm(axis) * angle)
+                          for axis in axes for angle in (1e-6, 0.3, np.pi - 1e-3, np.pi)])
+    diagonal = np.diagonal(rotations, axis1=1, axis2=2)
+    assert (diagonal.sum(axis=1) > 0).any() and set(np.argmax(diagonal[diagonal.sum(axis=1) <= 0], axis=1)) == {0, 1, 2}
+    stacked = quaternions_from_rotations(rotations)
+    for rotation, q in zip(rotations, stacked):
+        assert abs(np.linalg.norm(q) - 1.0) < 1e-12 and q[3] >= 0.0
+        for v in np.eye(3):
+            assert np.allclose(rotate_by_quaternion(q, v), rotation @ v, atol=1e-12)
+        assert np.array_equal(q, quaternion_from_rotation(rotation))
 
 
 def test_roll_pitch_of_a_quaternion_match_those_of_its_matrix_even_unnormalised():

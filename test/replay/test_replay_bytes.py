@@ -5,31 +5,46 @@ The generic path is rosbags' own: `records.build` -> `Typestore.serialize_cdr` -
 """
 from __future__ import annotations
 
+import copy
 import struct
 import zlib
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2.storage_mcap import McapWriter
 from simbags import encoder_tracking_plant
 
-from cable_winch_monitor.bagio.cdr import encoder, fixed_encoder
+from cable_winch_monitor.bagio.cdr import StackedEncoder, encoder, fixed_encoder
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.bagio.writer import CHUNK_SPAN, BagWriter
-from cable_winch_monitor.messages import records
+from cable_winch_monitor.messages import fields, frames, records
 from cable_winch_monitor.paths import demo_bag
 from cable_winch_monitor.replay import replay
 
 BAG = demo_bag()  # bags/all_channels
 NAN = float("nan")
+TENSION = "cable_winch_monitor_msgs/msg/TensionDistribution"
 
 
 def generic_encoder(msgtype: str) -> Any:
     store = typestore()
     return lambda values: bytes(store.serialize_cdr(records.build(msgtype, values), msgtype))
+
+
+def generic_pose_records(stamps: list[Any], solutions: list[Any]) -> list[list[records.Record]]:
+    """The pose and /tf of each solved pose, each message built and serialised by rosbags."""
+    out = []
+    for stamp, solution in zip(stamps, solutions):
+        position, quaternion = solution.position.tolist(), solution.quaternion.tolist()
+        out.append([(records.POSE, records.OUTPUT_TYPES[records.POSE],
+                     generic_encoder(records.OUTPUT_TYPES[records.POSE])(fields.pose_stamped(stamp, position, quaternion))),
+                    (records.TF, records.OUTPUT_TYPES[records.TF],
+                     generic_encoder(records.OUTPUT_TYPES[records.TF])(frames.platform_tf(stamp, position, quaternion)))])
+    return out
 
 
 def generic_append(self: BagWriter, channel: int, time: int, data: bytes) -> None:
@@ -74,6 +89,7 @@ def replays(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
         patch.setattr(records, "encoder", generic_encoder)
         patch.setattr(records, "sample_encoder", generic_encoder)
         patch.setattr(records, "scene_encoder", lambda: generic_encoder(records.OUTPUT_TYPES[records.SCENE]))
+        patch.setattr(records, "pose_records", generic_pose_records)
         patch.setattr(BagWriter, "_append", generic_append)
         patch.setattr(BagWriter, "_close_chunk", generic_close_chunk)
         patch.setattr(BagWriter, "_hand_over", lambda self: None)  # rosbags counted every message itself
@@ -159,3 +175,37 @@ def test_fixed_fields_give_the_bytes_of_the_full_encoder() -> None:
         alarm["header"] = header(frame_id=frame)
         got = fixed_encoder("cable_winch_monitor_msgs/msg/CollisionAlarm", pinned)(alarm)
         assert got == generic_encoder("cable_winch_monitor_msgs/msg/CollisionAlarm")(alarm), frame
+
+
+def test_stacked_encoder_gives_the_encoders_bytes() -> None:
+    """Messages encoded together from columns (floats with NaN, infinities and -0.0; bools; unsigned and signed
+    integers of every width the messages use) are each the bytes rosbags serialises, for strings of every
+    length mod 8 before the columns."""
+    rng = np.random.default_rng(3)
+    count = 50
+    floats = rng.normal(size=(13, count)) * 10.0 ** rng.integers(-300, 300, size=(13, count))
+    floats[:, :4] = [NAN, float("inf"), -0.0, -float("inf")]
+    for frame in ("", "a", "ab", "abc", "abcd", "abcdefgh"):
+        template = dict(EDGE_CASES[3][1], header=header(frame_id=frame))
+        paths = [("header", "stamp", "sec"), ("header", "stamp", "nanosec"), ("status",), ("iterations",),
+                 ("equilibrium_residual",), *(("length_corrections_sigma", i) for i in range(4)),
+                 *(("cables", i, name) for i in range(3) for name in ("length", "taut"))]
+        columns = [rng.integers(-2 ** 31, 2 ** 31, count), rng.integers(0, 2 ** 32, count),
+                   rng.integers(0, 256, count), rng.integers(0, 2 ** 32, count), *floats[:5],
+                   *(column for i in range(3) for column in (floats[5 + i], rng.random(count) < 0.5))]
+        encoded = StackedEncoder(TENSION, template, paths).encode(*columns)
+        for k, got in enumerate(encoded):
+            values = copy.deepcopy(template)
+            for path, column in zip(paths, columns):
+                holder = values
+                for step in path[:-1]:
+                    holder = holder[step]
+                holder[path[-1]] = column[k].item()
+            assert got == generic_encoder(TENSION)(values), (frame, k)
+
+
+def test_stacked_encoder_takes_only_numbers() -> None:
+    with pytest.raises(TypeError, match="not a number"):
+        StackedEncoder(TENSION, EDGE_CASES[3][1], [("solver",)])
+    with pytest.raises(TypeError, match="no field"):
+        StackedEncoder(TENSION, EDGE_CASES[3][1], [("cables", "length")])

@@ -65,25 +65,36 @@ def rotation_aligning(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return rotation_from_vector(axis / sin_angle * np.arctan2(sin_angle, cos_angle))
 
 
-def quaternion_from_rotation(rotation: np.ndarray) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) of a rotation matrix, w >= 0 (Shepperd's method, on Python floats:
-    a pose is converted for every published sample)."""
-    m = rotation.tolist()
-    trace = m[0][0] + m[1][1] + m[2][2]
-    if trace > 0.0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        q = [(m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s, 0.25 * s]
-    else:
-        i = max(range(3), key=lambda k: m[k][k])
+def quaternions_from_rotations(rotations: np.ndarray) -> np.ndarray:
+    """Unit quaternions (x, y, z, w), w >= 0, of rotation matrices (n, 3, 3), (n, 4) (Shepperd's method: from
+    the trace where it is positive, else from the largest diagonal element, the first of equal ones)."""
+    m = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)
+    q = np.empty((len(m), 4))
+    trace = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
+    by_trace = trace > 0.0
+    r = m[by_trace]
+    s = 2.0 * np.sqrt(trace[by_trace] + 1.0)
+    q[by_trace] = np.column_stack([(r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s,
+                                   (r[:, 1, 0] - r[:, 0, 1]) / s, 0.25 * s])
+    largest = np.argmax(np.diagonal(m, axis1=1, axis2=2), axis=1)
+    for i in range(3):
+        rows = ~by_trace & (largest == i)
+        if not rows.any():
+            continue
         j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(1.0 + m[i][i] - m[j][j] - m[k][k])
-        q = [0.0] * 4
-        q[i] = 0.25 * s
-        q[j] = (m[j][i] + m[i][j]) / s
-        q[k] = (m[k][i] + m[i][k]) / s
-        q[3] = (m[k][j] - m[j][k]) / s
-    norm = math.sqrt(sum(v * v for v in q)) * (1.0 if q[3] >= 0.0 else -1.0)
-    return np.array([v / norm for v in q])
+        r = m[rows]
+        s = 2.0 * np.sqrt(1.0 + r[:, i, i] - r[:, j, j] - r[:, k, k])
+        part = np.empty((len(r), 4))
+        part[:, i], part[:, j], part[:, k] = 0.25 * s, (r[:, j, i] + r[:, i, j]) / s, (r[:, k, i] + r[:, i, k]) / s
+        part[:, 3] = (r[:, k, j] - r[:, j, k]) / s
+        q[rows] = part
+    norm = np.sqrt(q[:, 0] * q[:, 0] + q[:, 1] * q[:, 1] + q[:, 2] * q[:, 2] + q[:, 3] * q[:, 3])
+    return q / (norm * np.where(q[:, 3] >= 0.0, 1.0, -1.0))[:, None]
+
+
+def quaternion_from_rotation(rotation: np.ndarray) -> np.ndarray:
+    """`quaternions_from_rotations` of one rotation matrix, (4,)."""
+    return quaternions_from_rotations(rotation)[0]
 
 
 def roll_pitch_yaw(rotation: np.ndarray) -> tuple[float, float, float]:
