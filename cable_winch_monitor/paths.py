@@ -23,3 +23,13 @@ def default_plant_file() -> Path:
 def demo_bag() -> Path:
     """The bundled all-channels bag of the source checkout (`bags/all_channels`)."""
     return Path(__file__).resolve().parent.parent / "bags" / "all_channels"
+
+
+def lab_bag() -> Path:
+    """The laboratory robot's recording of the source checkout (`bags/lab_robot`: swivel pulleys)."""
+    return Path(__file__).resolve().parent.parent / "bags" / "lab_robot"
+
+
+def lab_plant_file() -> Path:
+    """The laboratory robot's plant file."""
+    return config_dir() / "lab_robot_plant.yaml"
