@@ -135,8 +135,7 @@ class LiveScheduler:
                 if generation != self.generation:
                     return []
                 outputs = []
-                for sample, at, done in zip(samples, conditions, solved):
-                    output, outcome = monitor.judge(sample, done, at)
+                for output, outcome in monitor.judge_samples(samples, solved):
                     monitor.note(outcome)
                     outputs.append(output)
                 self._time(started, self.clock())

@@ -1,6 +1,7 @@
 """Wall-collision alarm levels with hysteresis, so that an alarm does not chatter."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -64,11 +65,6 @@ SYNC_PAIR_NAMES = tuple(f"{CABLE_NAMES[i]}-{CABLE_NAMES[j]}" for i, j in SYNC_PA
 _FIRST, _SECOND = (np.array(side) for side in zip(*SYNC_PAIRS))
 
 
-def sync_errors(lengths: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
-    """l_i - l_j for every pair of cables."""
-    return SYNC_PAIR_NAMES, lengths[_FIRST] - lengths[_SECOND]
-
-
 class AlarmTracker:
     """Turns each sample's clearance into a level; a level is left only when the clearance
     has recovered by the hysteresis above the threshold that raised it."""
@@ -92,26 +88,47 @@ class AlarmTracker:
 
     def update(self, solution: Solution, clearance: Clearance | None, basis: str = "") -> Alarm:
         """The alarm for one solved sample; `basis` says what the clearance is based on (monitor.basis)."""
-        pairs, errors = sync_errors(solution.lengths)
-        reasons = []
-        level = AlarmLevel.OK
-        if clearance is not None:
-            level = self._clearance_level(clearance.value)
-            if level > AlarmLevel.OK:
-                reasons.append(f"clearance {clearance.value:.3f} m at {clearance.point_name}")
-        if solution.status is SolveStatus.SINGLE_CABLE_INDETERMINATE:
-            assert solution.single_cable is not None  # a single-cable solution names its cable
-            level = max(level, AlarmLevel.WARNING)
-            reasons.append(f"platform hangs from {CABLE_NAMES[solution.single_cable]} alone and can turn")
-        elif solution.ok:
-            looseness = (solution.lengths - solution.spans).tolist()
-            loose = [i for i, by in enumerate(looseness) if by > self.policy.slack_tolerance]
-            if loose:
+        return self.update_many([solution], [clearance], [basis])[0]
+
+    def update_many(self, solutions: Sequence[Solution], clearances: Sequence[Clearance | None],
+                    bases: Sequence[str]) -> list[Alarm]:
+        """The alarms of consecutive samples, in order (the hysteresis carries from each to the next), with
+        what each clearance is based on (`bases`, monitor.basis); the sync errors and the slack ropes'
+        looseness of all of them worked out together."""
+        lengths = np.array([solution.lengths for solution in solutions], dtype=float).reshape(-1, 4)
+        errors = lengths[:, _FIRST] - lengths[:, _SECOND]
+        loose = self._loose(solutions, lengths)
+        out = []
+        for k, (solution, clearance, basis) in enumerate(zip(solutions, clearances, bases)):
+            reasons = []
+            level = AlarmLevel.OK
+            if clearance is not None:
+                level = self._clearance_level(clearance.value)
+                if level > AlarmLevel.OK:
+                    reasons.append(f"clearance {clearance.value:.3f} m at {clearance.point_name}")
+            if solution.status is SolveStatus.SINGLE_CABLE_INDETERMINATE:
+                assert solution.single_cable is not None  # a single-cable solution names its cable
                 level = max(level, AlarmLevel.WARNING)
-                reasons.append("slack: " + ", ".join(f"{CABLE_NAMES[i]} loose by {looseness[i]:.3f} m" for i in loose))
-        else:
-            level = max(level, AlarmLevel.WARNING)
-            reasons.append(f"no pose: {solution.tension_state}")
-        self.level = level
-        reason = "; ".join(reasons) or "clearance within margins"
-        return Alarm(level, clearance, pairs, errors, f"{reason} ({basis})" if basis else reason)
+                reasons.append(f"platform hangs from {CABLE_NAMES[solution.single_cable]} alone and can turn")
+            elif solution.ok:
+                if k in loose:
+                    level = max(level, AlarmLevel.WARNING)
+                    reasons.append("slack: " + ", ".join(f"{CABLE_NAMES[i]} loose by {by:.3f} m" for i, by in loose[k]))
+            else:
+                level = max(level, AlarmLevel.WARNING)
+                reasons.append(f"no pose: {solution.tension_state}")
+            self.level = level
+            reason = "; ".join(reasons) or "clearance within margins"
+            out.append(Alarm(level, clearance, SYNC_PAIR_NAMES, errors[k], f"{reason} ({basis})" if basis else reason))
+        return out
+
+    def _loose(self, solutions: Sequence[Solution], lengths: np.ndarray) -> dict[int, list[tuple[int, float]]]:
+        """The solved samples with a rope whose span falls short of its length by more than the slack tolerance:
+        each such rope and by how much [m], by sample."""
+        posed = [k for k, solution in enumerate(solutions) if solution.ok]
+        if not posed:
+            return {}
+        looseness = lengths[posed] - np.array([solutions[k].spans for k in posed], dtype=float)
+        beyond = looseness > self.policy.slack_tolerance
+        return {posed[row]: [(i, float(looseness[row, i])) for i in np.flatnonzero(beyond[row]).tolist()]
+                for row in np.flatnonzero(beyond.any(axis=1)).tolist()}

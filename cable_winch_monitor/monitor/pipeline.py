@@ -392,22 +392,32 @@ class MonitorPipeline:
 
     def judge(self, sample: CompleteSample, solved: Solved | None = None,
               conditions: Conditions | None = None) -> tuple[MonitorOutput, Outcome]:
-        """Solve (or estimate, from what the sensors read) a complete sample, or take it `solved` ahead
-        with its `conditions`; raise its alarm and compare its load pins with the model. Returns the
-        outputs and what `note` counts of them (replay's second process judges, the replay counts)."""
+        """`judge_samples` of one sample: solved (or estimated) here unless `solved` ahead at its `conditions`."""
         conditions = conditions or self.conditions(sample)
         if solved is None:
             solved = self.solve_samples([sample], [conditions])[0]
-        solution, clearance, fused, predicted, view = solved
-        basis = self._basis(clearance, fused, view)
-        alarm = self.alarms.update(solution, basis.clearance, basis.text if view is not None else "")
-        pins = {TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
-        resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
-        output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, view, basis)
-        self.last = output
-        if solution.ok:
-            self.last_solved = output
-        return output, output.outcome(predicted)
+        return self.judge_samples([sample], [solved])[0]
+
+    def judge_samples(self, samples: Sequence[CompleteSample],
+                      solved: Sequence[Solved]) -> list[tuple[MonitorOutput, Outcome]]:
+        """Consecutive samples, estimated (or solved) together by `solve_samples`, judged in order: what each
+        alarm is based on, the alarms (their hysteresis carried from sample to sample, their sync errors and
+        slack worked out together), each sample's load pins compared with the model. Returns each one's
+        outputs and what `note` counts of them (replay's second process judges, the replay counts)."""
+        bases = [self._basis(done.clearance, done.estimate, done.model) for done in solved]
+        alarms = self.alarms.update_many([done.solution for done in solved], [basis.clearance for basis in bases],
+                                         [basis.text if done.model is not None else "" for basis, done in
+                                          zip(bases, solved)])
+        out = []
+        for sample, (solution, clearance, fused, predicted, view), basis, alarm in zip(samples, solved, bases, alarms):
+            pins = {TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+            resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
+            output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, view, basis)
+            self.last = output
+            if solution.ok:
+                self.last_solved = output
+            out.append((output, output.outcome(predicted)))
+        return out
 
     def note(self, outcome: Outcome) -> None:
         """A solved sample's counts, and its predictions for the residuals of the sensor messages after it

@@ -1,9 +1,9 @@
-"""What becomes of a window's merged samples: estimated (or solved) together, judged one by one, encoded.
+"""What becomes of a window's merged samples: estimated (or solved), judged and encoded together.
 
 What happens to a complete sample after it is merged -- its estimate (the model's error
 carried from window to window), its alarm and residuals, its records and scene -- is a
 function of the merged samples in order (`WindowStages`), by the monitor's own code, which
-the node runs one sample at a time. What comes out per sample is bytes and a small outcome
+the node runs on the samples waiting when its worker takes them. What comes out per sample is bytes and a small outcome
 (`Encoded`), so that a second process can hand it back cheaply (second_process.py). A sample due a
 scene brings what the scene shows (its solution and alarm) instead of the scene itself, and its
 residuals come in its outcome, not encoded: the scene is drawn and the residuals encoded where the
@@ -47,9 +47,9 @@ def finished(encoded: Encoded, header: Stamp, builder: SceneBuilder) -> Encoded:
 
 
 class WindowStages:
-    """A window's merged samples estimated (or solved) together, judged one by one in order -- alarm,
-    residuals, what the alarm is based on -- and encoded, by the monitor's own code; the residuals are encoded
-    and the scenes drawn (with its `builder`) where the replay writes (`finished`)."""
+    """A window's merged samples estimated (or solved) together, judged in order -- alarm, residuals, what the
+    alarm is based on -- and encoded, by the monitor's own code; the residuals are encoded and the scenes drawn
+    (with its `builder`) where the replay writes (`finished`)."""
 
     def __init__(self, monitor: MonitorPipeline, scene_rate: float):
         self.monitor = monitor
@@ -62,8 +62,10 @@ class WindowStages:
         the outputs themselves where `outputs` (a second process sends back only what replay writes)."""
         monitor = self.monitor
         channels = monitor.model.channels
-        solved = monitor.solve_samples(samples, conditions) if batched else [None] * len(samples)
-        judged = [monitor.judge(sample, done, at) for sample, at, done in zip(samples, conditions, solved)]
+        if batched:
+            judged = monitor.judge_samples(samples, monitor.solve_samples(samples, conditions))
+        else:  # each solved as the node solves one alone (warm-started by the one before)
+            judged = [monitor.judge(sample, None, at) for sample, at in zip(samples, conditions)]
         encoded = records.solved_records(headers, [output for output, _ in judged], channels)
         out = []
         for (output, outcome), written in zip(judged, encoded):

@@ -63,3 +63,24 @@ def test_single_cable_state_warns_with_the_worst_swing_clearance(plant):
     assert alarm.level >= AlarmLevel.WARNING and "cable_1 alone" in alarm.reason
     # Hanging from cable 1 puts C under A1 = (2, 2.5): the decks swing far off the shaft axis.
     assert clearance.value < 0.0
+
+
+def test_a_run_of_samples_is_judged_in_order_with_each_ones_own_sync_errors_and_slack(plant):
+    """The alarms of a run at once (replay's window, the node's samples taken together): the hysteresis carries
+    from each sample to the next in order, each alarm's sync errors are its own sample's l_i - l_j, and only
+    the sample with a loose rope says so."""
+    level_one = _Sample(plant)
+    loose = solve_energy(plant, [100.0, 100.0, 100.0, 100.5])
+    walk = [0.4, 0.14, 0.16, 0.049, 0.06]
+    solutions = [level_one.solution] * len(walk) + [loose]
+    clearances = [level_one.clearance(c) for c in walk] + [solution_clearance(plant, loose)]
+    alarms = AlarmTracker(AlarmPolicy(warning_margin=0.15, critical_margin=0.05, hysteresis=0.02)).update_many(
+        solutions, clearances, ["tilt measured"] * len(solutions))
+    assert [a.level for a in alarms[:5]] == [AlarmLevel.OK, AlarmLevel.WARNING, AlarmLevel.WARNING,
+                                              AlarmLevel.CRITICAL, AlarmLevel.CRITICAL]
+    assert alarms[5].level == AlarmLevel.WARNING and alarms[5].reason.startswith("slack: ")
+    assert "cable_4 loose by 0.4" in alarms[5].reason
+    assert not any("slack" in a.reason for a in alarms[:5]) and all(a.reason.endswith("(tilt measured)") for a in alarms)
+    for alarm, solution in zip(alarms, solutions):
+        lengths = solution.lengths
+        assert np.array_equal(alarm.sync_errors, [lengths[i] - lengths[j] for i in range(4) for j in range(i + 1, 4)])
