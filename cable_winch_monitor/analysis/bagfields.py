@@ -28,7 +28,7 @@ from rosbags.typesys.store import Typestore
 from ..bagio.mcapfile import McapError, McapFile
 from ..bagio.reader import BagReader
 from ..messages.fields import input_topics, seconds
-from ..messages.records import OUTPUT_TYPES
+from ..messages.outputs import OUTPUT_TYPES
 
 MAX_SERIES = 256
 MAX_SAMPLES = 4000   # per series

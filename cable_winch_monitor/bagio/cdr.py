@@ -274,43 +274,54 @@ def fixed_encoder(msgtype: str, fixed: Mapping[str, Mapping[str, Any]], store: T
 
 class StackedEncoder:
     """Many messages of `msgtype` encoded at once: each the nested field mapping `template` (as for `encoder`)
-    but for the scalars at `columns`, which vary from message to message; its strings and sequence lengths
-    are every message's. The bytes are `encoder(msgtype)`'s: the template is encoded once by it, and each
-    column's place is read off those bytes (where encoding that scalar changed moves them), so the layout is
-    the compiled encoder's own; `encode` writes the columns of n messages into n copies of the template."""
+    but for the scalars and strings at `columns`, which vary from message to message (a string keeping its
+    length in bytes); its sequence lengths are every message's. The bytes are `encoder(msgtype)`'s: the
+    template is encoded once by it, and each column's place is read off those bytes (where encoding that
+    value changed moves them), so the layout is the compiled encoder's own; `encode` writes the columns of n
+    messages into n copies of the template."""
 
     def __init__(self, msgtype: str, template: Mapping[str, Any], columns: Sequence[FieldPath],
                  store: Typestore | None = None):
         store = store or typestore()
         encode = encoder(msgtype, store)
-        formats = [np.dtype(NUMPY_SCALAR[_scalar_type(store, msgtype, path)]) for path in columns]
-        zeroed = _replaced(template, {path: 0 for path in columns})
+        kinds = [_base_type(store, msgtype, path) for path in columns]
+        sizes = [len(_at(template, path).encode()) if kind == "string" else 0 for path, kind in zip(columns, kinds)]
+        formats = [np.dtype(f"S{size}" if kind == "string" else NUMPY_SCALAR[kind]) for kind, size in zip(kinds, sizes)]
+        zeroed = _replaced(template, {path: "a" * size if kind == "string" else 0
+                                      for path, kind, size in zip(columns, kinds, sizes)})
         base = encode(zeroed)
+        self.used = [dtype.itemsize > 0 for dtype in formats]  # an empty string writes nothing
         offsets = []
-        for path, dtype in zip(columns, formats):
-            probe = np.frombuffer(b"\x01" if dtype.kind == "b" else b"\x11" * dtype.itemsize, dtype)[0].item()
+        for path, kind, dtype in zip(columns, kinds, formats):
+            if not dtype.itemsize:
+                continue
+            probe = "b" * dtype.itemsize if kind == "string" else np.frombuffer(
+                b"\x01" if dtype.kind == "b" else b"\x11" * dtype.itemsize, dtype)[0].item()
             probed = encode(_replaced(zeroed, {path: probe}))
             moved = [k for k, (a, b) in enumerate(zip(base, probed)) if a != b]
             if len(probed) != len(base) or moved != list(range(moved[0], moved[0] + dtype.itemsize)):
                 raise ValueError(f"{msgtype}: the field {path} does not keep its place from message to message")
             offsets.append(moved[0])
+        kept = [dtype for dtype in formats if dtype.itemsize]
         self.template = np.frombuffer(base, np.uint8)
-        self.dtype = np.dtype({"names": [f"c{k}" for k in range(len(columns))], "formats": formats,
-                               "offsets": offsets, "itemsize": len(base)})
+        self.dtype = np.dtype({"names": [f"c{k}" for k in range(len(kept))], "formats": kept, "offsets": offsets,
+                               "itemsize": len(base)})
 
-    def encode(self, *columns: np.ndarray) -> list[bytes]:
-        """The messages whose scalars are `columns` (one (n,) column for each of the constructor's, in order)."""
+    def encode(self, *columns: Any) -> list[bytes]:
+        """The messages whose values are `columns` (for each of the constructor's, in order, n numbers or n
+        strings' bytes of its length)."""
         count = len(columns[0]) if columns else 0
         buffer = np.tile(self.template, count)
         rows = buffer.view(self.dtype)
-        for name, column in zip(self.dtype.names or (), columns):
+        for name, column in zip(self.dtype.names or (), (c for c, used in zip(columns, self.used) if used)):
             rows[name] = column
         data, size = buffer.tobytes(), self.dtype.itemsize
         return [data[start:start + size] for start in range(0, count * size, size)]
 
 
-def _scalar_type(store: Typestore, msgtype: str, path: FieldPath) -> str:
-    """The base type of the scalar at `path` in a message of `msgtype` (TypeError where it holds none)."""
+def _base_type(store: Typestore, msgtype: str, path: FieldPath) -> str:
+    """The base type of the number or string at `path` in a message of `msgtype` (TypeError where it holds
+    neither)."""
     node: int = Nodetype.NAME
     argument: Any = msgtype  # as `node` says: a message type's name, a base type, an array's (element, length)
     for step in path:
@@ -320,9 +331,15 @@ def _scalar_type(store: Typestore, msgtype: str, path: FieldPath) -> str:
             node, argument = dict(store.fielddefs[argument][1])[step]
         else:
             raise TypeError(f"{msgtype}: no field at {path}")
-    if node != Nodetype.BASE or argument[0] not in NUMPY_SCALAR:
-        raise TypeError(f"{msgtype}: {path} is not a number")
+    if node != Nodetype.BASE or (argument[0] not in NUMPY_SCALAR and argument[0] != "string"):
+        raise TypeError(f"{msgtype}: {path} is neither a number nor a string")
     return argument[0]
+
+
+def _at(values: Any, path: FieldPath) -> Any:
+    for step in path:
+        values = values[step]
+    return values
 
 
 def _replaced(values: Mapping[str, Any], changes: Mapping[FieldPath, Any]) -> Any:

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..bagio.reader import BagReader
-from ..messages.records import ALARM, OUTPUT_TYPES, TENSION
+from ..messages.outputs import ALARM, OUTPUT_TYPES, TENSION
 from ..monitor.alarm import AlarmLevel, AlarmPolicy
 from ..sim.simulate import TRUTH_FILE
 

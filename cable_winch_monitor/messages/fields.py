@@ -86,7 +86,7 @@ def point(xyz: np.ndarray | None) -> Fields:
     return {"x": x, "y": y, "z": z}
 
 
-def _larger(a: float, b: float) -> float:
+def larger(a: float, b: float) -> float:
     """np.fmax of two floats (the larger; the other where one is NaN) without numpy's call."""
     return b if a != a or b > a else a
 
@@ -126,7 +126,7 @@ def tension_distribution(stamp: Stamp, solution: Solution, estimate: Estimate | 
                   CABLE_NAMES, _floats(solution.lengths), _floats(solution.spans), _floats(solution.tensions)))]
     return {"header": header(stamp), "status": STATUS_NUMBERS[solution.status],
             "tension_state": solution.tension_state, "cables": cables,
-            "equilibrium_residual": _larger(float(solution.force_residual), float(solution.moment_residual)),
+            "equilibrium_residual": larger(float(solution.force_residual), float(solution.moment_residual)),
             "solver": solution.method, "iterations": int(solution.iterations),
             "sensors_used": list(channels.sensors_used(fused.used)) if fused is not None else [],
             "length_corrections_sigma": _floats(fused.corrections_sigma) if fused is not None else []}

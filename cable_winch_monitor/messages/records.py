@@ -15,30 +15,27 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from ..bagio.cdr import Encoder, StackedEncoder, encoder, fixed_encoder
+from ..bagio.cdr import Encoder, encoder, fixed_encoder
 from ..bagio.typestore import knows, typestore
 from ..channels import ChannelRegistry
-from ..model.statics.geometry import quaternions_from_rotations
-from ..model.statics.result import Solution
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
-from . import fields, frames
+from . import fields, frames, stacked
+from .outputs import (
+    DIAGNOSTICS,
+    OUTLINE,
+    OUTPUT_TYPES,
+    PARAMETERS,
+    RESIDUALS,
+    SCENE,
+    TF_STATIC,
+)
 from .scene import SceneBuilder, SceneState, scene_encoder
 
-MSGS = "cable_winch_monitor_msgs/msg"
-POSE, TENSION, ALARM, RESIDUALS = "/platform/pose", "/cables/tension", "/platform/collision_alarm", "/model/residuals"
-MODEL_ERROR, PARAMETERS = "/model/error", "/model/parameters"
-TF, TF_STATIC, SCENE, OUTLINE = "/tf", "/tf_static", "/platform/scene", "/platform/outline"
-DIAGNOSTICS = "/diagnostics"
-OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/TensionDistribution",
-                ALARM: f"{MSGS}/CollisionAlarm", RESIDUALS: f"{MSGS}/ModelResiduals", MODEL_ERROR: f"{MSGS}/ModelError",
-                PARAMETERS: f"{MSGS}/ModelParameters",
-                TF: "tf2_msgs/msg/TFMessage", TF_STATIC: "tf2_msgs/msg/TFMessage",
-                SCENE: "visualization_msgs/msg/MarkerArray", OUTLINE: "visualization_msgs/msg/MarkerArray",
-                DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray"}
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
 Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
+NAN = float("nan")
 # What every per-sample output has alike: its header in `shaft`, the transform's child `platform`.
 SAMPLE_FRAMES = {"std_msgs/msg/Header": {"frame_id": fields.FRAME},
                  "geometry_msgs/msg/TransformStamped": {"child_frame_id": frames.PLATFORM_FRAME}}
@@ -81,35 +78,10 @@ def _record(topic: str, values: Mapping[str, Any], per_sample: bool = True) -> R
 
 
 def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[Record]:
-    """/model/residuals for a sample's residuals (none if there are none)."""
+    """/model/residuals for one message's or sample's residuals (none if there are none): a message at a time, by
+    the compiled encoder (numpy's calls for one, `stacked.residual_records`, cost three times as much); replay
+    encodes a window's samples' together."""
     return [] if residuals is None else [_record(RESIDUALS, fields.model_residuals(stamp, residuals))]
-
-
-def pose_records(stamps: Sequence[fields.Stamp], solutions: Sequence[Solution]) -> list[list[Record]]:
-    """The pose and /tf of each solved pose (header stamp `stamps`), encoded together (`pose_encoders`)."""
-    if not solutions:
-        return []
-    stamp = np.array(stamps, dtype=np.int64).reshape(-1, 2)
-    position = np.array([s.position for s in solutions])
-    quaternion = quaternions_from_rotations(np.array([s.rotation for s in solutions]))
-    columns = (stamp[:, 0], stamp[:, 1], *position.T, *quaternion.T)
-    pose, tf = pose_encoders()
-    return [[(POSE, OUTPUT_TYPES[POSE], p), (TF, OUTPUT_TYPES[TF], t)]
-            for p, t in zip(pose.encode(*columns), tf.encode(*columns))]
-
-
-@cache
-def pose_encoders() -> tuple[StackedEncoder, StackedEncoder]:
-    """The encoders of a solved pose's PoseStamped and /tf from columns: the header stamp (sec, nanosec), the
-    position (x, y, z) [m] and the orientation (x, y, z, w), as `fields.pose_stamped` and `frames.platform_tf`
-    lay them out."""
-    at_rest = ((0, 0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
-    stamp = (("header", "stamp", "sec"), ("header", "stamp", "nanosec"))
-    pose = (*stamp, *(("pose", "position", a) for a in "xyz"), *(("pose", "orientation", a) for a in "xyzw"))
-    tf = tuple(("transforms", 0, *path) for path in (
-        *stamp, *(("transform", "translation", a) for a in "xyz"), *(("transform", "rotation", a) for a in "xyzw")))
-    return (StackedEncoder(OUTPUT_TYPES[POSE], fields.pose_stamped(*at_rest), pose),
-            StackedEncoder(OUTPUT_TYPES[TF], frames.platform_tf(*at_rest), tf))
 
 
 def output_records(stamp: fields.Stamp, output: MonitorOutput, channels: ChannelRegistry) -> list[Record]:
@@ -121,20 +93,23 @@ def output_records(stamp: fields.Stamp, output: MonitorOutput, channels: Channel
 def solved_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput],
                    channels: ChannelRegistry) -> list[list[Record]]:
     """Each solved sample's outputs but its residuals (header stamps `stamps`), in the node's order: pose and /tf
-    (only if solved; those of the run encoded together), tension distribution (the sensors of `channels`),
-    collision alarm, the model's error (where the sample was estimated), the tracked plant parameters (at the
-    first sample of each second of stamps)."""
+    (only if solved), tension distribution (the sensors of `channels`), collision alarm, the model's error (where
+    the sample was estimated), the tracked plant parameters (at the first sample of each second of stamps);
+    those of the run but the parameters encoded together (stacked.py)."""
     posed = [k for k, output in enumerate(outputs) if output.solution.ok]
+    estimated = [k for k, output in enumerate(outputs) if output.model is not None]
     out: list[list[Record]] = [[] for _ in outputs]
-    for k, records in zip(posed, pose_records([stamps[k] for k in posed], [outputs[k].solution for k in posed])):
+    for k, records in zip(posed, stacked.pose_records([stamps[k] for k in posed], [outputs[k].solution for k in posed])):
         out[k] = records
-    for stamp, output, records in zip(stamps, outputs, out):
-        records.append(_record(TENSION, fields.tension_distribution(stamp, output.solution, output.estimate, channels)))
-        records.append(_record(ALARM, fields.collision_alarm(stamp, output.alarm)))
-        if output.model is not None:
-            records.append(_record(MODEL_ERROR, fields.model_error(stamp, output)))
-            if output.model.parameters_due and output.model.parameters is not None:
-                records.append(_record(PARAMETERS, fields.model_parameters(stamp, output.model.parameters)))
+    for records, tension, alarm in zip(out, stacked.tension_records(stamps, outputs, channels),
+                                       stacked.alarm_records(stamps, outputs)):
+        records += (tension, alarm)
+    errors = stacked.model_error_records([stamps[k] for k in estimated], [outputs[k] for k in estimated])
+    for k, error in zip(estimated, errors):
+        out[k].append(error)
+        view = outputs[k].model
+        if view is not None and view.parameters_due and view.parameters is not None:
+            out[k].append(_record(PARAMETERS, fields.model_parameters(stamps[k], view.parameters)))
     return out
 
 

@@ -40,7 +40,7 @@ from cable_winch_monitor_msgs.srv import CheckCableLengths, WritePlantFile
 from ..channels import WINCH_TOPICS, Input
 from ..effects import EffectError
 from ..live.scheduler import BACKLOG, LiveScheduler
-from ..messages import fields, frames, records
+from ..messages import fields, frames, outputs, records
 from ..messages.scene import LIVE_RATE, SceneBuilder, SceneState, SceneThrottle
 from ..model.plantfile.plant import PlantConfigError, load_plant
 from ..model.solvers.solve import METHODS
@@ -148,15 +148,15 @@ class WinchMonitorNode(Node):
         self.tension_pub = publisher(TensionDistribution, "/cables/tension", OUTPUT_QOS)
         self.alarm_pub = publisher(CollisionAlarm, "/platform/collision_alarm", OUTPUT_QOS)
         self.residuals_pub = publisher(ModelResiduals, "/model/residuals", OUTPUT_QOS)
-        self.model_error_pub = publisher(ModelError, records.MODEL_ERROR, OUTPUT_QOS)
-        self.parameters_pub = publisher(ModelParameters, records.PARAMETERS, OUTPUT_QOS)
+        self.model_error_pub = publisher(ModelError, outputs.MODEL_ERROR, OUTPUT_QOS)
+        self.parameters_pub = publisher(ModelParameters, outputs.PARAMETERS, OUTPUT_QOS)
         self.diagnostics_pub = publisher(DiagnosticArray, "/diagnostics", 10)
         self.tf_pub = publisher(TFMessage, "/tf", TF_QOS)
         self.scene_pub = publisher(MarkerArray, "/platform/scene", OUTPUT_QOS)
-        self._output_publishers = {records.POSE: self.pose_pub, records.TF: self.tf_pub,
-                                   records.TENSION: self.tension_pub, records.ALARM: self.alarm_pub,
-                                   records.RESIDUALS: self.residuals_pub, records.MODEL_ERROR: self.model_error_pub,
-                                   records.PARAMETERS: self.parameters_pub}
+        self._output_publishers = {outputs.POSE: self.pose_pub, outputs.TF: self.tf_pub,
+                                   outputs.TENSION: self.tension_pub, outputs.ALARM: self.alarm_pub,
+                                   outputs.RESIDUALS: self.residuals_pub, outputs.MODEL_ERROR: self.model_error_pub,
+                                   outputs.PARAMETERS: self.parameters_pub}
         self.scene, self.scene_throttle = SceneBuilder(plant), SceneThrottle(value("scene_rate"))
         self.tf_static_pub = publisher(TFMessage, "/tf_static", LATCHED_QOS)
         self.outline_pub = publisher(MarkerArray, "/platform/outline", LATCHED_QOS)
@@ -210,8 +210,7 @@ class WinchMonitorNode(Node):
                 self._guarded("solver", self._solve, taken)()
 
     def _solve(self, taken: list[tuple[fields.Stamp, CompleteSample]]) -> None:
-        outputs = self.live.solve_all([sample for _, sample in taken])
-        for (stamp, _), output in zip(taken, outputs):
+        for (stamp, _), output in zip(taken, self.live.solve_all([sample for _, sample in taken])):
             self._publish(stamp, output)
 
     def _parameter(self, name: str) -> Any:

@@ -16,7 +16,7 @@ import pickle
 from collections.abc import Sequence
 from typing import NamedTuple
 
-from ..messages import records
+from ..messages import records, stacked
 from ..messages.fields import Stamp
 from ..messages.records import Record
 from ..messages.scene import SceneBuilder, SceneState, SceneThrottle
@@ -38,12 +38,23 @@ class Encoded(NamedTuple):
     output: MonitorOutput | None = None  # the sample's outputs themselves, where encoded in this process
 
 
-def finished(encoded: Encoded, header: Stamp, builder: SceneBuilder) -> Encoded:
-    """`encoded` (header stamp `header`) with its residuals (the outcome has them) and then its scene, where one
-    is due, after its other outputs, as the node publishes them."""
-    residuals = records.residual_records(header, encoded.outcome.residuals)
+def finished(encoded: Encoded, header: Stamp, builder: SceneBuilder, residuals: list[Record]) -> Encoded:
+    """`encoded` (header stamp `header`) with its residuals' records (`sample_residuals`) and then its scene,
+    where one is due, after its other outputs, as the node publishes them."""
     scene = [] if encoded.scene is None else records.scene_records(header, builder, encoded.scene)
     return encoded._replace(records=encoded.records + residuals + scene, scene=None)
+
+
+def sample_residuals(samples: Sequence[tuple[Encoded, Stamp]]) -> list[list[Record]]:
+    """The records of the residuals of encoded samples (each with its header stamp; their outcomes have the
+    residuals), encoded together: none for a sample without."""
+    measured = [(k, header, encoded.outcome.residuals) for k, (encoded, header) in enumerate(samples)
+                if encoded.outcome.residuals is not None]
+    out: list[list[Record]] = [[] for _ in samples]
+    written = stacked.residual_records([header for _, header, _ in measured], [r for _, _, r in measured if r is not None])
+    for (k, _, _), record in zip(measured, written):
+        out[k] = [record]
+    return out
 
 
 class WindowStages:

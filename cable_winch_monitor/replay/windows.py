@@ -54,7 +54,7 @@ from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import ReadingWait
 from ..stopping import interruptible
 from .second_process import SecondProcess
-from .stages import Encoded, WindowStages, finished
+from .stages import Encoded, WindowStages, finished, sample_residuals
 
 WINDOW = 2000  # messages read ahead
 FIRST_WINDOW = 250  # messages in the first and last windows read ahead, with a second process
@@ -278,9 +278,12 @@ class WindowScheduler:
         return now, winch_view(self.monitor, self.reporter.rates(now))
 
     def _take(self, prepared: Prepared, second: SecondProcess | None) -> Iterator[tuple[Any, Result, list[Record]]]:
-        """The window's messages in log order with what became of them, and the diagnostics due there."""
+        """The window's messages in log order with what became of them, and the diagnostics due there; the
+        samples' residuals encoded together, and their scenes drawn, once every message is taken."""
         with interruptible():
             encoded = iter(second.take() if second is not None else self._encoded)
+        results: list[Result] = []
+        diagnostics: list[list[Record]] = []
         for item, outcome, due in zip(prepared.window, prepared.merged, prepared.inputs):
             try:
                 result = self._result(item, outcome, encoded)
@@ -289,7 +292,16 @@ class WindowScheduler:
             residuals = result.outcome.residuals if isinstance(result, Encoded) else result
             if isinstance(residuals, Residuals):
                 self.reporter.note_residuals(residuals)
-            yield item, result, [] if due is None else [self._diagnostics(item, *due)]
+            results.append(result)
+            diagnostics.append([] if due is None else [self._diagnostics(item, *due)])
+        samples = [(k, result, prepared.merged[k].header) for k, result in enumerate(results)
+                   if isinstance(result, Encoded)]
+        for (k, done, header), own in zip(samples, sample_residuals([(done, header) for _, done, header in samples])):
+            try:
+                results[k] = finished(done, header, self.stages.builder, own)
+            except Exception as error:
+                results[k] = Failed.of(error)
+        yield from zip(prepared.window, results, diagnostics)
 
     def _diagnostics(self, item: Any, now: float, winch: WinchView) -> Record:
         last = self.last_view or sample_view(None, self.monitor.fusing, self.monitor.model.channels)
@@ -327,7 +339,7 @@ class WindowScheduler:
             done = next(encoded)
             self.monitor.note(done.outcome)
             self.last_view = done.view or self.last_view
-            return finished(done, outcome.header, self.stages.builder)
+            return done  # finished (its residuals and scene) once the window is taken
         if item.topic in self.input_specs:
             return None  # taken in ahead of the window's samples
         values = outcome if isinstance(outcome, dict) else None

@@ -15,7 +15,7 @@ import numpy as np
 
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bench.plants import SITE_EA, SITE_WEIGHT
-from cable_winch_monitor.messages.records import DIAGNOSTICS, OUTPUT_TYPES, PARAMETERS
+from cable_winch_monitor.messages.outputs import DIAGNOSTICS, OUTPUT_TYPES, PARAMETERS
 from cable_winch_monitor.model.plantfile.plant import Plant, load_plant
 from cable_winch_monitor.model.plantfile.track import TrackSpec
 from cable_winch_monitor.sim.simulate import TRUTH_FILE

@@ -21,7 +21,7 @@ from cable_winch_monitor.bench.plants import tracking_plant_file
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.live.scheduler import UPDATES_LOST, LiveScheduler
 from cable_winch_monitor.messages import fields
-from cable_winch_monitor.messages.records import ALARM, OUTPUT_TYPES, POSE, TENSION
+from cable_winch_monitor.messages.outputs import ALARM, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES, load_plant
 from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor.inputs import JointSample

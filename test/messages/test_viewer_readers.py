@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from simbags import encoder_tracking_plant
 
 from cable_winch_monitor.bagio.typestore import typestore
-from cable_winch_monitor.messages.records import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
+from cable_winch_monitor.messages.outputs import OUTLINE, OUTPUT_TYPES, SCENE, TF, TF_STATIC
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.model.statics.result import solved
 from cable_winch_monitor.monitor.alarm import AlarmLevel

@@ -18,7 +18,7 @@ from simbags import simulated
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.bench.solvers import lowering_samples
-from cable_winch_monitor.messages.records import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
+from cable_winch_monitor.messages.outputs import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
 from cable_winch_monitor.model.solvers.batched import solve_batch
 from cable_winch_monitor.model.solvers.energy import solve_energy
 from cable_winch_monitor.model.statics.result import SolveStatus

@@ -28,7 +28,7 @@ from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.bench.plants import SITE_CASES, plant_file
 from cable_winch_monitor.bench.safety import score
-from cable_winch_monitor.messages.records import ALARM, DIAGNOSTICS, MODEL_ERROR, OUTPUT_TYPES, POSE, TENSION
+from cable_winch_monitor.messages.outputs import ALARM, DIAGNOSTICS, MODEL_ERROR, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.replay import replay
 

@@ -24,7 +24,7 @@ from simbags import simulated
 from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.channels import JOINT_STATE
-from cable_winch_monitor.messages.records import ALARM, OUTPUT_TYPES, POSE, TENSION
+from cable_winch_monitor.messages.outputs import ALARM, OUTPUT_TYPES, POSE, TENSION
 from cable_winch_monitor.replay import replay
 
 JOINTS = {"/winch/joint_states": JOINT_STATE}

@@ -13,7 +13,7 @@ from simbags import assert_clean, messages, run_cli, simulated, truth
 
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.messages.fields import input_topics
-from cable_winch_monitor.messages.records import (
+from cable_winch_monitor.messages.outputs import (
     ALARM,
     DIAGNOSTICS,
     OUTLINE,
