@@ -9,9 +9,13 @@ against the stacked form asked for that same sample, on the same samples.
   warm-started the same way. The node takes the stacked form (its Newton is compiled, and its bits do
   not depend on the rows solved with it); the per-sample solver stays for what the stacked one
   leaves (a cold start, a single-cable state, four taut ropes), not for speed.
+- Encoding: one sample's outputs (pose, /tf, tension distribution, alarm, the model's error) a message at
+  a time (`records.sample_records`: `fields`' layouts, the compiled encoders) against the stacked
+  encoders on a run of one (`records.run_records`). The twin stays for speed: the node's samples come
+  one or a few at a time (`records.STACKED_FROM`).
 
 Each pair is held to the same answers by a test (test/model/test_conditions.py,
-test/model/test_batched.py). Figures are ratios within one run, the best of three passes. Run
+test/model/test_batched.py, test/messages/test_stacked.py). Figures are ratios within one run, the best of three passes. Run
 
     .venv/bin/python -m cable_winch_monitor.bench.twins
 """
@@ -21,11 +25,14 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..messages import records
 from ..model.conditions import ACCELERATION_WINDOW, ConditionsTracker, derivatives, directions
-from ..model.plantfile.plant import load_plant
+from ..model.plantfile.plant import CABLE_NAMES, Plant, load_plant
 from ..model.solvers.batched import solve_batch
 from ..model.solvers.solve import solve
 from ..model.statics.result import Solution
+from ..monitor.inputs import JointSample
+from ..monitor.pipeline import MonitorPipeline
 from .estimation import per_sample_rate
 from .solvers import lowering_samples
 
@@ -68,15 +75,28 @@ def solver_costs(plant, lengths: np.ndarray) -> tuple[float, float]:
     return one, batch
 
 
+def encoding_costs(plant: Plant, lengths: np.ndarray) -> tuple[float, float]:
+    """[us] one sample's outputs encoded, the lengths estimated with 1 mm encoders: a message at a time, and
+    by the stacked encoders as a run of one."""
+    monitor = MonitorPipeline(plant.with_changes(noise={**plant.noise, "length": 1e-3}))
+    outputs = [monitor.on_joint_state(JointSample(100.0 + k / RATE, CABLE_NAMES, row.tolist()))
+               for k, row in enumerate(lengths)]
+    solved = [output for output in outputs if output is not None]
+    channels, stamp = monitor.model.channels, (100, 0)
+    return (per_sample(lambda k, _: records.sample_records(stamp, solved[k], channels), len(solved)),
+            per_sample(lambda k, _: records.run_records([stamp], [solved[k]], channels), len(solved)))
+
+
 def main() -> None:
     plant = load_plant()
     lengths = lowering_samples(STEPS)[:1000]
     rows = {"conditions (speeds, accelerations, directions)": conditions_costs(lengths),
-            "equilibrium (energy, warm-started)": solver_costs(plant, lengths[:300])}
+            "equilibrium (energy, warm-started)": solver_costs(plant, lengths[:300]),
+            "outputs encoded (pose, /tf, tension, alarm, model error)": encoding_costs(plant, lengths[:300])}
     print("one new sample of a lowering from 50 m at 0.4 m/s, winches at 10 Hz, as the live node meets it; one core")
-    print(f"  {'stage':<48}{'twin us':>9}{'stacked us':>12}{'stacked/twin':>14}")
+    print(f"  {'stage':<58}{'twin us':>9}{'stacked us':>12}{'stacked/twin':>14}")
     for name, (twin, stacked) in rows.items():
-        print(f"  {name:<48}{twin:9.1f}{stacked:12.1f}{stacked / twin:13.1f}x")
+        print(f"  {name:<58}{twin:9.1f}{stacked:12.1f}{stacked / twin:13.1f}x")
 
 
 if __name__ == "__main__":

@@ -22,12 +22,17 @@ from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from . import fields, frames, stacked
 from .outputs import (
+    ALARM,
     DIAGNOSTICS,
+    MODEL_ERROR,
     OUTLINE,
     OUTPUT_TYPES,
     PARAMETERS,
+    POSE,
     RESIDUALS,
     SCENE,
+    TENSION,
+    TF,
     TF_STATIC,
 )
 from .scene import SceneBuilder, SceneState, scene_encoder
@@ -35,6 +40,7 @@ from .scene import SceneBuilder, SceneState, scene_encoder
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
 Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
+STACKED_FROM = 10  # samples in a run from which they are encoded together (bench.twins: below, a message at a time is faster)
 NAN = float("nan")
 # What every per-sample output has alike: its header in `shaft`, the transform's child `platform`.
 SAMPLE_FRAMES = {"std_msgs/msg/Header": {"frame_id": fields.FRAME},
@@ -94,8 +100,17 @@ def solved_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutp
                    channels: ChannelRegistry) -> list[list[Record]]:
     """Each solved sample's outputs but its residuals (header stamps `stamps`), in the node's order: pose and /tf
     (only if solved), tension distribution (the sensors of `channels`), collision alarm, the model's error (where
-    the sample was estimated), the tracked plant parameters (at the first sample of each second of stamps);
-    those of the run but the parameters encoded together (stacked.py)."""
+    the sample was estimated), the tracked plant parameters (at the first sample of each second of stamps). A run
+    of STACKED_FROM samples or more is encoded together (`run_records`), fewer a message at a time
+    (`sample_records`: the node's sample, or the few it takes together)."""
+    if len(outputs) < STACKED_FROM:
+        return [sample_records(stamp, output, channels) for stamp, output in zip(stamps, outputs)]
+    return run_records(stamps, outputs, channels)
+
+
+def run_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput],
+                channels: ChannelRegistry) -> list[list[Record]]:
+    """`solved_records` of a run of samples, encoded together but the tracked parameters (stacked.py)."""
     posed = [k for k, output in enumerate(outputs) if output.solution.ok]
     estimated = [k for k, output in enumerate(outputs) if output.model is not None]
     out: list[list[Record]] = [[] for _ in outputs]
@@ -106,11 +121,33 @@ def solved_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutp
         records += (tension, alarm)
     errors = stacked.model_error_records([stamps[k] for k in estimated], [outputs[k] for k in estimated])
     for k, error in zip(estimated, errors):
-        out[k].append(error)
-        view = outputs[k].model
-        if view is not None and view.parameters_due and view.parameters is not None:
-            out[k].append(_record(PARAMETERS, fields.model_parameters(stamps[k], view.parameters)))
+        out[k] += [error, *_parameters(stamps[k], outputs[k])]
     return out
+
+
+def sample_records(stamp: fields.Stamp, output: MonitorOutput, channels: ChannelRegistry) -> list[Record]:
+    """`solved_records` of one sample, a message at a time: each laid out by `fields` and `frames`, encoded by
+    the compiled encoders (a tenth of the stacked encoders' numpy calls for one sample: bench.twins)."""
+    solution = output.solution
+    records = []
+    if solution.ok:
+        assert solution.position is not None and solution.quaternion is not None  # solved: a pose
+        position, quaternion = solution.position.tolist(), solution.quaternion.tolist()
+        records += [_record(POSE, fields.pose_stamped(stamp, position, quaternion)),
+                    _record(TF, frames.platform_tf(stamp, position, quaternion))]
+    records += [_record(TENSION, fields.tension_distribution(stamp, solution, output.estimate, channels)),
+                _record(ALARM, fields.collision_alarm(stamp, output.alarm))]
+    if output.model is not None:
+        records += [_record(MODEL_ERROR, fields.model_error(stamp, output)), *_parameters(stamp, output)]
+    return records
+
+
+def _parameters(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
+    """The tracked plant parameters where the sample publishes them."""
+    view = output.model
+    if view is None or not view.parameters_due or view.parameters is None:
+        return []
+    return [_record(PARAMETERS, fields.model_parameters(stamp, view.parameters))]
 
 
 def diagnostics_record(values: Mapping[str, Any]) -> Record:

@@ -14,8 +14,9 @@ ahead. For each window of messages:
    in order, so a window at once gives what the node gives one sample at a time;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
-   solved pose -- the per-sample monitor's own code, so the outputs are the node's; the
-   3-D scene, where one is due, is drawn as the sample is taken.
+   solved pose -- the per-sample monitor's own code, so the outputs are the node's; once the
+   window's messages are taken, its samples' residuals are encoded together and the 3-D
+   scenes, where one is due, drawn.
 
 Extra inputs the plant's effects read (a shaft temperature) are taken in first, so that
 a sample's value is interpolated between the readings around its stamp. Where the effects

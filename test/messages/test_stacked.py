@@ -48,13 +48,19 @@ def run_of_outputs(plant: Any) -> list[MonitorOutput]:
 
 
 def test_every_message_of_a_run_is_the_one_of_its_sample_alone(plant):
+    """Encoded together (`run_records`), a message at a time (`sample_records`, the node's), and each laid out by
+    `fields` and serialised by rosbags: the same bytes."""
     run = run_of_outputs(plant)
     statuses = {output.solution.status for output in run}
     assert len(statuses) >= 3 and any(o.estimate is not None and o.estimate.fused for o in run)
     assert any(o.alarm.clearance is None for o in run) and any(o.model is None for o in run)
     assert run[0].alarm.reason != run[6].alarm.reason and len(run[0].alarm.reason) == len(run[6].alarm.reason)
     stamps = [(1_700_000_000 + k, 123_456_789 * k % 1_000_000_000) for k in range(len(run))]
-    for stamp, output, written in zip(stamps, run, records.solved_records(stamps, run, BUILTIN_CHANNELS)):
+    together = records.run_records(stamps, run, BUILTIN_CHANNELS)
+    assert together == [records.sample_records(stamp, output, BUILTIN_CHANNELS) for stamp, output in zip(stamps, run)]
+    assert len(run) * 2 >= records.STACKED_FROM  # a run that long is encoded together
+    assert records.solved_records(stamps * 2, run * 2, BUILTIN_CHANNELS) == together * 2
+    for stamp, output, written in zip(stamps, run, together):
         solution = output.solution
         want = []
         if solution.ok:

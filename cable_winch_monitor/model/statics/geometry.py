@@ -93,8 +93,24 @@ def quaternions_from_rotations(rotations: np.ndarray) -> np.ndarray:
 
 
 def quaternion_from_rotation(rotation: np.ndarray) -> np.ndarray:
-    """`quaternions_from_rotations` of one rotation matrix, (4,)."""
-    return quaternions_from_rotations(rotation)[0]
+    """`quaternions_from_rotations` of one rotation matrix, (4,), on Python floats: the live node converts a pose
+    at every sample, in a sixteenth of numpy's time for one (test_geometry.py holds the two to the same bits)."""
+    m = rotation.tolist()
+    trace = m[0][0] + m[1][1] + m[2][2]
+    if trace > 0.0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = [(m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s, 0.25 * s]
+    else:
+        i = max(range(3), key=lambda k: m[k][k])
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + m[i][i] - m[j][j] - m[k][k])
+        q = [0.0] * 4
+        q[i] = 0.25 * s
+        q[j] = (m[j][i] + m[i][j]) / s
+        q[k] = (m[k][i] + m[i][k]) / s
+        q[3] = (m[k][j] - m[j][k]) / s
+    norm = math.sqrt(sum(v * v for v in q)) * (1.0 if q[3] >= 0.0 else -1.0)
+    return np.array([v / norm for v in q])
 
 
 def roll_pitch_yaw(rotation: np.ndarray) -> tuple[float, float, float]:
