@@ -12,9 +12,9 @@ scene's markers share a dozen empty strings, sequences and constant sub-messages
 are not looked up but packed when the code is generated, runs of them as one bytes
 literal.
 
-`StackedEncoder` encodes many messages of one shape (the same strings and sequence lengths)
-at once from columns of their numbers: copies of one message's bytes, the numbers written
-into them as numpy columns. A replay encodes a window's poses so.
+`StackedEncoder` encodes many messages of one shape (the same sequence lengths, strings of the
+same length in bytes) at once: copies of one message's bytes, the numbers and strings written
+into them as numpy columns. A replay encodes a window's per-sample outputs so.
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ NUMPY_SCALAR = {"bool": "?", "byte": "u1", "char": "u1", "int8": "i1", "uint8": 
                 "int32": "<i4", "uint32": "<u4", "int64": "<i8", "uint64": "<u8", "float32": "<f4", "float64": "<f8"}
 
 Encoder = Callable[[Mapping[str, Any]], bytes]
-FieldPath = tuple[str | int, ...]  # field names and list indices from a message's top to one of its scalars
+FieldPath = tuple[str | int, ...]  # field names and list indices from a message's top to one of its values
 
 
 class Layout:
@@ -337,13 +337,14 @@ def _base_type(store: Typestore, msgtype: str, path: FieldPath) -> str:
 
 
 def _at(values: Any, path: FieldPath) -> Any:
+    """The value at `path` in nested field values."""
     for step in path:
         values = values[step]
     return values
 
 
 def _replaced(values: Mapping[str, Any], changes: Mapping[FieldPath, Any]) -> Any:
-    """A deep copy of nested field values with the scalars at the paths of `changes` set as it says."""
+    """A deep copy of nested field values with the values at the paths of `changes` set as it says."""
     out: Any = copy.deepcopy(values)
     for path, value in changes.items():
         holder = out

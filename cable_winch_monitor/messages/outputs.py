@@ -13,3 +13,5 @@ OUTPUT_TYPES = {POSE: "geometry_msgs/msg/PoseStamped", TENSION: f"{MSGS}/Tension
                 TF: "tf2_msgs/msg/TFMessage", TF_STATIC: "tf2_msgs/msg/TFMessage",
                 SCENE: "visualization_msgs/msg/MarkerArray", OUTLINE: "visualization_msgs/msg/MarkerArray",
                 DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray"}
+
+Record = tuple[str, str, bytes]  # topic, message type, CDR bytes: one output as written and published

@@ -34,14 +34,13 @@ from .outputs import (
     TENSION,
     TF,
     TF_STATIC,
+    Record,
 )
 from .scene import SceneBuilder, SceneState, scene_encoder
 
 NUMPY_TYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}
 
-Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
 STACKED_FROM = 10  # samples in a run from which they are encoded together (bench.twins: below, a message at a time is faster)
-NAN = float("nan")
 # What every per-sample output has alike: its header in `shaft`, the transform's child `platform`.
 SAMPLE_FRAMES = {"std_msgs/msg/Header": {"frame_id": fields.FRAME},
                  "geometry_msgs/msg/TransformStamped": {"child_frame_id": frames.PLATFORM_FRAME}}

@@ -27,11 +27,9 @@ from ..model.statics.result import Solution
 from ..monitor.pipeline import MonitorOutput
 from ..monitor.residuals import Residuals
 from . import fields, frames
-from .outputs import ALARM, MODEL_ERROR, OUTPUT_TYPES, POSE, RESIDUALS, TENSION, TF
+from .outputs import ALARM, MODEL_ERROR, OUTPUT_TYPES, POSE, RESIDUALS, TENSION, TF, Record
 
 NAN = float("nan")
-NO_VALUES = (NAN, NAN, NAN, NAN)
-Record = tuple[str, str, bytes]  # topic, message type, CDR bytes
 STAMP: tuple[FieldPath, ...] = (("header", "stamp", "sec"), ("header", "stamp", "nanosec"))
 
 
@@ -137,8 +135,7 @@ def alarm_encoder(shape: tuple[int, int, tuple[str, ...]]) -> StackedEncoder:
     name, reason, pairs = shape
     template = {"header": fields.header((0, 0)), "level": 0, "clearance": 0.0, "closest_point_name": "a" * name,
                 "closest_point_platform": fields.point(None), "closest_point_shaft": fields.point(None),
-                "sync_error_pairs": list(pairs),
-                "sync_errors": [0.0] * len(pairs), "reason": "a" * reason}
+                "sync_error_pairs": list(pairs), "sync_errors": [0.0] * len(pairs), "reason": "a" * reason}
     paths = [*STAMP, ("level",), ("clearance",), ("closest_point_name",),
              *(("closest_point_platform", a) for a in "xyz"), *(("closest_point_shaft", a) for a in "xyz"),
              *(("sync_errors", i) for i in range(len(pairs))), ("reason",)]
@@ -150,20 +147,19 @@ MODEL_ERROR_ROWS = ("length_error", "length_error_sigma", "length_correction", "
 
 def model_error_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput]) -> list[Record]:
     """The model's error at each estimated sample (every output with its `model` view)."""
-    views = [output.model for output in outputs]
-    assert all(view is not None for view in views)  # written only at estimated samples (`records.solved_records`)
+    views = [output.model for output in outputs if output.model is not None]
+    assert len(views) == len(outputs)  # written only at estimated samples (`records.run_records`)
     bases = [b"" if output.basis is None else output.basis.text.encode() for output in outputs]
-    rejected = [tuple(sensor.encode() for sensor in view.rejected) for view in views]  # type: ignore[union-attr]
-    left_out = [tuple(sensor.encode() for sensor in view.left_out) for view in views]  # type: ignore[union-attr]
+    rejected = [tuple(sensor.encode() for sensor in view.rejected) for view in views]
+    left_out = [tuple(sensor.encode() for sensor in view.left_out) for view in views]
     shapes = [(len(basis), tuple(map(len, r)), tuple(map(len, o))) for basis, r, o in zip(bases, rejected, left_out)]
     stamp = np.array(stamps, dtype=np.int64).reshape(-1, 2)
-    values = {"length_error": _rows([view.length_error for view in views]),  # type: ignore[union-attr]
-              "length_error_sigma": _rows([view.length_sigma for view in views]),  # type: ignore[union-attr]
+    values = {"length_error": _rows([view.length_error for view in views]),
+              "length_error_sigma": _rows([view.length_sigma for view in views]),
               "length_correction": _rows([None if o.estimate is None else o.estimate.corrections for o in outputs]),
-              "tension_error": _rows([view.pin_error for view in views]),  # type: ignore[union-attr]
-              "tension_error_sigma": _rows([view.pin_sigma for view in views])}  # type: ignore[union-attr]
-    clearance = np.array([NAN if view.clearance is None else float(view.clearance.value)  # type: ignore[union-attr]
-                          for view in views])
+              "tension_error": _rows([view.pin_error for view in views]),
+              "tension_error_sigma": _rows([view.pin_sigma for view in views])}
+    clearance = np.array([NAN if view.clearance is None else float(view.clearance.value) for view in views])
 
     def columns(shape: Any, rows: list[int]) -> list[Any]:
         return [stamp[rows, 0], stamp[rows, 1], *(values[name][rows, i] for name in MODEL_ERROR_ROWS for i in range(4)),

@@ -144,22 +144,22 @@ class WinchMonitorNode(Node):
         self._rejections_logged = 0
 
         publisher = functools.partial(self.create_publisher, event_callbacks=QUIET)
-        self.pose_pub = publisher(PoseStamped, "/platform/pose", OUTPUT_QOS)
-        self.tension_pub = publisher(TensionDistribution, "/cables/tension", OUTPUT_QOS)
-        self.alarm_pub = publisher(CollisionAlarm, "/platform/collision_alarm", OUTPUT_QOS)
-        self.residuals_pub = publisher(ModelResiduals, "/model/residuals", OUTPUT_QOS)
+        self.pose_pub = publisher(PoseStamped, outputs.POSE, OUTPUT_QOS)
+        self.tension_pub = publisher(TensionDistribution, outputs.TENSION, OUTPUT_QOS)
+        self.alarm_pub = publisher(CollisionAlarm, outputs.ALARM, OUTPUT_QOS)
+        self.residuals_pub = publisher(ModelResiduals, outputs.RESIDUALS, OUTPUT_QOS)
         self.model_error_pub = publisher(ModelError, outputs.MODEL_ERROR, OUTPUT_QOS)
         self.parameters_pub = publisher(ModelParameters, outputs.PARAMETERS, OUTPUT_QOS)
-        self.diagnostics_pub = publisher(DiagnosticArray, "/diagnostics", 10)
-        self.tf_pub = publisher(TFMessage, "/tf", TF_QOS)
-        self.scene_pub = publisher(MarkerArray, "/platform/scene", OUTPUT_QOS)
+        self.diagnostics_pub = publisher(DiagnosticArray, outputs.DIAGNOSTICS, 10)
+        self.tf_pub = publisher(TFMessage, outputs.TF, TF_QOS)
+        self.scene_pub = publisher(MarkerArray, outputs.SCENE, OUTPUT_QOS)
         self._output_publishers = {outputs.POSE: self.pose_pub, outputs.TF: self.tf_pub,
                                    outputs.TENSION: self.tension_pub, outputs.ALARM: self.alarm_pub,
                                    outputs.RESIDUALS: self.residuals_pub, outputs.MODEL_ERROR: self.model_error_pub,
                                    outputs.PARAMETERS: self.parameters_pub}
         self.scene, self.scene_throttle = SceneBuilder(plant), SceneThrottle(value("scene_rate"))
-        self.tf_static_pub = publisher(TFMessage, "/tf_static", LATCHED_QOS)
-        self.outline_pub = publisher(MarkerArray, "/platform/outline", LATCHED_QOS)
+        self.tf_static_pub = publisher(TFMessage, outputs.TF_STATIC, LATCHED_QOS)
+        self.outline_pub = publisher(MarkerArray, outputs.OUTLINE, LATCHED_QOS)
         now = self.get_clock().now().to_msg()
         self.tf_static_pub.publish(build(TFMessage, frames.static_tf((now.sec, now.nanosec), plant)))
         self.outline_pub.publish(build(MarkerArray, self.scene.outline((now.sec, now.nanosec))))
