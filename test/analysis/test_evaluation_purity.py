@@ -3,8 +3,6 @@ gives A's score twice, and A's score in a fresh evaluator -- with rigid ropes, w
 choice, and over the lab robot's swivel pulleys, whose tangent points are a fixed point of the pose."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 from effectbags import SEED002, plant_file, simulate_bag
 
@@ -12,8 +10,7 @@ from cable_winch_monitor.analysis.data import read_bag
 from cable_winch_monitor.analysis.evaluate import Evaluator, noise, split, thin
 from cable_winch_monitor.effects import PlantModel, effect_class
 from cable_winch_monitor.model.plantfile.plant import load_plant
-
-ROOT = Path(__file__).resolve().parents[2]
+from cable_winch_monitor.paths import lab_bag, lab_plant_file
 
 
 def _scores(base: PlantModel, a: PlantModel, b: PlantModel, rows, sigma, reference: PlantModel | None):
@@ -50,10 +47,10 @@ def test_rigid_model_scores_the_same_whatever_came_before(rigid, reference):
 
 @pytest.mark.parametrize("reference", [False, True], ids=["cold", "from the base"])
 def test_model_over_swivel_pulleys_scores_the_same_whatever_came_before(reference):
-    plant = load_plant(ROOT / "config" / "lab_robot_plant.yaml")
+    plant = load_plant(lab_plant_file())
     base = PlantModel.from_plant(plant)
     assert base.refining  # the plant's pulleys make the geometry depend on the pose
-    data = read_bag(ROOT / "bags" / "lab_robot")
+    data = read_bag(lab_bag())
     rows = data.subset(thin(split(data)[0], data.kinds, 50))
     sigma = noise(base, data)[0]
     elastic = base.with_effects([effect_class("rope_elasticity")({"EA": 2e4}, plant)])

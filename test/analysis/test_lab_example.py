@@ -18,12 +18,12 @@ from cable_winch_monitor.analysis.diagnose import diagnose_bag
 from cable_winch_monitor.cli import DIAGNOSE_BUDGET
 from cable_winch_monitor.effects.pulley import wrap
 from cable_winch_monitor.model.plantfile.plant import load_plant
-from cable_winch_monitor.paths import default_plant_file
+from cable_winch_monitor.paths import lab_bag, lab_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
 
-BAG = default_plant_file().parents[1] / "bags" / "lab_robot"
-PLANT = default_plant_file().parent / "lab_robot_plant.yaml"
+BAG = lab_bag()
+PLANT = lab_plant_file()
 
 
 @pytest.fixture(scope="module")

@@ -17,11 +17,11 @@ from cable_winch_monitor.model.estimator import States
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.model.statics.geometry import roll_pitch_yaw
 from cable_winch_monitor.model.statics.result import check_physics
-from cable_winch_monitor.paths import default_plant_file
+from cable_winch_monitor.paths import lab_plant_file
 from cable_winch_monitor.sim.equilibrium import Rig, Trajectory
 from cable_winch_monitor.sim.truth import plant_pulleys
 
-LAB = load_plant(default_plant_file().parent / "lab_robot_plant.yaml")
+LAB = load_plant(lab_plant_file())
 NOISE = {**LAB.noise, "length": 1e-4}
 COUNT = 120
 

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import yaml
 
+from cable_winch_monitor.paths import lab_plant_file
 from cable_winch_monitor.sim.scenario import load_scenario
 from cable_winch_monitor.sim.simulate import simulate
 
-ROOT = Path(__file__).resolve().parents[2]
-LAB_PLANT = ROOT / "config" / "lab_robot_plant.yaml"
+LAB_PLANT = lab_plant_file()
 HIDDEN = {"inclinometer_offset": {"roll": 0.0140, "pitch": -0.0087}, "payload_mass": {"dm": 1.0},
           "sheave_friction": {"mu": 0.06}}
 EA = 2.0e4

@@ -8,9 +8,9 @@ from cable_winch_monitor.effects import PlantModel, available, effect_class
 from cable_winch_monitor.effects.pulley import wrap
 from cable_winch_monitor.model.conditions import Conditions
 from cable_winch_monitor.model.plantfile.plant import PlantConfigError, Sheave, load_plant, plant_from_mapping
-from cable_winch_monitor.paths import default_plant_file
+from cable_winch_monitor.paths import lab_plant_file
 
-LAB_FILE = default_plant_file().parent / "lab_robot_plant.yaml"
+LAB_FILE = lab_plant_file()
 RADIUS = 0.03
 
 

@@ -9,12 +9,12 @@ from scipy.spatial import ConvexHull
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.effects.pulley import wrap
 from cable_winch_monitor.model.plantfile.plant import Sheave, load_plant
-from cable_winch_monitor.paths import default_plant_file
+from cable_winch_monitor.paths import lab_plant_file
 from cable_winch_monitor.sim.equilibrium import Rig, Trajectory, imbalance
 from cable_winch_monitor.sim.pulleys import Pulleys, pulley_exits
 from cable_winch_monitor.sim.truth import plant_pulleys
 
-LAB = load_plant(default_plant_file().parent / "lab_robot_plant.yaml")
+LAB = load_plant(lab_plant_file())
 POLYGON = 200_000  # vertices of the polygon standing for the pulley's circle
 
 
