@@ -94,7 +94,10 @@ def _settle_active_set(plant: Plant, lengths: np.ndarray, state: _State) -> bool
 
     Every taut set starts from the same pose and is tried once, so the iteration neither
     cycles nor drifts; a result that turned further than MAX_TURN from the start is a
-    different configuration (crossed cables), not this sample's equilibrium.
+    different configuration (crossed cables), not this sample's equilibrium. The sets are
+    tried in the order they were proposed, the first set's proposals before theirs: four
+    nearly compatible rigid ropes (the lab robot's) are the first set's last proposal, and
+    depth first reached them after ten sets, breadth first after five.
     """
     start_rotation, start_position = state.rotation, state.position
     visited: set[tuple[bool, ...]] = set()
@@ -106,7 +109,7 @@ def _settle_active_set(plant: Plant, lengths: np.ndarray, state: _State) -> bool
         if converged and turn < MAX_TURN and _admissible(plant, lengths, state):
             return True
         fresh = _next_active_sets(plant, lengths, state, converged)
-        pending = list({tuple(c): c for c in fresh + pending if tuple(c) not in visited}.values())
+        pending = list({tuple(c): c for c in pending + fresh if tuple(c) not in visited}.values())
         if not pending:
             return False
         state.rotation, state.position, state.active = start_rotation, start_position, pending.pop(0)
