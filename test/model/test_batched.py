@@ -19,10 +19,11 @@ from cable_winch_monitor.bagio.reader import BagReader
 from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.bench.solvers import lowering_samples
 from cable_winch_monitor.messages.outputs import DIAGNOSTICS, MODEL_ERROR, RESIDUALS, TENSION
-from cable_winch_monitor.model.solvers.batched import solve_batch
+from cable_winch_monitor.model.plantfile.plant import load_plant
+from cable_winch_monitor.model.solvers.batched import _solve_checked_chunk, empty_batch, solve_batch, solve_chunks
 from cable_winch_monitor.model.solvers.energy import solve_energy
 from cable_winch_monitor.model.statics.result import SolveStatus
-from cable_winch_monitor.paths import demo_bag
+from cable_winch_monitor.paths import demo_bag, lab_plant_file
 from cable_winch_monitor.replay import replay
 
 TOLERANCE = 1e-6  # relative: the fused estimate converges to this (model.fusion.STEP_TOL), warm or batched
@@ -160,3 +161,22 @@ def test_a_seed_with_four_taut_ropes_starts_the_search_from_its_three_most_loade
     assert_same(plant, batch, solutions)
     assert all(len(s.taut_set) in (2, 3) for s in solutions[:-1]) and solutions[-1].taut.all()
     assert list(batch.fallback) == [len(lengths)]  # before: every row per sample
+
+
+def test_rows_far_from_the_seed_are_solved_in_the_batch_from_their_level_poses():
+    """Not following, every row starts from the window's seed; the lab robot's platform moves and turns over a
+    window by more than the seed's Newton reaches (a tenth of its length, 0.3 rad). Those rows start again in the
+    batch from where the per-sample solver starts cold -- the level pose at their mean length -- and give its
+    answers (the per-sample solver keeps the four-taut and one-taut rows, and those with a slack rope at its
+    length): the same states as the per-sample solver from the seed or cold, a third of the rows left to it."""
+    plant = load_plant(lab_plant_file())
+    seed = solve_energy(plant, np.array([1.16, 1.16, 1.18, 1.16]))
+    rows = 1.2 + np.random.default_rng(3).uniform(-0.3, 0.5, size=(200, 4))
+    batch = solve_batch(plant, rows, seed, follow=False)
+    assert_same(plant, batch, [solve_energy(plant, row, warm_start=seed) for row in rows])
+    assert_same(plant, batch, [solve_energy(plant, row) for row in rows])
+    seeded = empty_batch(plant, rows, None)  # the seed's search alone, then the per-sample solver
+    solve_chunks(seeded, seed, lambda part, start: _solve_checked_chunk(plant, seeded, part, start),
+                 lambda i, warm: solve_energy(plant, rows[i], warm_start=warm), follow=False)
+    assert len(batch.fallback) * 2 < len(seeded.fallback)
+    assert {len(batch.solution(i).taut_set) for i in range(len(rows)) if i not in batch.fallback} == {2, 3}

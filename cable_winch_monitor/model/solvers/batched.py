@@ -6,10 +6,11 @@ about C and |A_i B_i| = l_i on the taut cables, is solved for a whole chunk of s
 in one call (`compiled.active_set_rows`), each row on its own so that its bits do not
 depend on the rows solved with it. A chunk starts from the previous chunk's last
 solution (warm start along the trajectory). The taut set is changed by the per-sample
-solver's rules; a sample that does not settle on an admissible set of two or
-three taut cables (no convergence, four taut, single cable, bad input) is handed to
-`solve_energy`, warm-started from its predecessor; so is a sample whose batched answer
-fails the physics check. The answers are the same.
+solver's rules; a sample that does not settle on an admissible set of two or three taut
+cables from there is tried again in the batch from where the per-sample solver starts
+cold (the level pose), and one that does not settle then either (four taut, single cable,
+bad input) is handed to `solve_energy`, warm-started from its predecessor; so is a sample
+whose batched answer fails the physics check. The answers are the same.
 """
 from __future__ import annotations
 
@@ -21,10 +22,12 @@ import numpy as np
 
 from ..plantfile.plant import Plant
 from ..statics import load as loads_
-from ..statics.geometry import attachment_points
+from ..statics.geometry import attachment_points, structure_matrix
 from ..statics.result import Solution, SolveStatus, check_physics_rows, passing_rows, solved, solved_rows
+from ..statics.tensions import balance_tensions
 from . import compiled
 from .energy import (
+    ACTIVE_BAND,
     ACTIVE_SET_ROUNDS,
     MAX_TURN,
     METHOD,
@@ -97,7 +100,8 @@ def solve_batch(plant: Plant, lengths: np.ndarray, warm_start: Solution | None =
     (`solve_chunks`, `follow`); never raises."""
     out = empty_batch(plant, lengths, loads)
     solve_chunks(out, warm_start, lambda rows, seed: _solve_checked_chunk(plant, out, rows, seed),
-                 lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]), follow)
+                 lambda i, warm: solve_energy(plant, out.lengths[i], warm_start=warm, load=out.loads[i]), follow,
+                 lambda rows: _solve_checked_level_chunk(plant, out, rows))
     return out
 
 
@@ -112,12 +116,14 @@ def empty_batch(plant: Plant, lengths: np.ndarray, loads: np.ndarray | None, met
 
 
 ChunkSolver = Callable[[np.ndarray, Solution], None]   # (valid rows of a chunk, seed) -> rows solved in `out`
+ColdSolver = Callable[[np.ndarray], None]               # (rows the seed left) -> rows solved in `out`, cold
 SampleSolver = Callable[[int, "Solution | None"], Solution]  # (row, warm start) -> the per-sample solver's answer
 
 
 def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: ChunkSolver,
-                 solve_one: SampleSolver, follow: bool = True) -> None:
-    """Chunk by chunk along the trajectory: the valid rows batched from a seed, the rest by the per-sample
+                 solve_one: SampleSolver, follow: bool = True, solve_cold: ColdSolver | None = None) -> None:
+    """Chunk by chunk along the trajectory: the valid rows batched from a seed, those it left batched cold
+    (`solve_cold`, where given: a platform that moved far from the seed), the rest by the per-sample
     solver. Following (`follow`), each chunk's seed is the previous chunk's last solution (the first
     chunk's `warm_start`, or its first row solved alone) and a row left to the per-sample solver starts
     from the last row solved before it. Not following, every row starts from `warm_start` (without one:
@@ -140,6 +146,10 @@ def solve_chunks(out: BatchSolution, warm_start: Solution | None, solve_chunk: C
         if seed is not None and seed.ok:
             with np.errstate(all="ignore"):
                 solve_chunk(valid, seed)
+            left = valid[out.status[valid] != SolveStatus.SOLVED.value]
+            if solve_cold is not None and left.size:
+                with np.errstate(all="ignore"):
+                    solve_cold(left)
         for i in rows[(out.status[rows] != SolveStatus.SOLVED.value) & ~np.isin(rows, alone)]:
             _fallback(out, int(i), _previous(out, int(i), seed) if follow else seed, solve_one)
         last = rows[out.ok[rows]]
@@ -159,6 +169,11 @@ def _first_solved(out: BatchSolution, valid: np.ndarray, solve_one: SampleSolver
 
 def _solve_checked_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solution) -> None:
     _solve_chunk(plant, out, rows, seed)
+    _unsolve_unphysical(plant, out, rows)
+
+
+def _solve_checked_level_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray) -> None:
+    _solve_level_chunk(plant, out, rows)
     _unsolve_unphysical(plant, out, rows)
 
 
@@ -221,6 +236,38 @@ def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solut
                              TENSION_TOL, 0.2, 0.2 * plant.moment_scale)
     if released >= 0:
         done &= ~_at_length(plant, lengths, rotation, position, active, released)
+    solved = np.flatnonzero(done)
+    _store(out, rows[solved], active[solved].astype(bool), rotation[solved], position[solved], mu[solved],
+           steps[solved], scales[solved])
+
+
+def _solve_level_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray) -> None:
+    """Batched Newton on rows that the seed's search left (the platform moved or turned far from it), each
+    from where the per-sample solver starts cold (`energy._level_start`): the level pose at the mean length,
+    every rope but the longest taut, their tensions from the balance there. A row whose answer leaves a
+    slack rope within ACTIVE_BAND of its length is left to the per-sample solver (its global search decides
+    such a set), as are four taut and one. On the lab robot's recording, the rows that leave a window's seed
+    a tenth of its length or more took 1-2 ms each in the per-sample solver."""
+    lengths = out.lengths[rows]
+    load = out.loads[rows]
+    scales = np.linalg.norm(load[:, :3], axis=1)
+    rotation = np.tile(np.eye(3), (rows.size, 1, 1))
+    position = (plant.anchors - plant.attachments).mean(axis=0) - np.outer(lengths.mean(axis=1), [0.0, 0.0, 1.0])
+    active = (np.arange(4) != np.argmax(lengths, axis=1)[:, None]).astype(np.uint8)
+    structure = structure_matrix(plant, *attachment_points(plant, rotation, position))
+    mu = np.zeros((rows.size, 4))
+    for k in range(rows.size):
+        taut = active[k].astype(bool)
+        mu[k, taut] = balance_tensions(structure[k][:, taut], load[k]) / scales[k]
+    steps, done = np.zeros(rows.size, np.int64), np.zeros(rows.size, np.uint8)
+    compiled.active_set_rows(lengths, rotation, position, mu, active, load / scales[:, None], steps, done,
+                             plant.attachments, plant.cog, plant.anchors, plant.moment_scale,
+                             NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2), NEWTON_MAX_STEPS,
+                             ACTIVE_SET_ROUNDS, MAX_TURN, SLACK_TOL * np.maximum(lengths.max(axis=1), plant.moment_scale),
+                             TENSION_TOL, 0.2, 0.2 * plant.moment_scale)
+    spans = np.linalg.norm(attachment_points(plant, rotation, position)[0] - plant.anchors, axis=2)
+    touching = (lengths - spans < ACTIVE_BAND * np.maximum(1.0, lengths.max(axis=1) * 1e-3)[:, None]) & (active == 0)
+    done &= ~touching.any(axis=1)
     solved = np.flatnonzero(done)
     _store(out, rows[solved], active[solved].astype(bool), rotation[solved], position[solved], mu[solved],
            steps[solved], scales[solved])
