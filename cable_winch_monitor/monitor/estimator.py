@@ -66,9 +66,36 @@ FOLLOW = 10.0  # how many times less a sample the model cannot explain weighs th
 # more than one of one (its cost is numpy's per call); replay's runs are mostly its windows' hundreds of samples,
 # which estimate their failing samples again alone (the same bits either way)
 SPECULATED = 4
-# a trial of leaving each sensor out: the (sample, sensor) pairs, the readings kept, the estimates, which agree
-Trial = tuple[list[tuple[int, str]], list[dict[str, float]], BatchEstimate | None, np.ndarray]
 _THRESHOLDS = np.array([np.inf] + [chi_square_threshold(dof) for dof in range(1, 17)])  # by channels measured
+
+
+@dataclass
+class Trial:
+    """Samples estimated again, each without one of its sensors (`sensors`: the ones left out; None: each of
+    theirs in turn): the (sample, sensor) pairs, the readings kept, the estimates, and whether the other sensors
+    then agree -- under the model as it is (`with_lengths`: the lengths agreeing too) or loosely held."""
+
+    sensors: tuple[str, ...] | None
+    with_lengths: bool
+    pairs: list[tuple[int, str]]
+    readings: list[dict[str, float]]
+    without: BatchEstimate | None
+    agrees: np.ndarray
+    _agreeing: dict[int, list[int]] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._agreeing = {}
+        for k, (i, _) in enumerate(self.pairs):
+            if self.agrees[k]:
+                self._agreeing.setdefault(i, []).append(k)
+
+    def agreeing(self, i: int) -> list[int]:
+        """The pairs of sample i whose leaving out made the other sensors agree."""
+        return self._agreeing.get(i, [])
+
+    def cost(self, k: int) -> float:
+        assert self.without is not None and self.without.cost is not None  # estimated wherever there were pairs
+        return float(self.without.cost[k])
 
 
 class SampleInput(NamedTuple):
@@ -382,50 +409,72 @@ class MonitorEstimator:
                 _put(batch, i, again, k)
                 followed[i] = not disagree[k]
         suspects = failing[disagree]
-        tiers = list(zip(self._without_each(suspects, lengths, measured, samples, loads, (prior, loose), forward),
-                         (True, False)))
-        for i in range(len(samples)):  # in order: the sensor rejected at the sample before is preferred
-            for (pairs, trial, without, agrees), with_lengths in tiers:  # the model as it is, then loosely held
-                agreeing = [k for k, (row, _) in enumerate(pairs) if row == i and agrees[k]]
-                if agreeing:
-                    assert without is not None and without.cost is not None  # estimated wherever there were pairs
-                    lasting = [k for k in agreeing if pairs[k][1] in self.last_rejected]
-                    best = lasting[0] if lasting else min(agreeing, key=without.cost.__getitem__)
-                    _put(batch, i, without, best)
-                    measured[i] = trial[best]
-                    rejected[i] = (pairs[best][1],)
-                    followed[i] = not with_lengths
-                    break
+        # the sensor rejected at the sample before, left out alone first: where the others then agree it is the
+        # one rejected, whatever leaving out the others would do (a fault lasts for a window of samples)
+        lasting = self._trials(suspects, lengths, measured, samples, loads, prior, forward, self.last_rejected)
+        tiers: list[Trial] | None = None
+        suspect = set(suspects.tolist())
+        for i in range(len(samples)):  # in order: what was rejected at the sample before is preferred
+            if i in suspect:
+                if lasting.agreeing(i) and self.last_rejected == lasting.sensors:
+                    self._reject(batch, measured, rejected, followed, i, lasting, lasting.agreeing(i)[0])
+                else:
+                    if tiers is None:  # the suspects from here on, each of their sensors left out in turn
+                        tiers = self._without_each(suspects[suspects >= i], lengths, measured, samples, loads,
+                                                   (prior, loose), forward)
+                    for trial in tiers:  # the model as it is, then loosely held
+                        agreeing = trial.agreeing(i)
+                        if agreeing:
+                            preferred = [k for k in agreeing if trial.pairs[k][1] in self.last_rejected]
+                            best = preferred[0] if preferred else min(agreeing, key=trial.cost)
+                            self._reject(batch, measured, rejected, followed, i, trial, best)
+                            break
             self.last_rejected = rejected[i]
         return rejected, followed
+
+    @staticmethod
+    def _reject(batch: BatchEstimate, measured: list[dict[str, float]], rejected: list[tuple[str, ...]],
+                followed: np.ndarray, i: int, trial: Trial, k: int) -> None:
+        """Sample i takes pair k of `trial`: its estimate without that pair's sensor, which is rejected."""
+        assert trial.without is not None  # estimated wherever there were pairs
+        _put(batch, i, trial.without, k)
+        measured[i] = trial.readings[k]
+        rejected[i] = (trial.pairs[k][1],)
+        followed[i] = not trial.with_lengths
 
     def _without_each(self, suspects: np.ndarray, lengths: np.ndarray, measured: list[dict[str, float]],
                       samples: Sequence[SampleInput], loads: np.ndarray, priors: tuple[Prior, Prior],
                       forward: BatchSolution) -> list[Trial]:
         """The suspect samples estimated again without each of their sensors under the model as it is (the
         lengths agreeing too), then, those none of whose leavings-out made the others agree, under it loosely
-        held (`priors`): for each, the (sample, sensor) pairs, the readings kept, the estimates, and whether
-        the other sensors then agree. A sample that found its sensor under the first is not tried under the
-        second (`_screen` takes the first's): a sensor disagreeing for a window of samples cost the lab robot's
+        held (`priors`). A sample that found its sensor under the first is not tried under the second
+        (`_screen` takes the first's): a sensor disagreeing for a window of samples cost the lab robot's
         replay a third of its estimating process, tried under both."""
         out: list[Trial] = []
-        sensor_of = self.model.channels.sensor_of
         for prior, with_lengths in zip(priors, (True, False)):
-            pairs = [(int(i), sensor) for i in suspects for sensor in sorted({sensor_of(n) for n in measured[i]})]
-            if not pairs:
-                out.append(([], [], None, np.zeros(0, bool)))
-                continue
-            rows = np.array([i for i, _ in pairs], dtype=int)
-            trial = [{n: v for n, v in measured[i].items() if sensor_of(n) != sensor} for i, sensor in pairs]
-            weight = prior.take(rows)
-            without = self._batch(lengths[rows], trial, [samples[i].conditions for i in rows], loads[rows], weight,
-                                  _take(forward, rows))
-            agrees = ~self._failing(without, weight, lengths=with_lengths) & \
-                np.array([k not in without.fallback for k in range(len(pairs))])
-            out.append((pairs, trial, without, agrees))
-            found = {i for (i, _), agreeing in zip(pairs, agrees.tolist()) if agreeing}
-            suspects = np.array([i for i in suspects.tolist() if i not in found], dtype=int)
+            trial = self._trials(suspects, lengths, measured, samples, loads, prior, forward, None, with_lengths)
+            out.append(trial)
+            suspects = np.array([i for i in suspects.tolist() if not trial.agreeing(i)], dtype=int)
         return out
+
+    def _trials(self, suspects: np.ndarray, lengths: np.ndarray, measured: list[dict[str, float]],
+                samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior, forward: BatchSolution,
+                sensors: tuple[str, ...] | None, with_lengths: bool = True) -> Trial:
+        """The suspect samples estimated again without each of `sensors` that they measure (None: each of theirs)
+        in turn, under `prior`; whether the other sensors then agree (`with_lengths`: the lengths too)."""
+        sensor_of = self.model.channels.sensor_of
+        pairs = [(i, sensor) for i in suspects.tolist() for sensor in sorted({sensor_of(n) for n in measured[i]})
+                 if sensors is None or sensor in sensors]
+        if not pairs:
+            return Trial(sensors, with_lengths, [], [], None, np.zeros(0, bool))
+        rows = np.array([i for i, _ in pairs], dtype=int)
+        readings = [{n: v for n, v in measured[i].items() if sensor_of(n) != sensor} for i, sensor in pairs]
+        weight = prior.take(rows)
+        without = self._batch(lengths[rows], readings, [samples[i].conditions for i in rows], loads[rows], weight,
+                              _take(forward, rows))
+        agrees = ~self._failing(without, weight, lengths=with_lengths) & \
+            np.array([k not in without.fallback for k in range(len(pairs))])
+        return Trial(sensors, with_lengths, pairs, readings, without, agrees)
 
     def _try_left_out(self, lengths: np.ndarray, measured: list[dict[str, float]], kept: list[dict[str, float]],
                       samples: Sequence[SampleInput], loads: np.ndarray, prior: Prior, forward: BatchSolution,

@@ -186,6 +186,43 @@ def test_a_pin_that_goes_wrong_is_left_out_from_its_first_wrong_reading(plant, l
     assert_same(replayed(WindowScheduler(noisy(plant), window=64), items), node)
 
 
+def test_the_sensor_rejected_at_the_sample_before_is_tried_alone_first_with_the_same_outputs(plant, lowering,
+                                                                                          monkeypatch):
+    """A suspect sample is estimated again without the sensor rejected at the sample before, alone, first: where
+    the others then agree that sensor is the one rejected whatever leaving out each of the others would give,
+    so the outputs are those of leaving out every sensor in turn, to the bit, for a fourth of the estimates."""
+    truths, _ = lowering
+    items = sensed(truths[:300], seed=7, pin_fault=(1, 50, 5e3))
+    trials = estimator.MonitorEstimator._trials
+    tried: list[int] = []
+
+    def counted(self, suspects, *args):
+        trial = trials(self, suspects, *args)
+        tried.append(len(trial.pairs))
+        return trial
+
+    monkeypatch.setattr(estimator.MonitorEstimator, "_trials", counted)
+    first = replayed(WindowScheduler(noisy(plant), window=64), items)
+    shortened = sum(tried)
+
+    def every_sensor(self, suspects, lengths, measured, samples, loads, prior, forward, sensors, with_lengths=True):
+        if sensors is not None:  # the sensor rejected before: never tried alone
+            return estimator.Trial(sensors, with_lengths, [], [], None, np.zeros(0, bool))
+        return counted(self, suspects, lengths, measured, samples, loads, prior, forward, None, with_lengths)
+
+    monkeypatch.setattr(estimator.MonitorEstimator, "_trials", every_sensor)
+    tried.clear()
+    every = replayed(WindowScheduler(noisy(plant), window=64), items)
+    assert sum(o.refused == ("tension_cable_2",) for o in every) == 250
+    assert shortened * 4 < sum(tried)
+    assert len(first) == len(every) == 300
+    for a, b in zip(first, every):
+        assert a.solution.tensions.tobytes() == b.solution.tensions.tobytes()
+        assert a.solution.points_b.tobytes() == b.solution.points_b.tobytes()
+        assert a.estimate.residuals == b.estimate.residuals and a.refused == b.refused
+        assert (a.alarm.level, a.alarm.reason) == (b.alarm.level, b.alarm.reason)
+
+
 def test_the_node_estimates_under_the_model_loosely_held_in_the_same_batch_with_the_same_bits(plant, lowering,
                                                                                              monkeypatch):
     """After a sample that fails its gates, the node estimates its next samples under the model as it is and
