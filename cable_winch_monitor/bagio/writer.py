@@ -23,16 +23,16 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager, suppress
 from io import BytesIO
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.rosbag2.errors import WriterError
-from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
 from rosbags.typesys.store import Typestore
 
 from .reader import BagError
 from .typestore import knows, typestore
+
+if TYPE_CHECKING:
+    from rosbags.rosbag2 import Writer
 
 MESSAGE = struct.Struct("<BQHIQQ")  # opcode 0x05, record length, channel, sequence, log time, publish time
 CHUNK_SIZE = 2 ** 20  # rosbags closes a chunk past this many bytes
@@ -51,26 +51,41 @@ MAGIC = b"\x89MCAP0\r\n"
 
 
 class BagWriter:
-    """A new bag at `path` (never overwrites); use as a context manager so that it is always closed."""
+    """A new bag at `path` (never overwrites); use as a context manager so that it is always closed.
+    `at_first_message`: the bag is created when the first message is written (or as it is closed, empty), not
+    at once: rosbags' writer loads ruamel.yaml and importlib.metadata (34 ms), which a replay then does while
+    its second process estimates the first window rather than before."""
 
-    def __init__(self, path: str | Path, store: Typestore | None = None):
+    def __init__(self, path: str | Path, store: Typestore | None = None, *, at_first_message: bool = False):
         self.path = Path(path)
         self.store = store or typestore()
         self._channels: dict[str, int] = {}  # topic -> channel id
         if self.path.exists():
             raise BagError(f"{self.path} exists already: give a new output path (a bag is never overwritten)")
+        self._writer: Writer | None = None  # rosbags' writer while the bag is open
+        self._closed = False
+        self._written: Counter[int] = Counter()  # messages per channel
+        self._index: dict[int, array[int]] = {}  # the open chunk's (log time, offset) of each message, by channel
+        self._first, self._last = NO_TIME, 0  # [ns] the open chunk's earliest and latest log time
+        self._span = [NO_TIME, 0]  # [ns] the bag's
+        if not at_first_message:
+            self._open()
+
+    def _open(self) -> None:
+        """Create the bag through rosbags' writer, its chunks ended by `_close_chunk`."""
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.rosbag2.errors import WriterError
+        from rosbags.rosbag2.storage_mcap import McapWriter
+
+        assert not self._closed  # nothing is written after close
         writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-        self._writer: Writer | None = writer  # None once closed
         try:
             writer.open()
         except (WriterError, OSError) as error:
             raise BagError(f"{self.path}: cannot create the bag ({error})") from None
         assert isinstance(writer.storage, McapWriter)  # open() made the storage of the plugin asked for
+        self._writer = writer
         self._storage: McapWriter = writer.storage
-        self._written: Counter[int] = Counter()  # messages per channel
-        self._index: dict[int, array[int]] = {}  # the open chunk's (log time, offset) of each message, by channel
-        self._first, self._last = NO_TIME, 0  # [ns] the open chunk's earliest and latest log time
-        self._span = [NO_TIME, 0]  # [ns] the bag's
         # rosbags' own close() ends the last chunk through it too (mypy: rosbags has no hook, its method is replaced)
         self._storage.close_chunk = self._close_chunk  # type: ignore[method-assign]
 
@@ -98,7 +113,7 @@ class BagWriter:
         storage.chunks.append(entry)
         if self._index:  # (rosbags' chunk may hold the records of connections alone)
             self._span = [min(self._span[0], start_time), max(self._span[1], end_time)]
-        storage.chunk = PendingChunk(NO_TIME, 0, BytesIO(), defaultdict(list))
+        storage.chunk = type(storage.chunk)(NO_TIME, 0, BytesIO(), defaultdict(list))  # rosbags' PendingChunk
         self._index, self._first, self._last = {}, NO_TIME, 0
 
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes | memoryview, latched: bool = False) -> None:
@@ -120,7 +135,9 @@ class BagWriter:
         """The channel id of a new connection for `topic` (a Jazzy type the store starts without is added
         first; rosbags refuses a type it cannot define)."""
         knows(self.store, msgtype)
-        assert self._writer is not None  # nothing is written after close
+        if self._writer is None:
+            self._open()
+        assert self._writer is not None  # opened
         connection = self._writer.add_connection(topic, msgtype, typestore=self.store,
                                                  offered_qos_profiles=[LATCHED] if latched else ())
         self._channels[topic] = connection.id
@@ -171,12 +188,16 @@ class BagWriter:
         self.write_raw(topic, msgtype, log_time, self.store.serialize_cdr(message, msgtype))
 
     def close(self) -> None:
-        """Write the index and metadata.yaml (idempotent)."""
-        if self._writer is not None:
-            self._hand_over()
-            self._writer.close()
-            self._writer = None
-            _seal_summary(self._storage.path)
+        """Write the index and metadata.yaml (idempotent); a bag nothing was written to is created empty."""
+        if self._closed:
+            return
+        if self._writer is None:
+            self._open()
+        assert self._writer is not None  # opened
+        self._hand_over()
+        self._writer.close()
+        self._writer, self._closed = None, True
+        _seal_summary(self._storage.path)
 
     def discard(self) -> None:
         """Remove the bag (a job that failed leaves none)."""
@@ -184,7 +205,7 @@ class BagWriter:
             with suppress(Exception):  # the failure is the job's, reported by the caller
                 self._hand_over()
                 self._writer.close()
-        self._writer = None
+        self._writer, self._closed = None, True
         shutil.rmtree(self.path, ignore_errors=True)
 
     def __enter__(self) -> BagWriter:
@@ -196,9 +217,9 @@ class BagWriter:
 
 @contextmanager
 def new_bag(path: str | Path) -> Iterator[BagWriter]:
-    """A new bag at `path` for a job: closed when the job ends or is stopped (KeyboardInterrupt), so that it holds
-    what was written; removed where the job fails with an error."""
-    writer = BagWriter(path)
+    """A new bag at `path` for a job, created at its first message: closed when the job ends or is stopped
+    (KeyboardInterrupt), so that it holds what was written; removed where the job fails with an error."""
+    writer = BagWriter(path, at_first_message=True)
     try:
         yield writer
     except Exception:

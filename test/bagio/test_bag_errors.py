@@ -17,7 +17,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from simbags import assert_clean, run_cli, simulated
 
 from cable_winch_monitor.bagio.reader import BagError, BagReader
-from cable_winch_monitor.bagio.writer import BagWriter
+from cable_winch_monitor.bagio.writer import BagWriter, new_bag
 from cable_winch_monitor.messages.records import build
 from cable_winch_monitor.replay import replay
 
@@ -160,3 +160,25 @@ def test_output_exists(tmp_path):
     result = run_cli("replay", bag, "--out", bag)
     assert_clean(result, 2)
     assert "exists already" in result.stderr
+
+
+def test_a_jobs_bag_is_created_at_its_first_message_and_a_job_without_one_leaves_an_empty_bag(tmp_path):
+    """`new_bag` checks the path at once and creates the bag at the first message (a replay's second process
+    estimates meanwhile); a job that writes nothing leaves an empty bag that readers open, one that fails
+    leaves none."""
+    with new_bag(tmp_path / "empty") as writer:
+        assert not (tmp_path / "empty").exists()
+    assert writer.counts == {} and list(BagReader(tmp_path / "empty")) == []
+    with (tmp_path / "empty" / "empty.mcap").open("rb") as file:  # mcap's own reader: a summary, no message
+        assert make_reader(file).get_summary() is not None and list(make_reader(file).iter_messages()) == []
+    with new_bag(tmp_path / "one") as writer:
+        writer.write("/clock", "rosgraph_msgs/msg/Clock", 5, build("rosgraph_msgs/msg/Clock", {"clock": {"sec": 0,
+                                                                                                 "nanosec": 5}}))
+        assert (tmp_path / "one").is_dir()
+    assert [m.log_time for m in BagReader(tmp_path / "one")] == [5]
+    with pytest.raises(BagError, match="exists already"):
+        with new_bag(tmp_path / "one"):
+            pass
+    with pytest.raises(RuntimeError), new_bag(tmp_path / "failed"):
+        raise RuntimeError("the job failed")
+    assert not (tmp_path / "failed").exists()
