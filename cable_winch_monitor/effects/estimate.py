@@ -53,7 +53,7 @@ class ModelledChannels:
     derivative by forward differences: computed once per set of states for all the modelled
     observations of a problem (the estimator asks each observation in turn for the same states)."""
 
-    def __init__(self, model: PlantModel, conditions: Sequence[Conditions]):
+    def __init__(self, model: PlantModel, conditions: Sequence[Conditions] | StackedConditions):
         self.model = model
         self.conditions = StackedConditions.of(conditions)
         self.differentiated = model.differentiated
@@ -92,7 +92,7 @@ class ModelledChannels:
 
 
 def observations_for(model: PlantModel, measured: Mapping[str, float | np.ndarray],
-                     conditions: Sequence[Conditions] = (NO_CONDITIONS,)) -> list[Observation]:
+                     conditions: Sequence[Conditions] | StackedConditions = (NO_CONDITIONS,)) -> list[Observation]:
     """The observations of the measured channels with a noise in the plant file: values a number, or
     arrays over a batch (NaN where a channel was not measured) with each sample's conditions."""
     noise, known = model.plant.noise, model.channels.channels

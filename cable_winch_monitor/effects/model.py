@@ -193,9 +193,20 @@ class PlantModel:
             return self
         effects = []
         for name, values_of in changed.items():
-            effect = self.get(name) or file_effect(self.registry.effect_class(name), self.plant)
+            effect = self.get(name) or self._file_effect(name)
             effects.append(effect.replaced(**values_of))
         return self.with_effects(effects)
+
+    def _file_effect(self, name: str) -> Effect:
+        """An effect the file has off, as the file gives it: made once for this model (its parameters resolved
+        for the plant, which the tracker's updates otherwise did at each window's every derivative)."""
+        if name not in self._file_effects:
+            self._file_effects[name] = file_effect(self.registry.effect_class(name), self.plant)
+        return self._file_effects[name]
+
+    @cached_property
+    def _file_effects(self) -> dict[str, Effect]:
+        return {}
 
     @property
     def channels(self) -> ChannelRegistry:
@@ -386,7 +397,7 @@ class PlantModel:
             warm = solutions[-1] if solutions[-1].ok else warm
         return solutions
 
-    def batch_inputs(self, reported: np.ndarray, conditions: Sequence[Conditions]
+    def batch_inputs(self, reported: np.ndarray, conditions: Sequence[Conditions] | StackedConditions
                      ) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """True lengths (N, 4) and loads (N, 6) of every row by the effects' hooks, and the rows where a
         hook failed (NaN lengths and gravity there: the batch leaves them to `solve`, which says why)."""
@@ -407,7 +418,8 @@ class PlantModel:
                 hooked.append(k)
         return lengths, loads, hooked
 
-    def _stacked_lengths(self, reported: np.ndarray, conditions: Sequence[Conditions]) -> np.ndarray | None:
+    def _stacked_lengths(self, reported: np.ndarray, conditions: Sequence[Conditions] | StackedConditions
+                         ) -> np.ndarray | None:
         """The true lengths of all rows at once, where every geometry effect writes `lengths_states` and none
         fails on a row (a hook raising, or making finite lengths not finite); else None, and the rows are
         taken one by one, which finds the rows a hook fails on."""

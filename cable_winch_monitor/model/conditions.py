@@ -61,7 +61,10 @@ class StackedConditions:
     inputs: Mapping[str, np.ndarray]
 
     @classmethod
-    def of(cls, conditions: Sequence[Conditions]) -> StackedConditions:
+    def of(cls, conditions: Sequence[Conditions] | StackedConditions) -> StackedConditions:
+        """Samples' conditions stacked (stacked ones as they are)."""
+        if isinstance(conditions, StackedConditions):
+            return conditions
         keys = sorted({key for c in conditions for key in c.inputs})
         return cls(np.array([c.time for c in conditions], dtype=float),
                    np.array([c.speeds for c in conditions], dtype=float).reshape(-1, 4),

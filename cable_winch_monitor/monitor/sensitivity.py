@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
+from functools import cached_property
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -120,12 +121,17 @@ class _Window:
         self.rows = Rows(index, taut, rotation, position, tensions / self.nominal.scales[index, None])
         self.prior = prior_jacobian(self.nominal, self.rows)  # (n, 4 + m, 8): per length and per load-pin reading
         self.states = States(self.nominal.plant, rotation, position, tensions)
-        self.conditions = StackedConditions.of(samples.conditions).take(index)
+        self.conditions = self.stacked.take(index)
         self._cache: dict[str, Any] = {}
 
+    @cached_property
+    def stacked(self) -> StackedConditions:
+        """The window's samples' conditions, stacked once for every model the derivatives set up."""
+        return StackedConditions.of(self.samples.conditions)
+
     def problem(self, model: PlantModel) -> Problem:
-        lengths, loads, _ = model.batch_inputs(self.samples.reported, self.samples.conditions)
-        observations = observations_for(model, self.values, self.samples.conditions)
+        lengths, loads, _ = model.batch_inputs(self.samples.reported, self.stacked)
+        observations = observations_for(model, self.values, self.stacked)
         return Problem.build(model.physical, lengths, self.samples.sigma_length, observations, model.ropes, loads,
                              prior=self.zero)
 
@@ -144,7 +150,7 @@ class _Window:
         change = np.zeros((len(self.rows.sample), 4 + len(self.nominal.observations)))
         per_length, per_pin = self.prior[:, :, :4], self.prior[:, :, 4:]
         if overrides(hooks, "lengths"):
-            lengths = moved.batch_inputs(self.samples.reported, self.samples.conditions)[0]
+            lengths = moved.batch_inputs(self.samples.reported, self.stacked)[0]
             change += np.einsum("nkj,nj->nk", per_length, (lengths - self.nominal.lengths)[self.rows.sample])
         if overrides(hooks, "rope"):
             implied = self._once("implied", lambda: implied_lengths(self.nominal, self.rows))
