@@ -307,3 +307,22 @@ def test_the_slack_pins_bound_is_their_quadratic_form(seed, pin_count):
         d = deviation[sample, slack]
         block = covariance[sample][np.ix_(ropes[slack], ropes[slack])]
         assert np.isclose(bound[i], d @ np.linalg.solve(block, d) if slack else 0.0, rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2 ** 31 - 1), st.integers(1, 30))
+def test_the_responses_solve_each_rows_system_for_every_column(seed, columns):
+    """`kkt_responses` is numpy's solve of each row's 16 x 16 system for its columns (a KKT system's zero block
+    needs the row exchanges), and flags a singular row without touching the others."""
+    rng = np.random.default_rng(seed)
+    system = rng.normal(size=(6, 16, 16))
+    system[:, 10:, 10:] = 0.0  # the balance's multipliers: no diagonal of their own
+    rhs = rng.normal(size=(6, 16, columns))
+    system[4, :, 7] = 0.0  # a column of zeros: singular
+    out, singular = np.empty_like(rhs), np.empty(6, np.uint8)
+    compiled.kkt_responses(system, rhs, out, singular)
+    assert singular.tolist() == [0, 0, 0, 0, 1, 0]
+    for row in [0, 1, 2, 3, 5]:
+        want = np.linalg.solve(system[row], rhs[row])
+        error = 1e-13 * np.linalg.cond(system[row]) * np.abs(want).max()  # both to the system's conditioning
+        np.testing.assert_allclose(out[row], want, rtol=0.0, atol=error)

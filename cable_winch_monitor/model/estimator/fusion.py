@@ -368,7 +368,11 @@ def reduced_normal(problem: Problem, rows: Rows, jacobian: np.ndarray,
     coupling[:, :10] = np.swapaxes(state_jacobian, 1, 2) @ jacobian
     if balance_jacobian is not None:  # the state moves to keep its balance as well
         coupling[:, 10:] = balance_jacobian
-    response = np.linalg.solve(system, coupling)[:, :10]       # the state's best move per unit of each parameter
+    response, singular = np.empty_like(coupling), np.empty(live.size, np.uint8)
+    compiled.kkt_responses(system, coupling, response, singular)  # the state's best move per unit of each parameter
+    if singular.any():
+        raise np.linalg.LinAlgError("Singular matrix")
+    response = response[:, :10]
     projected = jacobian - state_jacobian @ response
     left = jacobian if balance_jacobian is None else projected  # the same where the balance does not move
     return np.swapaxes(left, 1, 2) @ projected, np.einsum("nki,nk->ni", projected, residual)

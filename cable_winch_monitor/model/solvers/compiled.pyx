@@ -822,6 +822,59 @@ def kkt_steps(const double[:, :, ::1] system, const double[:, ::1] rhs, double[:
                     step[row, a] = x[a]
 
 
+def kkt_responses(const double[:, :, ::1] system, const double[:, :, ::1] rhs, double[:, :, ::1] out,
+                  unsigned char[::1] singular):
+    """Each row's KKT system (n, 16, 16) solved for its k right-hand sides (n, 16, k) into `out`: one
+    elimination with partial pivoting a row, applied to every column (a window's parameters and model error
+    at once; numpy's batched solve spent 5 us a row on it, the most of the model error's and the tracked
+    parameters' updates); a row with a zero pivot is flagged in `singular` (its columns left part-eliminated)."""
+    cdef Py_ssize_t n = system.shape[0], k = rhs.shape[2], row, c
+    cdef int a, b, i, j, p, pivot
+    cdef double work[KKT_SIZE][KKT_SIZE]
+    cdef double largest, factor, swap
+    with nogil:
+        for row in range(n):
+            for a in range(KKT_SIZE):
+                for b in range(KKT_SIZE):
+                    work[a][b] = system[row, a, b]
+                for c in range(k):
+                    out[row, a, c] = rhs[row, a, c]
+            singular[row] = 0
+            for p in range(KKT_SIZE):
+                pivot = p
+                largest = fabs(work[p][p])
+                for i in range(p + 1, KKT_SIZE):
+                    if fabs(work[i][p]) > largest:
+                        largest = fabs(work[i][p])
+                        pivot = i
+                if largest == 0.0:
+                    singular[row] = 1
+                    break
+                if pivot != p:
+                    for j in range(KKT_SIZE):
+                        swap = work[p][j]
+                        work[p][j] = work[pivot][j]
+                        work[pivot][j] = swap
+                    for c in range(k):
+                        swap = out[row, p, c]
+                        out[row, p, c] = out[row, pivot, c]
+                        out[row, pivot, c] = swap
+                for i in range(p + 1, KKT_SIZE):
+                    factor = work[i][p] / work[p][p]
+                    if factor != 0.0:
+                        for j in range(p + 1, KKT_SIZE):
+                            work[i][j] -= factor * work[p][j]
+                        for c in range(k):
+                            out[row, i, c] -= factor * out[row, p, c]
+            if singular[row]:
+                continue
+            for p in range(KKT_SIZE - 1, -1, -1):
+                for c in range(k):
+                    for j in range(p + 1, KKT_SIZE):
+                        out[row, p, c] -= work[p][j] * out[row, j, c]
+                    out[row, p, c] /= work[p][p]
+
+
 cdef int at_most_four_pins(Py_ssize_t k) except -1:
     """ValueError where a row would have more load pins than ropes."""
     if k > 4:
