@@ -15,7 +15,7 @@ setup(
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
     # the solvers' inner loops in C: a sample solved alone costs numpy calls, not arithmetic
     ext_modules=cythonize([Extension(f"{PACKAGE}.model.solvers.compiled", [f"{PACKAGE}/model/solvers/compiled.pyx"])]),
-    install_requires=["numpy", "scipy", "pyyaml", "rosbags", "mcap", "mcap-ros2-support"],
+    install_requires=["numpy", "scipy", "pyyaml", "rosbags", "ruamel.yaml.clib", "mcap", "mcap-ros2-support"],
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
