@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
+from functools import lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -309,9 +310,11 @@ def _fusion(output: MonitorOutput, fusing: bool, channels: ChannelRegistry) -> t
     return (WARN if faults else OK), message, values
 
 
+@lru_cache(maxsize=4)
 def tracking(view: ParameterView) -> tuple[int, str, dict[str, object]]:
     """The tracked parameters: a WARNING naming each that drifted (value, sigma, since when), else how many are
-    in use and which are held; each one's value, sigma, value in use and state."""
+    in use and which are held; each one's value, sigma, value in use and state. Worked out once for a view (one
+    from a window's update to the next), which every second's diagnostics of the window then share."""
     values: dict[str, object] = {}
     drifts, held = [], []
     for k, name in enumerate(view.names):

@@ -55,9 +55,10 @@ MAX_MOVE = 5.0     # [sigma of the prediction] the largest move of the estimate 
 DRIFT_SIGMAS = 2.0  # a drift is a change beyond the tolerance by this many sigma
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ParameterView:
-    """The tracked parameters as the outputs say them at a sample (arrays in the order of `names`)."""
+    """The tracked parameters as the outputs say them at a sample (arrays in the order of `names`); one object
+    from a window's update to the next, equal to itself alone (what is said of it is worked out once)."""
 
     names: tuple[str, ...]       # `effect.param`
     units: tuple[str, ...]
