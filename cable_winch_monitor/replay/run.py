@@ -31,11 +31,10 @@ from ..model.statics.result import SolveStatus
 from ..monitor.alarm import AlarmLevel
 from ..monitor.inputs import StampWindow
 from ..monitor.pipeline import MonitorStats
-from ..monitor.residuals import Residuals
 from ..monitor.sensors import READING_LAG
 from ..progress import Progress
 from ..stopping import Stopped, stop_signals
-from .stages import Encoded
+from .stages import Encoded, Measured
 from .windows import Failed, WindowScheduler
 
 INVALID = "invalid input"  # the tension state of a sample whose input could not be used
@@ -136,11 +135,9 @@ class ReplaySummary:
         return "\n".join(lines)
 
 
-def _records(stamp: fields.Stamp, result: Encoded | Residuals | None) -> list[records.Record]:
-    """What the node publishes for one input message (header `stamp`) and what became of it."""
-    if isinstance(result, Encoded):
-        return result.records
-    return records.residual_records(stamp, result)
+def _records(result: Encoded | Measured | None) -> list[records.Record]:
+    """What the node publishes for one input message, from what became of it."""
+    return [] if result is None else result.records
 
 
 @contextmanager
@@ -209,7 +206,7 @@ def replay(bag: str | Path, out: str | Path, plant: Plant | None = None, solver:
                 else:
                     try:  # a message whose stamp cannot be read, or whose outputs cannot be encoded
                         stamp = fields.message_stamp(item.message, item.log_time)
-                        outputs, log_time = _records(stamp, result), fields.stamp_ns(stamp)
+                        outputs, log_time = _records(result), fields.stamp_ns(stamp)
                     except Exception as error:
                         summary.errors[f"{item.topic}: {Failed.of(error).why}"] += 1
                     else:

@@ -8,7 +8,8 @@ the node runs on the samples waiting when its worker takes them. What comes out 
 scene brings what the scene shows (its solution and alarm) instead of the scene itself, and its
 residuals come in its outcome, not encoded: the scene is drawn and the residuals encoded where the
 replay writes (`finished`), by the process that reads and writes, which has time to spare while the
-second one estimates.
+second one estimates; there too the residuals of a window's sensor messages are encoded together
+(`message_residuals`).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from ..messages.scene import SceneBuilder, SceneState, SceneThrottle
 from ..model.conditions import Conditions
 from ..monitor.diagnostics import SampleView, sample_view
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
+from ..monitor.residuals import Residuals
 from ..monitor.seconds import FirstOfEachSecond
 
 
@@ -43,6 +45,20 @@ def finished(encoded: Encoded, header: Stamp, builder: SceneBuilder, residuals: 
     where one is due, after its other outputs, as the node publishes them."""
     scene = [] if encoded.scene is None else records.scene_records(header, builder, encoded.scene)
     return encoded._replace(records=encoded.records + residuals + scene, scene=None)
+
+
+class Measured(NamedTuple):
+    """A sensor message as replay writes it: its residuals against the model at the latest sample, and their
+    record (encoded with the window's others, `message_residuals`)."""
+
+    residuals: Residuals
+    records: list[Record]
+
+
+def message_residuals(messages: Sequence[tuple[Residuals, Stamp]]) -> list[Measured]:
+    """Sensor messages' residuals (each with its header stamp) encoded together."""
+    written = stacked.residual_records([header for _, header in messages], [residuals for residuals, _ in messages])
+    return [Measured(residuals, [record]) for (residuals, _), record in zip(messages, written)]
 
 
 def sample_residuals(samples: Sequence[tuple[Encoded, Stamp]]) -> list[list[Record]]:

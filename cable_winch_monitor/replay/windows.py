@@ -55,7 +55,7 @@ from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import ReadingWait
 from ..stopping import interruptible
 from .second_process import SecondProcess
-from .stages import Encoded, WindowStages, finished, sample_residuals
+from .stages import Encoded, Measured, WindowStages, finished, message_residuals, sample_residuals
 
 WINDOW = 2000  # messages read ahead
 FIRST_WINDOW = 250  # messages in the first and last windows read ahead, with a second process
@@ -75,7 +75,7 @@ class Failed(NamedTuple):
         return cls(f"{type(error).__name__}: {error}")
 
 
-Result = Encoded | Residuals | Failed | None
+Result = Encoded | Measured | Failed | None
 
 
 class Merged(NamedTuple):
@@ -280,10 +280,11 @@ class WindowScheduler:
 
     def _take(self, prepared: Prepared, second: SecondProcess | None) -> Iterator[tuple[Any, Result, list[Record]]]:
         """The window's messages in log order with what became of them, and the diagnostics due there; the
-        samples' residuals encoded together, and their scenes drawn, once every message is taken."""
+        samples' residuals encoded together, and their scenes drawn, once every message is taken, and the
+        sensor messages' residuals encoded together."""
         with interruptible():
             encoded = iter(second.take() if second is not None else self._encoded)
-        results: list[Result] = []
+        results: list[Result | Residuals] = []  # a sensor message's residuals: encoded below
         diagnostics: list[list[Record]] = []
         for item, outcome, due in zip(prepared.window, prepared.merged, prepared.inputs):
             try:
@@ -302,6 +303,16 @@ class WindowScheduler:
                 results[k] = finished(done, header, self.stages.builder, own)
             except Exception as error:
                 results[k] = Failed.of(error)
+        messages: list[tuple[int, Residuals, fields.Stamp]] = []  # the sensor messages' residuals, with their header stamps (a message's unreadable: failed)
+        for k, result in enumerate(results):
+            if isinstance(result, Residuals):
+                item = prepared.window[k]
+                try:
+                    messages.append((k, result, fields.message_stamp(item.message, item.log_time)))
+                except Exception as error:
+                    results[k] = Failed.of(error)
+        for (k, _, _), measured in zip(messages, message_residuals([(r, header) for _, r, header in messages])):
+            results[k] = measured
         yield from zip(prepared.window, results, diagnostics)
 
     def _diagnostics(self, item: Any, now: float, winch: WinchView) -> Record:
@@ -329,7 +340,7 @@ class WindowScheduler:
         return None if sample is None else Merged(sample, self.monitor.conditions(sample), fields.stamp_of(item.message))
 
     def _result(self, item: Any, outcome: Merged | dict[str, float] | Failed | None,
-                encoded: Iterator[Encoded]) -> Result:
+                encoded: Iterator[Encoded]) -> Result | Residuals:
         msg = item.message
         if item.msgtype == fields.JOINT_STATE:
             if isinstance(outcome, Failed):

@@ -10,10 +10,10 @@ from hypothesis import strategies as st
 
 from cable_winch_monitor import channels
 from cable_winch_monitor.bench.plants import realistic
-from cable_winch_monitor.messages import fields
+from cable_winch_monitor.messages import fields, records
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
-from cable_winch_monitor.replay.stages import Encoded
+from cable_winch_monitor.replay.stages import Encoded, Measured
 from cable_winch_monitor.replay.windows import FIRST_WINDOW, Failed, WindowScheduler, window_sizes
 
 
@@ -77,7 +77,13 @@ def test_every_message_once_in_order_with_the_node_pipelines_result(plant, batch
             expected.append(error)
     scheduler = WindowScheduler(plant, batched=batched, window=64)  # windows end between a sample's messages
     assert scheduler.batched == batched
-    results = [(item, got.output if isinstance(got, Encoded) else got) for item, got in scheduler.run(items)]
+    ran = list(scheduler.run(items))
+    for item, got in ran:  # a sensor message's residuals: encoded with the window's others, as the node one at a time
+        if isinstance(got, Measured):
+            assert got.records == records.residual_records(fields.message_stamp(item.message, item.log_time),
+                                                           got.residuals)
+    results = [(item, got.output if isinstance(got, Encoded) else got.residuals if isinstance(got, Measured) else got)
+               for item, got in ran]
     assert [item for item, _ in results] == items
     solved = 0
     for (_, got), want in zip(results, expected):
