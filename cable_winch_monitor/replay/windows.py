@@ -303,7 +303,8 @@ class WindowScheduler:
                 results[k] = finished(done, header, self.stages.builder, own)
             except Exception as error:
                 results[k] = Failed.of(error)
-        messages: list[tuple[int, Residuals, fields.Stamp]] = []  # the sensor messages' residuals, with their header stamps (a message's unreadable: failed)
+        # the sensor messages' residuals, with their header stamps (a message whose stamp cannot be read: failed)
+        messages: list[tuple[int, Residuals, fields.Stamp]] = []
         for k, result in enumerate(results):
             if isinstance(result, Residuals):
                 item = prepared.window[k]

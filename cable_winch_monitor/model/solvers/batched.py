@@ -228,12 +228,7 @@ def _solve_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray, seed: Solut
     released = int(np.argmin(seed.tensions)) if seed.taut.all() else -1
     if released >= 0:  # four taut: start from the three that carry most
         active[:, released], mu[:, released] = 0, 0.0
-    steps, done = np.zeros(rows.size, np.int64), np.zeros(rows.size, np.uint8)
-    compiled.active_set_rows(lengths, rotation, position, mu, active, out.loads[rows] / scales[:, None], steps, done,
-                             plant.attachments, plant.cog, plant.anchors, plant.moment_scale,
-                             NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2), NEWTON_MAX_STEPS,
-                             ACTIVE_SET_ROUNDS, MAX_TURN, SLACK_TOL * np.maximum(lengths.max(axis=1), plant.moment_scale),
-                             TENSION_TOL, 0.2, 0.2 * plant.moment_scale)
+    steps, done = _active_set_rows(plant, lengths, out.loads[rows] / scales[:, None], rotation, position, mu, active)
     if released >= 0:
         done &= ~_at_length(plant, lengths, rotation, position, active, released)
     solved = np.flatnonzero(done)
@@ -259,18 +254,27 @@ def _solve_level_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray) -> No
     for k in range(rows.size):
         taut = active[k].astype(bool)
         mu[k, taut] = balance_tensions(structure[k][:, taut], load[k]) / scales[k]
-    steps, done = np.zeros(rows.size, np.int64), np.zeros(rows.size, np.uint8)
-    compiled.active_set_rows(lengths, rotation, position, mu, active, load / scales[:, None], steps, done,
-                             plant.attachments, plant.cog, plant.anchors, plant.moment_scale,
-                             NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2), NEWTON_MAX_STEPS,
-                             ACTIVE_SET_ROUNDS, MAX_TURN, SLACK_TOL * np.maximum(lengths.max(axis=1), plant.moment_scale),
-                             TENSION_TOL, 0.2, 0.2 * plant.moment_scale)
+    steps, done = _active_set_rows(plant, lengths, load / scales[:, None], rotation, position, mu, active)
     spans = np.linalg.norm(attachment_points(plant, rotation, position)[0] - plant.anchors, axis=2)
     touching = (lengths - spans < ACTIVE_BAND * np.maximum(1.0, lengths.max(axis=1) * 1e-3)[:, None]) & (active == 0)
     done &= ~touching.any(axis=1)
     solved = np.flatnonzero(done)
     _store(out, rows[solved], active[solved].astype(bool), rotation[solved], position[solved], mu[solved],
            steps[solved], scales[solved])
+
+
+def _active_set_rows(plant: Plant, lengths: np.ndarray, loads: np.ndarray, rotation: np.ndarray,
+                     position: np.ndarray, mu: np.ndarray, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`compiled.active_set_rows` on rows from their starts (rotation, position, mu, active: in place) under
+    `loads` per unit of |f|, with the per-sample solver's tolerances and limits: each row's steps and whether
+    it settled on an admissible set of two or three taut cables."""
+    steps, done = np.zeros(len(lengths), np.int64), np.zeros(len(lengths), np.uint8)
+    compiled.active_set_rows(lengths, rotation, position, mu, active, loads, steps, done,
+                             plant.attachments, plant.cog, plant.anchors, plant.moment_scale,
+                             NEWTON_TOL * np.maximum(1.0, lengths.max(axis=1) * 1e-2), NEWTON_MAX_STEPS,
+                             ACTIVE_SET_ROUNDS, MAX_TURN, SLACK_TOL * np.maximum(lengths.max(axis=1), plant.moment_scale),
+                             TENSION_TOL, 0.2, 0.2 * plant.moment_scale)
+    return steps, done
 
 
 def _at_length(plant: Plant, lengths: np.ndarray, rotation: np.ndarray, position: np.ndarray, active: np.ndarray,
