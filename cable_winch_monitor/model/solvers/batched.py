@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ..paper.equal_lengths import level_pose
 from ..plantfile.plant import Plant
 from ..statics import load as loads_
 from ..statics.geometry import attachment_points, structure_matrix
@@ -246,8 +247,9 @@ def _solve_level_chunk(plant: Plant, out: BatchSolution, rows: np.ndarray) -> No
     lengths = out.lengths[rows]
     load = out.loads[rows]
     scales = np.linalg.norm(load[:, :3], axis=1)
-    rotation = np.tile(np.eye(3), (rows.size, 1, 1))
-    position = (plant.anchors - plant.attachments).mean(axis=0) - np.outer(lengths.mean(axis=1), [0.0, 0.0, 1.0])
+    level, origin = level_pose(plant, 0.0)  # each row's: `origin` lowered by its mean length
+    rotation = np.tile(level, (rows.size, 1, 1))
+    position = origin - np.outer(lengths.mean(axis=1), [0.0, 0.0, 1.0])
     active = (np.arange(4) != np.argmax(lengths, axis=1)[:, None]).astype(np.uint8)
     structure = structure_matrix(plant, *attachment_points(plant, rotation, position))
     mu = np.zeros((rows.size, 4))
