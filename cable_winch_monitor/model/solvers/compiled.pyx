@@ -17,11 +17,11 @@ cdef enum:
     JACOBI_SWEEPS = 60  # one-sided Jacobi sweeps at most (a 10 x 10 system takes some eight)
 
 
-cdef int solve_in_place(double *a, int stride, double *b, int size, double tiny=0.0) noexcept nogil:
-    """Gaussian elimination with partial pivoting of a (size x size) system, row i of a at a + i * stride; the
-    solution in b. Returns 0, or 1 where a pivot is no larger than `tiny` (zero: exactly zero, as LAPACK's gesv
-    reports a singular system)."""
-    cdef int i, j, k, pivot
+cdef inline int solve_in_place(double *a, int stride, double *b, int size, double tiny=0.0, int columns=1) noexcept nogil:
+    """Gaussian elimination with partial pivoting of a (size x size) system, row i of a at a + i * stride, for
+    `columns` right-hand sides (row i of them at b + i * columns); the solutions in b. Returns 0, or 1 where a
+    pivot is no larger than `tiny` (zero: exactly zero, as LAPACK's gesv reports a singular system)."""
+    cdef Py_ssize_t i, j, k, c, pivot
     cdef double largest, factor, swap
     for k in range(size):
         pivot = k
@@ -37,19 +37,22 @@ cdef int solve_in_place(double *a, int stride, double *b, int size, double tiny=
                 swap = a[k * stride + j]
                 a[k * stride + j] = a[pivot * stride + j]
                 a[pivot * stride + j] = swap
-            swap = b[k]
-            b[k] = b[pivot]
-            b[pivot] = swap
+            for c in range(columns):
+                swap = b[k * columns + c]
+                b[k * columns + c] = b[pivot * columns + c]
+                b[pivot * columns + c] = swap
         for i in range(k + 1, size):
             factor = a[i * stride + k] / a[k * stride + k]
             if factor != 0.0:
                 for j in range(k + 1, size):
                     a[i * stride + j] -= factor * a[k * stride + j]
-                b[i] -= factor * b[k]
+                for c in range(columns):
+                    b[i * columns + c] -= factor * b[k * columns + c]
     for k in range(size - 1, -1, -1):
-        for j in range(k + 1, size):
-            b[k] -= a[k * stride + j] * b[j]
-        b[k] /= a[k * stride + k]
+        for c in range(columns):
+            for j in range(k + 1, size):
+                b[k * columns + c] -= a[k * stride + j] * b[j * columns + c]
+            b[k * columns + c] /= a[k * stride + k]
     return 0
 
 
@@ -824,14 +827,13 @@ def kkt_steps(const double[:, :, ::1] system, const double[:, ::1] rhs, double[:
 
 def kkt_responses(const double[:, :, ::1] system, const double[:, :, ::1] rhs, double[:, :, ::1] out,
                   unsigned char[::1] singular):
-    """Each row's KKT system (n, 16, 16) solved for its k right-hand sides (n, 16, k) into `out`: one
-    elimination with partial pivoting a row, applied to every column (a window's parameters and model error
-    at once; numpy's batched solve spent 5 us a row on it, the most of the model error's and the tracked
-    parameters' updates); a row with a zero pivot is flagged in `singular` (its columns left part-eliminated)."""
+    """Each row's KKT system (n, 16, 16) solved for its k right-hand sides (n, 16, k) into `out` (`solve_in_place`:
+    one elimination a row, applied to every column: a window's parameters and model error at once, where numpy's
+    batched solve spent 5 us a row, the most of the model error's and the tracked parameters' updates); a row
+    with a zero pivot is flagged in `singular` (its columns left part-eliminated)."""
     cdef Py_ssize_t n = system.shape[0], k = rhs.shape[2], row, c
-    cdef int a, b, i, j, p, pivot
+    cdef int a, b
     cdef double work[KKT_SIZE][KKT_SIZE]
-    cdef double largest, factor, swap
     with nogil:
         for row in range(n):
             for a in range(KKT_SIZE):
@@ -839,40 +841,7 @@ def kkt_responses(const double[:, :, ::1] system, const double[:, :, ::1] rhs, d
                     work[a][b] = system[row, a, b]
                 for c in range(k):
                     out[row, a, c] = rhs[row, a, c]
-            singular[row] = 0
-            for p in range(KKT_SIZE):
-                pivot = p
-                largest = fabs(work[p][p])
-                for i in range(p + 1, KKT_SIZE):
-                    if fabs(work[i][p]) > largest:
-                        largest = fabs(work[i][p])
-                        pivot = i
-                if largest == 0.0:
-                    singular[row] = 1
-                    break
-                if pivot != p:
-                    for j in range(KKT_SIZE):
-                        swap = work[p][j]
-                        work[p][j] = work[pivot][j]
-                        work[pivot][j] = swap
-                    for c in range(k):
-                        swap = out[row, p, c]
-                        out[row, p, c] = out[row, pivot, c]
-                        out[row, pivot, c] = swap
-                for i in range(p + 1, KKT_SIZE):
-                    factor = work[i][p] / work[p][p]
-                    if factor != 0.0:
-                        for j in range(p + 1, KKT_SIZE):
-                            work[i][j] -= factor * work[p][j]
-                        for c in range(k):
-                            out[row, i, c] -= factor * out[row, p, c]
-            if singular[row]:
-                continue
-            for p in range(KKT_SIZE - 1, -1, -1):
-                for c in range(k):
-                    for j in range(p + 1, KKT_SIZE):
-                        out[row, p, c] -= work[p][j] * out[row, j, c]
-                    out[row, p, c] /= work[p][p]
+            singular[row] = solve_in_place(&work[0][0], KKT_SIZE, &out[row, 0, 0], KKT_SIZE, 0.0, <int>k)
 
 
 cdef int at_most_four_pins(Py_ssize_t k) except -1:
