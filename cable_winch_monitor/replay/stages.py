@@ -8,8 +8,7 @@ the node runs on the samples waiting when its worker takes them. What comes out 
 scene brings what the scene shows (its solution and alarm) instead of the scene itself, and its
 residuals come in its outcome, not encoded: the scene is drawn and the residuals encoded where the
 replay writes (`finished`), by the process that reads and writes, which has time to spare while the
-second one estimates; there too the residuals of a window's sensor messages are encoded together
-(`message_residuals`).
+second one estimates, together with the residuals of the window's sensor messages (`Measured`).
 """
 from __future__ import annotations
 
@@ -17,7 +16,7 @@ import pickle
 from collections.abc import Sequence
 from typing import NamedTuple
 
-from ..messages import records, stacked
+from ..messages import records
 from ..messages.fields import Stamp
 from ..messages.records import Record
 from ..messages.scene import SceneBuilder, SceneState, SceneThrottle
@@ -41,36 +40,18 @@ class Encoded(NamedTuple):
 
 
 def finished(encoded: Encoded, header: Stamp, builder: SceneBuilder, residuals: list[Record]) -> Encoded:
-    """`encoded` (header stamp `header`) with its residuals' records (`sample_residuals`) and then its scene,
-    where one is due, after its other outputs, as the node publishes them."""
+    """`encoded` (header stamp `header`) with its residuals' record (encoded with the window's others, where it
+    has residuals) and then its scene, where one is due, after its other outputs, as the node publishes them."""
     scene = [] if encoded.scene is None else records.scene_records(header, builder, encoded.scene)
     return encoded._replace(records=encoded.records + residuals + scene, scene=None)
 
 
 class Measured(NamedTuple):
     """A sensor message as replay writes it: its residuals against the model at the latest sample, and their
-    record (encoded with the window's others, `message_residuals`)."""
+    record (encoded with the window's others where the replay writes)."""
 
     residuals: Residuals
     records: list[Record]
-
-
-def message_residuals(messages: Sequence[tuple[Residuals, Stamp]]) -> list[Measured]:
-    """Sensor messages' residuals (each with its header stamp) encoded together."""
-    written = stacked.residual_records([header for _, header in messages], [residuals for residuals, _ in messages])
-    return [Measured(residuals, [record]) for (residuals, _), record in zip(messages, written)]
-
-
-def sample_residuals(samples: Sequence[tuple[Encoded, Stamp]]) -> list[list[Record]]:
-    """The records of the residuals of encoded samples (each with its header stamp; their outcomes have the
-    residuals), encoded together: none for a sample without."""
-    measured = [(k, header, encoded.outcome.residuals) for k, (encoded, header) in enumerate(samples)
-                if encoded.outcome.residuals is not None]
-    out: list[list[Record]] = [[] for _ in samples]
-    written = stacked.residual_records([header for _, header, _ in measured], [r for _, _, r in measured if r is not None])
-    for (k, _, _), record in zip(measured, written):
-        out[k] = [record]
-    return out
 
 
 class WindowStages:

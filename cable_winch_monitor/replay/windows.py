@@ -42,7 +42,7 @@ from collections import Counter, deque
 from collections.abc import Generator, Iterable, Iterator
 from typing import Any, NamedTuple
 
-from ..messages import fields
+from ..messages import fields, stacked
 from ..messages.records import Record, diagnostics_record
 from ..messages.scene import REPLAY_RATE
 from ..model.conditions import Conditions
@@ -55,7 +55,7 @@ from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import ReadingWait
 from ..stopping import interruptible
 from .second_process import SecondProcess
-from .stages import Encoded, Measured, WindowStages, finished, message_residuals, sample_residuals
+from .stages import Encoded, Measured, WindowStages, finished
 
 WINDOW = 2000  # messages read ahead
 FIRST_WINDOW = 250  # messages in the first and last windows read ahead, with a second process
@@ -296,24 +296,29 @@ class WindowScheduler:
                 self.reporter.note_residuals(residuals)
             results.append(result)
             diagnostics.append([] if due is None else [self._diagnostics(item, *due)])
-        samples = [(k, result, prepared.merged[k].header) for k, result in enumerate(results)
-                   if isinstance(result, Encoded)]
-        for (k, done, header), own in zip(samples, sample_residuals([(done, header) for _, done, header in samples])):
-            try:
-                results[k] = finished(done, header, self.stages.builder, own)
-            except Exception as error:
-                results[k] = Failed.of(error)
-        # the sensor messages' residuals, with their header stamps (a message whose stamp cannot be read: failed)
-        messages: list[tuple[int, Residuals, fields.Stamp]] = []
+        # the residuals of the window's samples and sensor messages, each with its header stamp (a sensor message
+        # whose stamp cannot be read: failed), encoded together
+        measured: list[tuple[int, Residuals, fields.Stamp]] = []
         for k, result in enumerate(results):
-            if isinstance(result, Residuals):
+            if isinstance(result, Encoded) and result.outcome.residuals is not None:
+                measured.append((k, result.outcome.residuals, prepared.merged[k].header))
+            elif isinstance(result, Residuals):
                 item = prepared.window[k]
                 try:
-                    messages.append((k, result, fields.message_stamp(item.message, item.log_time)))
+                    measured.append((k, result, fields.message_stamp(item.message, item.log_time)))
                 except Exception as error:
                     results[k] = Failed.of(error)
-        for (k, _, _), measured in zip(messages, message_residuals([(r, header) for _, r, header in messages])):
-            results[k] = measured
+        written = dict(zip((k for k, _, _ in measured),
+                           stacked.residual_records([header for _, _, header in measured], [r for _, r, _ in measured])))
+        for k, result in enumerate(results):
+            if isinstance(result, Encoded):
+                try:
+                    results[k] = finished(result, prepared.merged[k].header, self.stages.builder,
+                                          [written[k]] if k in written else [])
+                except Exception as error:
+                    results[k] = Failed.of(error)
+            elif isinstance(result, Residuals):
+                results[k] = Measured(result, [written[k]])
         yield from zip(prepared.window, results, diagnostics)
 
     def _diagnostics(self, item: Any, now: float, winch: WinchView) -> Record:
