@@ -62,7 +62,7 @@ def test_payout_accelerations_from_speeds_and_from_lengths_alone():
     assert np.abs(speeds_from_lengths[inside] - speeds[inside, None]).max() < 0.01
     assert np.abs(from_lengths[inside] - truth[inside, None]).max() < 0.05
     tracker = ConditionsTracker()
-    live = [tracker.update(time, length, speed) for time, length, speed in zip(t, noisy_lengths, noisy_speeds)]
+    live = [tracker.update(t[k:k + 1], noisy_lengths[k:k + 1], noisy_speeds[k:k + 1])[0] for k in range(t.size)]
     late = (t > 2.0) & (t < 4.9)  # the causal window has filled and not yet met the kink
     assert np.abs(np.array([c.acceleration for c in live])[late] - 0.2).max() < 0.02
     assert live[-1].direction.tolist() == [1.0] * 4 and live[-1].time == pytest.approx(t[-1])

@@ -74,8 +74,7 @@ def lowering(samples: int, rate: float, seed: int = 2, plant_file: Path | None =
     drift = SYNC_AMPLITUDE * np.sin(2 * np.pi * t / 8.0 + rng.uniform(0, 2 * np.pi, 4))
     true = start + LOWERING_SPEED * t + drift
     model = PlantModel.from_plant(load_plant(plant_file) if plant_file else load_plant())
-    tracker = ConditionsTracker()
-    conditions = [tracker.update(float(at), row, np.full(4, np.nan)) for at, row in zip(t[:, 0], true)]
+    conditions = ConditionsTracker().update(t[:, 0], true, np.full_like(true, np.nan))
     predicted = model.predict_solutions(model.solve_batch(true, conditions), conditions)
     pins = np.column_stack([predicted[name] for name in TENSION_CHANNELS])
     return np.hstack([true + rng.normal(0.0, ENCODER_NOISE, (samples, 4)),

@@ -1,10 +1,6 @@
 """Benchmark: what a per-sample twin of a stacked stage saves the live node on one new sample -- the twin
 against the stacked form asked for that same sample, on the same samples.
 
-- Conditions: `ConditionsTracker.update` (running sums over the last second of samples) against
-  `derivatives` and `directions` over the samples of that second, their last row taken (the
-  stacked form cannot be asked for one sample alone: a speed's slope needs the window). The twin
-  stays for speed.
 - Equilibrium: `solve` (the per-sample energy solve, warm-started) against `solve_batch` of one row
   warm-started the same way. The node takes the stacked form (its Newton is compiled, and its bits do
   not depend on the rows solved with it); the per-sample solver stays for what the stacked one
@@ -14,8 +10,8 @@ against the stacked form asked for that same sample, on the same samples.
   encoders on a run of one (`records.run_records`). The twin stays for speed: the node's samples come
   one or a few at a time (`records.STACKED_FROM`).
 
-Each pair is held to the same answers by a test (test/model/test_conditions.py,
-test/model/test_batched.py, test/messages/test_stacked.py). Figures are ratios within one run, the best of three passes. Run
+Each pair is held to the same answers by a test (test/model/test_batched.py,
+test/messages/test_stacked.py). Figures are ratios within one run, the best of three passes. Run
 
     .venv/bin/python -m cable_winch_monitor.bench.twins
 """
@@ -26,7 +22,6 @@ from collections.abc import Callable
 import numpy as np
 
 from ..messages import records
-from ..model.conditions import ACCELERATION_WINDOW, ConditionsTracker, derivatives, directions
 from ..model.plantfile.plant import CABLE_NAMES, Plant, load_plant
 from ..model.solvers.batched import solve_batch
 from ..model.solvers.solve import solve
@@ -43,25 +38,6 @@ STEPS = 12_500  # samples of the 500 m lowering: 4 cm a sample, 0.4 m/s at RATE
 def per_sample(run: Callable[[int, object], object], count: int) -> float:
     """Microseconds per call of run(k, previous) over samples 0..count-1, the best of three passes."""
     return 1e6 / per_sample_rate(run, count)
-
-
-def conditions_costs(lengths: np.ndarray) -> tuple[float, float]:
-    """[us] a sample's conditions live: the tracker's update, and the stacked form over its last second."""
-    times = 100.0 + np.arange(len(lengths)) / RATE
-    speeds = np.gradient(lengths, times, axis=0)
-    span = int(ACCELERATION_WINDOW * RATE) + 1
-
-    def tracked(k: int, tracker: object) -> ConditionsTracker:
-        tracker = tracker if isinstance(tracker, ConditionsTracker) else ConditionsTracker()
-        tracker.update(float(times[k]), lengths[k], speeds[k])
-        return tracker
-
-    def stacked(k: int, _: object) -> None:
-        window = slice(max(k + 1 - span, 0), k + 1)
-        rates, _accelerations = derivatives(times[window], lengths[window], speeds[window], centred=False)
-        directions(rates)
-
-    return per_sample(tracked, len(lengths)), per_sample(stacked, len(lengths))
 
 
 def solver_costs(plant, lengths: np.ndarray) -> tuple[float, float]:
@@ -90,8 +66,7 @@ def encoding_costs(plant: Plant, lengths: np.ndarray) -> tuple[float, float]:
 def main() -> None:
     plant = load_plant()
     lengths = lowering_samples(STEPS)[:1000]
-    rows = {"conditions (speeds, accelerations, directions)": conditions_costs(lengths),
-            "equilibrium (energy, warm-started)": solver_costs(plant, lengths[:300]),
+    rows = {"equilibrium (energy, warm-started)": solver_costs(plant, lengths[:300]),
             "outputs encoded (pose, /tf, tension, alarm, model error)": encoding_costs(plant, lengths[:300])}
     print("one new sample of a lowering from 50 m at 0.4 m/s, winches at 10 Hz, as the live node meets it; one core")
     print(f"  {'stage':<58}{'twin us':>9}{'stacked us':>12}{'stacked/twin':>14}")

@@ -128,7 +128,7 @@ class LiveScheduler:
             with self.lock:
                 started = self.clock()
                 monitor, generation = self.monitor, self.generation
-                conditions = [monitor.conditions(sample) for sample in samples]
+                conditions = monitor.conditions(samples)
                 estimator = monitor.estimator
             solved = monitor.solve_samples(samples, conditions, estimator)
             with self.lock:

@@ -6,13 +6,12 @@ Speeds are the winches' reported velocities, or the lengths differentiated where
 reports none; accelerations are the speeds differentiated. Both derivatives are the
 slope of a straight line fitted over a window of ACCELERATION_WINDOW seconds: encoder
 noise of 1 mm and speed noise of 2 mm/s at 10 Hz leave a few mm/s^2 over one second,
-against the 0.1 m/s^2 of a winch starting or braking. Live (`ConditionsTracker`) the
-window ends at the sample; over a recording (`conditions_along`) it is centred on it.
+against the 0.1 m/s^2 of a winch starting or braking. As the samples come (`ConditionsTracker`,
+the node's one or few at a time, replay's window at once, to the same bits) the window ends at
+the sample; over a recording (`derivatives`) it is centred on it.
 """
 from __future__ import annotations
 
-import math
-from collections import deque
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -88,15 +87,6 @@ class StackedConditions:
         return (self[k] for k in range(len(self)))
 
 
-def motion_direction(speeds: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """+1 paying out, -1 hauling in, for each winch; within the dead band the last direction holds
-    (static friction keeps the slip state the rope had when it stopped). Python floats: a sample has
-    four winches, and numpy's calls would cost more than the comparisons."""
-    # NaN compares false both ways: the last direction holds
-    return np.array([1.0 if speed > DEADBAND else -1.0 if speed < -DEADBAND else last for speed, last in
-                     zip(np.asarray(speeds, dtype=float).tolist(), np.asarray(previous, dtype=float).tolist())])
-
-
 def line_slopes(times: np.ndarray, values: np.ndarray, start: np.ndarray, stop: np.ndarray,
                 least: int = 2) -> np.ndarray:
     """Least-squares slopes (m, k) of values (n, k) against times (n,) over the rows start[j]:stop[j] of each
@@ -150,51 +140,68 @@ def derivatives(times: np.ndarray, lengths: np.ndarray, speeds: np.ndarray, wind
     return speeds, _slopes(times, speeds, start, stop)
 
 
-def directions(speeds: np.ndarray) -> np.ndarray:
-    """`motion_direction` along a series of speeds (n, 4) from standing (0), held through stops, in one
-    pass: each sample takes the sign of the last sample moving faster than the dead band."""
+def directions(speeds: np.ndarray, before: np.ndarray | None = None) -> np.ndarray:
+    """The direction of motion (n, 4) along a series of speeds (n, 4): +1 paying out, -1 hauling in; within
+    the dead band the last direction holds (static friction keeps the slip state the rope had when it
+    stopped), from `before` (standing, 0, where not given). Each sample takes the sign of the last sample
+    moving faster than the dead band (a NaN speed holds)."""
     speeds = np.nan_to_num(np.asarray(speeds, dtype=float))
     moving = np.where(speeds > DEADBAND, 1.0, np.where(speeds < -DEADBAND, -1.0, 0.0))
     last = np.maximum.accumulate(np.where(moving != 0.0, np.arange(len(moving))[:, None], -1), axis=0)
-    return np.where(last >= 0, np.take_along_axis(moving, np.maximum(last, 0), axis=0), 0.0)
-
-
-def _window_slope(times: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Least-squares slope of values (k, 4) over all k stamps (0 where fewer than two stamps differ)."""
-    t = times - times.sum() / times.size
-    tt = float(t @ t)
-    if tt <= 0.0:
-        return np.zeros(values.shape[1])
-    slope = t @ values / tt  # t sums to zero: the values' mean drops out
-    if all(map(math.isfinite, slope.tolist())):
-        return slope
-    return t @ np.nan_to_num(values - np.nanmean(values, axis=0)) / tt
+    held = 0.0 if before is None else before
+    return np.where(last >= 0, np.take_along_axis(moving, np.maximum(last, 0), axis=0), held)
 
 
 class ConditionsTracker:
-    """The conditions of each new winch sample from the samples before it (live: causal windows)."""
+    """The conditions of winch samples as they come, from the samples before them (causal windows): one
+    at a time (the node) or a window at once (replay), to the same bits -- each window's line is fitted
+    over its own rows (`line_slopes`), whatever came with it."""
 
     def __init__(self, window: float = ACCELERATION_WINDOW):
         self.window = window
-        self.history: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
+        # the latest samples within a window of the last one: stamps (h,), lengths and speeds (h, 4), the
+        # speeds of a winch that reports none its lengths' slope
+        self.times, self.lengths, self.speeds = np.zeros(0), np.zeros((0, 4)), np.zeros((0, 4))
         self.direction = np.zeros(4)
 
-    def update(self, time: float, lengths: np.ndarray, speeds: np.ndarray,
-               inputs: Mapping[str, float] | None = None) -> Conditions:
-        """Record a sample (stamp [s], lengths, reported speeds with NaN where none) and return its conditions."""
-        history = self.history
-        if history and time < history[-1][0] - self.window:
-            history.clear()  # time went back by more than the window (a replay restarted): derivatives start afresh
-        # (by less, a sample made at another winch's message stamped a little earlier: the window's line holds it)
-        lengths, speeds = np.asarray(lengths, dtype=float), np.asarray(speeds, dtype=float)
-        history.append((time, lengths, speeds))
-        while history[0][0] < time - self.window:
-            history.popleft()
-        times = np.fromiter((h[0] for h in history), float, len(history))
-        if not all(map(math.isfinite, speeds.tolist())):  # a winch without velocity: its lengths' slope
-            speeds = np.where(np.isfinite(speeds), speeds, _window_slope(times, np.array([h[1] for h in history])))
-            history[-1] = (time, lengths, speeds)
-        acceleration = _window_slope(times, np.array([h[2] for h in history]))
-        self.direction = motion_direction(speeds, self.direction)
-        return Conditions(time, speeds, acceleration, self.direction, dict(inputs or {}))
+    def update(self, times: np.ndarray, lengths: np.ndarray, speeds: np.ndarray,
+               inputs: Sequence[Mapping[str, float]] | None = None) -> list[Conditions]:
+        """Record samples in the order they came (stamps [s] (n,), lengths and reported speeds (n, 4), NaN where
+        a winch reports none; each one's extra inputs) and return their conditions."""
+        count = len(times)
+        if not count:
+            return []
+        held = len(self.times)
+        times = np.concatenate([self.times, np.asarray(times, dtype=float)])
+        lengths = np.concatenate([self.lengths, np.asarray(lengths, dtype=float).reshape(-1, 4)])
+        speeds = np.concatenate([self.speeds, np.asarray(speeds, dtype=float).reshape(-1, 4)])
+        start = self._starts(times, held)
+        stop = np.arange(held + 1, held + count + 1)
+        new = speeds[held:]
+        missing = ~np.isfinite(new)
+        if missing.any():  # a winch without velocity: its lengths' slope
+            new[:] = np.where(missing, _slopes(times, lengths, start, stop), new)
+        accelerations = _slopes(times, speeds, start, stop)
+        direction = directions(new, self.direction)
+        first = int(start[-1])
+        self.times, self.lengths, self.speeds = times[first:], lengths[first:], speeds[first:]
+        self.direction = direction[-1]
+        stamps = times[held:].tolist()
+        inputs = inputs if inputs is not None else [{}] * count
+        return [Conditions(*row) for row in zip(stamps, new, accelerations, direction, map(dict, inputs))]
 
+    def _starts(self, times: np.ndarray, held: int) -> np.ndarray:
+        """The first row of each new sample's window (the rows `held` on): the rows stamped at most `window`
+        before it, from where the window before it started; a sample stamped more than `window` before the
+        one before it (a replay restarted) starts afresh (by less: one made at another winch's message
+        stamped a little earlier, which the window's line holds)."""
+        stamps, window = times.tolist(), self.window
+        first, out = 0, []
+        for k in range(held, len(stamps)):
+            now = stamps[k]
+            if k and now < stamps[k - 1] - window:
+                first = k
+            while stamps[first] < now - window:
+                first += 1
+            out.append(first)
+        return np.array(out)

@@ -326,12 +326,19 @@ class MonitorPipeline:
     def _warm_start(self) -> Solution | None:
         return self.last_solved.solution if self.last_solved is not None and self.solver == "energy" else None
 
-    def conditions(self, sample: CompleteSample) -> Conditions:
-        """The conditions of a complete sample: its stamp, speeds, accelerations, direction and inputs
-        (none where nothing reads them: no effect, no channel of a user's)."""
+    def conditions(self, samples: Sequence[CompleteSample],
+                   inputs: Sequence[Mapping[str, float]] | None = None) -> list[Conditions]:
+        """The conditions of consecutive complete samples: their stamps, speeds, accelerations, directions and
+        inputs (`inputs`: each one's, where taken ahead; else the inputs' values at its stamp), the same
+        whether they come one at a time or a window at once; none where nothing reads them (no effect,
+        no channel of a user's)."""
         if not self.model.reads_conditions:
-            return NO_CONDITIONS
-        return self.tracker.update(sample.stamp, sample.lengths, np.array(sample.speeds), self.inputs_at(sample.stamp))
+            return [NO_CONDITIONS] * len(samples)
+        if inputs is None:
+            inputs = [self.inputs_at(sample.stamp) for sample in samples] if self.inputs else None
+        return self.tracker.update(np.array([sample.stamp for sample in samples]),
+                                   np.array([sample.lengths for sample in samples]),
+                                   np.array([sample.speeds for sample in samples], dtype=float), inputs)
 
     def solve_samples(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions],
                       estimator: MonitorEstimator | None = None) -> list[Solved]:
@@ -393,7 +400,7 @@ class MonitorPipeline:
     def judge(self, sample: CompleteSample, solved: Solved | None = None,
               conditions: Conditions | None = None) -> tuple[MonitorOutput, Outcome]:
         """`judge_samples` of one sample: solved (or estimated) here unless `solved` ahead at its `conditions`."""
-        conditions = conditions or self.conditions(sample)
+        conditions = conditions or self.conditions([sample])[0]
         if solved is None:
             solved = self.solve_samples([sample], [conditions])[0]
         return self.judge_samples([sample], [solved])[0]

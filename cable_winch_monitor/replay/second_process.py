@@ -11,10 +11,10 @@ A window's job and its results (about 1 kB a sample) go through files in the wor
 either process wait for the other to read. With each window comes the stages' state after
 it, so that where the worker is lost -- it died, failed on a window, or stopped answering --
 the replay runs the rest itself from there. Samples and outcomes cross as plain tuples, a window's
-lengths and conditions as arrays (`_packed`, `_plain`): pickling a named tuple or a small array per sample
-cost more than the rest of the crossing. Only a fork can start it (the process inherits
-the plant model as it is, a user's effects included); where there is none, or no spool or
-process can be had, the replay runs the stages itself.
+lengths as one array (`_packed`, `_plain`): pickling a named tuple or a small array per sample cost more
+than the rest of the crossing. The samples' conditions are the worker's to work out (the stages). Only a
+fork can start it (the process inherits the plant model as it is, a user's effects included); where
+there is none, or no spool or process can be had, the replay runs the stages itself.
 """
 from __future__ import annotations
 
@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from ..messages.fields import Stamp
-from ..model.conditions import Conditions
 from ..monitor.pipeline import CompleteSample, Outcome
 from ..monitor.residuals import Residuals
 from .stages import Encoded, WindowStages
@@ -35,8 +34,6 @@ from .worker import ForkedWorker, WorkerLost
 Packed = tuple[np.ndarray, list[tuple[Any, ...]]]  # a window's lengths (n, 4), each sample's other fields
 LENGTHS = CompleteSample._fields.index("lengths")
 RESIDUALS = Outcome._fields.index("residuals")
-# a window's conditions: times (n,), speeds, accelerations, directions (n, 4), inputs; or the one all share
-PackedConditions = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[Any]] | Conditions
 
 
 def _packed(samples: Sequence[CompleteSample]) -> Packed:
@@ -47,22 +44,6 @@ def _packed(samples: Sequence[CompleteSample]) -> Packed:
 def _unpacked(packed: Packed) -> list[CompleteSample]:
     lengths, rows = packed
     return [CompleteSample._make((*row[:LENGTHS], row_lengths, *row[LENGTHS:])) for row_lengths, row in zip(lengths, rows)]
-
-
-def _packed_conditions(conditions: Sequence[Conditions]) -> PackedConditions:
-    """A window's conditions as they cross: the one every sample has where the plant reads none, else as arrays."""
-    if conditions and all(c is conditions[0] for c in conditions):
-        return conditions[0]
-    return (np.array([c.time for c in conditions]), np.array([c.speeds for c in conditions]),
-            np.array([c.accelerations for c in conditions]), np.array([c.direction for c in conditions]),
-            [c.inputs for c in conditions])
-
-
-def _unpacked_conditions(packed: PackedConditions, count: int) -> list[Conditions]:
-    if isinstance(packed, Conditions):
-        return [packed] * count
-    times, speeds, accelerations, directions, inputs = packed
-    return [Conditions(*row) for row in zip(times.tolist(), speeds, accelerations, directions, inputs)]
 
 
 def _plain(encoded: Encoded) -> tuple[Any, ...]:
@@ -84,9 +65,8 @@ def _encoded(plain: tuple[Any, ...]) -> Encoded:
 def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[list[tuple[Any, ...]], bytes]:
     """The worker's job: a window's samples encoded (without the outputs themselves) and the stages' state
     after them."""
-    samples, conditions, headers, batched = job
-    merged = _unpacked(samples)
-    encoded = stages.run(merged, _unpacked_conditions(conditions, len(merged)), headers, batched, outputs=False)
+    samples, inputs, headers, batched = job
+    encoded = stages.run(_unpacked(samples), inputs, headers, batched, outputs=False)
     return [_plain(e) for e in encoded], stages.state()
 
 
@@ -109,13 +89,14 @@ class SecondProcess:
     def available() -> bool:
         return ForkedWorker.available()
 
-    def submit(self, samples: list[CompleteSample], conditions: list[Conditions], headers: list[Stamp],
+    def submit(self, samples: list[CompleteSample], inputs: list[dict[str, float]] | None, headers: list[Stamp],
                batched: bool) -> None:
-        """Start a window's samples through the stages in the worker (in order after the windows before it)."""
-        job = (samples, conditions, headers, batched)
+        """Start a window's samples (with the extra inputs' values at their stamps, None where the plant reads
+        none) through the stages in the worker (in order after the windows before it)."""
+        job = (samples, inputs, headers, batched)
         if self.worker is not None:
             try:
-                self.worker.submit((_packed(samples), _packed_conditions(conditions), headers, batched))
+                self.worker.submit((_packed(samples), inputs, headers, batched))
             except WorkerLost as lost:
                 self._lost(str(lost))
         self.pending.append((self.worker is not None, job))

@@ -1,7 +1,8 @@
 """What becomes of a window's merged samples: estimated (or solved), judged and encoded together.
 
-What happens to a complete sample after it is merged -- its estimate (the model's error
-carried from window to window), its alarm and residuals, its records and scene -- is a
+What happens to a complete sample after it is merged -- its conditions (speeds, accelerations,
+directions), its estimate (the model's error carried from window to window), its alarm and
+residuals, its records and scene -- is a
 function of the merged samples in order (`WindowStages`), by the monitor's own code, which
 the node runs on the samples waiting when its worker takes them. What comes out per sample is bytes and a small outcome
 (`Encoded`), so that a second process can hand it back cheaply (second_process.py). A sample due a
@@ -13,14 +14,13 @@ second one estimates, together with the residuals of the window's sensor message
 from __future__ import annotations
 
 import pickle
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import NamedTuple
 
 from ..messages import records
 from ..messages.fields import Stamp
 from ..messages.records import Record
 from ..messages.scene import SceneBuilder, SceneState, SceneThrottle
-from ..model.conditions import Conditions
 from ..monitor.diagnostics import SampleView, sample_view
 from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
 from ..monitor.residuals import Residuals
@@ -64,12 +64,14 @@ class WindowStages:
         self.builder, self.throttle = SceneBuilder(monitor.plant), SceneThrottle(scene_rate)
         self.first_of_second = FirstOfEachSecond()  # where the diagnostics view of a sample is sent
 
-    def run(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions],
+    def run(self, samples: Sequence[CompleteSample], inputs: Sequence[Mapping[str, float]] | None,
             headers: Sequence[Stamp], batched: bool = True, outputs: bool = True) -> list[Encoded]:
-        """What replay writes for each sample (header stamps `headers`); solved together where `batched`; with
-        the outputs themselves where `outputs` (a second process sends back only what replay writes)."""
+        """What replay writes for each sample (header stamps `headers`, the extra inputs' values at their stamps
+        `inputs`, None where the plant reads none); solved together where `batched`; with the outputs themselves
+        where `outputs` (a second process sends back only what replay writes)."""
         monitor = self.monitor
         channels = monitor.model.channels
+        conditions = monitor.conditions(samples, inputs)
         if batched:
             judged = monitor.judge_samples(samples, monitor.solve_samples(samples, conditions))
         else:  # each solved as the node solves one alone (warm-started by the one before)

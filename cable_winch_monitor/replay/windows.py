@@ -7,11 +7,12 @@ ahead. For each window of messages:
    node would merge it, its log time standing for the node clock in the stamp window), and
    every sensor reading kept as the node keeps it; each complete sample keeps what the
    merger knew at its message, what the sensors read then (the latest readings stamped at or
-   before it: one logged after it is waited for, as the node waits, monitor.waiting), and its
-   conditions;
-2. the window's complete samples are estimated (or solved) together by the monitor's own
-   `solve_samples`, with their wall clearances: the estimator is a function of the samples
-   in order, so a window at once gives what the node gives one sample at a time;
+   before it: one logged after it is waited for, as the node waits, monitor.waiting), and the
+   extra inputs' values at its stamp;
+2. the window's complete samples get their conditions (speeds, accelerations, directions) and
+   are estimated (or solved) together by the monitor's own `conditions` and `solve_samples`,
+   with their wall clearances: both are functions of the samples in order, so a window at once
+   gives what the node gives one sample at a time;
 3. the messages are taken in log order again: a complete sample gets its alarm and
    load-pin residuals, an inclinometer or depth reading its residuals against the latest
    solved pose -- the per-sample monitor's own code, so the outputs are the node's; once the
@@ -45,7 +46,6 @@ from typing import Any, NamedTuple
 from ..messages import fields, stacked
 from ..messages.records import Record, diagnostics_record
 from ..messages.scene import REPLAY_RATE
-from ..model.conditions import Conditions
 from ..model.plantfile.plant import CABLE_NAMES, Plant
 from ..monitor.diagnostics import DiagnosticsReporter, SampleView, WinchView, sample_view, winch_view
 from ..monitor.inputs import StampWindow
@@ -79,10 +79,10 @@ Result = Encoded | Measured | Failed | None
 
 
 class Merged(NamedTuple):
-    """A complete sample with its conditions and its winch message's header stamp."""
+    """A complete sample with the extra inputs' values at its stamp and its winch message's header stamp."""
 
     sample: CompleteSample
-    conditions: Conditions
+    inputs: dict[str, float]
     header: fields.Stamp
 
 
@@ -230,8 +230,8 @@ class WindowScheduler:
             # none waits any more, or the stream ended, or the window went on EXTENDED messages: what is in, they take
             _read(merged, self.waiting.release(math.inf, everything=True))
             samples = [outcome for outcome in merged if isinstance(outcome, Merged)]
-            job = ([s.sample for s in samples], [s.conditions for s in samples], [s.header for s in samples],
-                   self.batched)
+            values = [s.inputs for s in samples] if self.monitor.inputs else None
+            job = ([s.sample for s in samples], values, [s.header for s in samples], self.batched)
             if second is not None:
                 second.submit(*job)
             else:
@@ -343,7 +343,7 @@ class WindowScheduler:
             sample = self.monitor.merge_winch(fields.joint_sample(item.message, item.topic, item.log_time * 1e-9))  # arrival
         except Exception as error:
             return Failed.of(error)
-        return None if sample is None else Merged(sample, self.monitor.conditions(sample), fields.stamp_of(item.message))
+        return None if sample is None else Merged(sample, self.monitor.inputs_at(sample.stamp), fields.stamp_of(item.message))
 
     def _result(self, item: Any, outcome: Merged | dict[str, float] | Failed | None,
                 encoded: Iterator[Encoded]) -> Result | Residuals:

@@ -20,7 +20,7 @@ from cable_winch_monitor.bagio.writer import BagWriter
 from cable_winch_monitor.channels import BUILTIN_CHANNELS, TENSION_CHANNELS
 from cable_winch_monitor.effects import PlantModel
 from cable_winch_monitor.messages.records import build
-from cable_winch_monitor.model.conditions import derivatives, directions, motion_direction
+from cable_winch_monitor.model.conditions import derivatives
 from cable_winch_monitor.model.plantfile.plant import load_plant
 from cable_winch_monitor.sim.profile import Profile
 
@@ -208,17 +208,6 @@ def test_diagnose_without_the_effect_in_its_library_names_the_payout(tmp_path, r
     assert first["n"] == report["split"]["held_out_rows"] - sum(
         report["channels"][name]["count"] for name in ("roll", "depth"))  # winch rows of the held-out set
     assert f"what the remaining error follows:\n  {first['sentence']}" in result.stdout
-
-
-def test_directions_of_a_series_as_sample_by_sample():
-    rng = np.random.default_rng(7)
-    speeds = np.repeat(rng.normal(0.0, 0.05, (200, 4)), rng.integers(1, 6, 200), axis=0)  # runs of stops
-    speeds[rng.random(speeds.shape) < 0.05] = np.nan  # winches that report no speed
-    expected, current = np.zeros_like(speeds), np.zeros(4)
-    for k, sample in enumerate(speeds):
-        current = expected[k] = motion_direction(sample, current)
-    np.testing.assert_array_equal(directions(speeds), expected)
-    assert (expected == 0.0).any() and (expected == 1.0).any() and (expected == -1.0).any()
 
 
 STOP_AND_GO = {"start_length": 40.0, "segments": [{"move": 12.0, "speed": 1.0, "accel": 0.2}, {"stop": 3.0},

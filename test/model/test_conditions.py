@@ -1,7 +1,8 @@
-"""The live conditions, one sample at a time (ConditionsTracker), are the stacked ones of the same samples
-(`derivatives` over causal windows, `directions`): the per-sample twin is kept for speed (four winches a
-sample; numpy's calls on a window of ten samples cost more than the sums) and held to the stacked form here."""
+"""The conditions as the samples come (ConditionsTracker): the same bits whether they come one at a time (the
+node) or in windows (replay), and the recording's (`derivatives` over causal windows, `directions`)."""
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 from hypothesis import given, settings
@@ -24,16 +25,41 @@ def winch_series(seed: int, count: int, silent: int | None) -> tuple[np.ndarray,
     return t, lengths, speeds
 
 
+def one_at_a_time(tracker: ConditionsTracker, t: np.ndarray, lengths: np.ndarray, speeds: np.ndarray) -> list:
+    return [tracker.update(t[k:k + 1], lengths[k:k + 1], speeds[k:k + 1])[0] for k in range(len(t))]
+
+
+def columns(conditions: list) -> np.ndarray:
+    """Stamps, speeds, accelerations and directions of a run of conditions, one row each (n, 13)."""
+    return np.array([[c.time, *c.speeds, *c.accelerations, *c.direction] for c in conditions])
+
+
 @settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 10_000), count=st.integers(3, 120), silent=st.sampled_from([None, 0, 3]))
-def test_live_conditions_are_the_stacked_ones(seed, count, silent):
+@given(seed=st.integers(0, 10_000), count=st.integers(3, 120), silent=st.sampled_from([None, 0, 3]),
+       cuts=st.lists(st.integers(1, 119), max_size=6))
+def test_conditions_one_at_a_time_are_those_of_windows_to_the_bit(seed, count, silent, cuts):
+    """The node's samples come one at a time, replay's in windows cut anywhere: the same bits either way, and
+    the recording's causal line fits (`derivatives`, `directions`) to rounding."""
     t, lengths, speeds = winch_series(seed, count, silent)
-    tracker = ConditionsTracker()
-    live = [tracker.update(float(at), row, rate) for at, row, rate in zip(t, lengths, speeds)]
+    live = one_at_a_time(ConditionsTracker(), t, lengths, speeds)
+    tracker, windows = ConditionsTracker(), []
+    for a, b in itertools.pairwise([0, *sorted(c for c in set(cuts) if c < count), count]):
+        windows += tracker.update(t[a:b], lengths[a:b], speeds[a:b])
+    np.testing.assert_array_equal(columns(windows), columns(live))
     stacked_speeds, stacked_accelerations = derivatives(t, lengths, speeds, centred=False)
     np.testing.assert_allclose([c.speeds for c in live], stacked_speeds, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose([c.accelerations for c in live], stacked_accelerations, rtol=1e-7, atol=1e-9)
     np.testing.assert_array_equal([c.direction for c in live], directions(stacked_speeds))
+    assert np.isfinite(columns(live)).all()  # a silent winch's speed is its lengths' slope
+
+
+def test_directions_hold_through_a_stop_and_from_the_window_before():
+    """Within the dead band a winch keeps the direction it last moved in, across the windows' boundary too;
+    one that has not moved yet stands (0)."""
+    speeds = np.array([[0.5, 0.0, -0.5, 0.0], [0.01, 0.0, 0.0, 0.0], [np.nan, -0.3, 0.0, 0.0]])
+    np.testing.assert_array_equal(directions(speeds), [[1, 0, -1, 0], [1, 0, -1, 0], [1, -1, -1, 0]])
+    np.testing.assert_array_equal(directions(speeds[1:], np.array([-1.0, 1.0, 1.0, 1.0])),
+                                  [[-1, 1, 1, 1], [-1, -1, 1, 1]])
 
 
 def test_a_sample_stamped_a_little_before_the_one_before_it_keeps_the_windows_line():
@@ -46,9 +72,9 @@ def test_a_sample_stamped_a_little_before_the_one_before_it_keeps_the_windows_li
     lengths = 100.0 + 0.5 * 0.4 * t[:, None] ** 2 * np.ones(4)  # paying out at 0.4 m/s^2
     speeds = 0.4 * t[:, None] * np.ones(4)
     tracker = ConditionsTracker()
-    live = [tracker.update(float(at), row, rate) for at, row, rate in zip(t, lengths, speeds)]
+    live = one_at_a_time(tracker, t, lengths, speeds)
     assert all(abs(c.acceleration - 0.4) < 1e-9 for c in live[1:])
-    restarted = tracker.update(0.0, lengths[0], speeds[0])  # the bag played again: afresh
+    restarted = tracker.update(t[:1], lengths[:1], speeds[:1])[0]  # the bag played again: afresh
     assert restarted.acceleration == 0.0
 
 

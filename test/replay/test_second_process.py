@@ -3,18 +3,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from cable_winch_monitor.effects.model import NO_CONDITIONS
-from cable_winch_monitor.model.conditions import Conditions
 from cable_winch_monitor.model.statics.result import SolveStatus
 from cable_winch_monitor.monitor.pipeline import CompleteSample, Outcome
 from cable_winch_monitor.monitor.residuals import Residuals
 from cable_winch_monitor.replay.second_process import (
     _encoded,
     _packed,
-    _packed_conditions,
     _plain,
     _unpacked,
-    _unpacked_conditions,
 )
 from cable_winch_monitor.replay.stages import Encoded
 
@@ -40,15 +36,3 @@ def test_an_outcome_crosses_with_its_residuals_or_without() -> None:
         back = _encoded(_plain(encoded))
         assert back == encoded and type(back.outcome) is Outcome
         assert r is None or type(back.outcome.residuals) is Residuals
-
-
-def test_a_windows_conditions_cross_as_they_were_or_as_the_one_all_share() -> None:
-    conditions = [Conditions(10.0 + k, np.array([0.5, 0.5, 0.49, float("nan")]) + k, np.full(4, 0.01 * k), np.ones(4),
-                             {"/shaft/temperature.temperature": 12.5} if k else {}) for k in range(3)]
-    back = _unpacked_conditions(_packed_conditions(conditions), 3)
-    for sent, got in zip(conditions, back):
-        assert type(got) is Conditions and got.time == sent.time and got.inputs == sent.inputs
-        for name in ("speeds", "accelerations", "direction"):
-            assert np.array_equal(getattr(got, name), getattr(sent, name), equal_nan=True)
-    assert _unpacked_conditions(_packed_conditions([NO_CONDITIONS] * 4), 4) == [NO_CONDITIONS] * 4
-    assert _unpacked_conditions(_packed_conditions([]), 0) == []
