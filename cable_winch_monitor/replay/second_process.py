@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import os
+import pickle
 from collections.abc import Sequence
 from typing import Any
 
@@ -46,28 +47,29 @@ def _unpacked(packed: Packed) -> list[CompleteSample]:
     return [CompleteSample._make((*row[:LENGTHS], row_lengths, *row[LENGTHS:])) for row_lengths, row in zip(lengths, rows)]
 
 
-def _plain(encoded: Encoded) -> tuple[Any, ...]:
-    """A sample's `Encoded` from the worker (never with its outputs) as plain tuples, its residuals too."""
-    records, outcome, view, scene, _ = encoded
-    residuals = outcome.residuals
-    return records, (*outcome[:RESIDUALS], None if residuals is None else tuple(residuals),
-                     *outcome[RESIDUALS + 1:]), view, scene
+def _plain(encoded: Sequence[Encoded]) -> tuple[bytes, ...]:
+    """A window's `Encoded` from the worker (never with their outputs) as they cross: its records, outcomes (plain
+    tuples, residuals too), /diagnostics views and scenes, each list pickled apart (pickled together, every object
+    of the window shares one memo: 46 against 31 ms for (a)'s windows, 69 against 54 ms to read them back)."""
+    outcomes = [(*o[:RESIDUALS], None if o.residuals is None else tuple(o.residuals), *o[RESIDUALS + 1:])
+                for o in (e.outcome for e in encoded)]
+    return tuple(pickle.dumps(part, protocol=pickle.HIGHEST_PROTOCOL) for part in
+                 ([e.records for e in encoded], outcomes, [e.view for e in encoded], [e.scene for e in encoded]))
 
 
-def _encoded(plain: tuple[Any, ...]) -> Encoded:
-    records, outcome, view, scene = plain
-    residuals = outcome[RESIDUALS]
-    outcome = Outcome._make((*outcome[:RESIDUALS], None if residuals is None else Residuals._make(residuals),
-                             *outcome[RESIDUALS + 1:]))
-    return Encoded(records, outcome, view, scene)
+def _encoded(plain: tuple[bytes, ...]) -> list[Encoded]:
+    records, outcomes, views, scenes = (pickle.loads(part) for part in plain)
+    return [Encoded(r, Outcome._make((*o[:RESIDUALS], None if o[RESIDUALS] is None else Residuals._make(o[RESIDUALS]),
+                                      *o[RESIDUALS + 1:])), view, scene)
+            for r, o, view, scene in zip(records, outcomes, views, scenes)]
 
 
-def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[list[tuple[Any, ...]], bytes]:
+def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[tuple[bytes, ...], bytes]:
     """The worker's job: a window's samples encoded (without the outputs themselves) and the stages' state
     after them."""
     samples, inputs, headers, batched = job
     encoded = stages.run(_unpacked(samples), inputs, headers, batched, outputs=False)
-    return [_plain(e) for e in encoded], stages.state()
+    return _plain(encoded), stages.state()
 
 
 class SecondProcess:
@@ -108,7 +110,7 @@ class SecondProcess:
         if handed and self.worker is not None:
             try:
                 result, self.state = self.worker.result()
-                return [_encoded(plain) for plain in result]
+                return _encoded(result)
             except WorkerLost as lost:
                 self._lost(str(lost))
         if self.state is not None:

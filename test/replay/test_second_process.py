@@ -32,7 +32,9 @@ def test_an_outcome_crosses_with_its_residuals_or_without() -> None:
     for r in (residuals, None):
         outcome = Outcome(10.0, SolveStatus.SOLVED, "taut {1,2,3,4}", "OK", {}, {"roll": 0.011}, r, "",
                           "tilt measured; the model agrees", ((0.0,) * 4, (1.0,) * 4))
-        encoded = Encoded([("/platform/pose", "geometry_msgs/msg/PoseStamped", b"\x00\x01")], outcome, None)
+        encoded = [Encoded([("/platform/pose", "geometry_msgs/msg/PoseStamped", b"\x00\x01")], outcome, None),
+                   Encoded([], outcome._replace(stamp=10.1), None)]
         back = _encoded(_plain(encoded))
-        assert back == encoded and type(back.outcome) is Outcome
-        assert r is None or type(back.outcome.residuals) is Residuals
+        assert back == encoded and all(type(e.outcome) is Outcome for e in back)
+        assert r is None or all(type(e.outcome.residuals) is Residuals for e in back)
+    assert _encoded(_plain([])) == []
