@@ -13,8 +13,8 @@ import cable_winch_monitor
 
 PACKAGE = Path(cable_winch_monitor.__file__).parent
 LAYERS = (  # bottom first
-    {"paths", "progress", "seed002", "stopping", "safe_yaml"},  # no package imports (files, progress bars, stop
-                                        # signals, YAML read within bounds)
+    {"paths", "progress", "seed002", "stopping", "safe_yaml", "frozen"},  # no package imports (files, progress bars, stop
+                                        # signals, YAML read within bounds, fast frozen dataclasses)
     {"bagio"},                          # bag files: MCAP/rosbag2, CDR, type store, salvage (a bag's YAML bounded)
     {"model"},                          # plant file, mechanics, solvers, estimation
     {"channels", "formatting", "demo"},  # what a sensor channel is; printing solutions; the paper's examples

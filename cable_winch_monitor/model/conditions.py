@@ -17,11 +17,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..frozen import fast_init
+
 DEADBAND = 0.02               # [m/s] slower payout counts as standing still (encoder speed noise is ~2 mm/s)
 ACCELERATION_WINDOW = 1.0     # [s] speeds and accelerations are line slopes over this window
 NAN = float("nan")
 
 
+@fast_init
 @dataclass(frozen=True)
 class Conditions:
     """Conditions of one sample.

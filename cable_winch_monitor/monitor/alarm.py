@@ -7,6 +7,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from ..frozen import fast_init
 from ..model.plantfile.plant import CABLE_NAMES, Plant, PlantConfigError
 from ..model.statics.result import Solution, SolveStatus
 from .clearance import Clearance
@@ -51,6 +52,7 @@ class AlarmPolicy:
                 AlarmLevel.COLLISION: 0.0}
 
 
+@fast_init
 @dataclass(frozen=True)
 class Alarm:
     level: AlarmLevel

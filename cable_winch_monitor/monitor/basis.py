@@ -17,6 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..frozen import fast_init
 from ..model.plantfile.plant import Plant
 from .clearance import Clearance
 
@@ -24,6 +25,7 @@ SIGMAS = 3.0  # the two clearances disagree when further apart than this many of
 CORROBORATING_PINS = 3  # load pins fused with the inclinometer that confirm its tilt
 
 
+@fast_init
 @dataclass(frozen=True)
 class Basis:
     """The clearance an alarm level is based on, and what it is based on in words."""

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..frozen import fast_init
 from ..model.paper.plumb_hang import PlumbHang
 from ..model.plantfile.plant import Plant
 from ..model.solvers.batched import BatchSolution
@@ -14,6 +15,7 @@ from ..model.statics.result import Solution
 SWING_SAMPLES_PER_RAD = 60
 
 
+@fast_init
 @dataclass(frozen=True)
 class Clearance:
     """Smallest horizontal distance [m] from any outline point to the wall (negative: through it)."""

@@ -29,6 +29,7 @@ from ..channels import TENSION_CHANNELS, ChannelRegistry, Input
 from ..effects import PlantModel
 from ..effects.estimate import fuses
 from ..effects.model import NO_CONDITIONS
+from ..frozen import fast_init
 from ..model.conditions import Conditions, ConditionsTracker
 from ..model.estimator import Estimate
 from ..model.plantfile.plant import Plant
@@ -57,6 +58,7 @@ if TYPE_CHECKING:  # the node's process for the window updates: replay need not 
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
 
 
+@fast_init
 @dataclass(frozen=True)
 class ModelView:
     """What the model says of a sample beside the estimate: the clearance of its own equilibrium for the
@@ -75,6 +77,7 @@ class ModelView:
     parameters_due: bool = False  # this sample publishes them (the first of each second of stamps)
 
 
+@fast_init
 @dataclass(frozen=True)
 class MonitorOutput:
     """Everything the monitor publishes for one solved sample, stamped with its input stamp."""

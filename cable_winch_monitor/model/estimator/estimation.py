@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ...frozen import fast_init
 from ..plantfile.plant import Plant
 from ..solvers import compiled
 from ..solvers.batched import BITS, BatchSolution, solve_batch
@@ -63,6 +64,7 @@ NEIGHBOURS = _neighbour_table()
 ALL_SETS = [[c for c in range(16) if bin(c).count("1") >= 2]] * 16
 
 
+@fast_init
 @dataclass(frozen=True)
 class Estimate:
     """The fused state of one sample.

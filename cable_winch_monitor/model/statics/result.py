@@ -8,6 +8,7 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
+from ...frozen import fast_init
 from ..plantfile.plant import CABLE_NAMES, Plant
 from .geometry import attachment_points, quaternion_from_rotation, roll_pitch_yaw, wrench_residuals
 
@@ -41,6 +42,7 @@ class computed_once(Generic[T]):
         return value
 
 
+@fast_init
 @dataclass(frozen=True)
 class Solution:
     """Static equilibrium of the platform for four cable lengths.
