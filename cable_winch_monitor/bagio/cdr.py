@@ -344,11 +344,18 @@ def _at(values: Any, path: FieldPath) -> Any:
 
 
 def _replaced(values: Mapping[str, Any], changes: Mapping[FieldPath, Any]) -> Any:
-    """A deep copy of nested field values with the values at the paths of `changes` set as it says."""
-    out: Any = copy.deepcopy(values)
+    """Nested field values with the values at the paths of `changes` set as it says: the mappings and lists
+    along those paths copied, the rest shared with `values`, which is left as it was (a deep copy of the
+    template for each of a message's columns was most of what a new shape's encoder took to make)."""
+    out: Any = copy.copy(values)
+    copied: dict[FieldPath, Any] = {(): out}  # each container copied so far, by its path
     for path, value in changes.items():
         holder = out
-        for step in path[:-1]:
-            holder = holder[step]
+        for depth in range(1, len(path)):
+            inner = copied.get(path[:depth])
+            if inner is None:
+                inner = copied[path[:depth]] = copy.copy(holder[path[depth - 1]])
+                holder[path[depth - 1]] = inner
+            holder = inner
         holder[path[-1]] = value
     return out
