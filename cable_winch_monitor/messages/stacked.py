@@ -66,8 +66,11 @@ def tension_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOut
     fused = [output.estimate if output.estimate is not None and output.estimate.fused else None for output in outputs]
     states = [solution.tension_state.encode() for solution in solutions]
     methods = [solution.method.encode() for solution in solutions]
-    used = [() if estimate is None else tuple(name.encode() for name in channels.sensors_used(estimate.used))
-            for estimate in fused]
+    encoded: dict[tuple[str, ...], tuple[bytes, ...]] = {}  # the sensors of each set of channels used (a few sets)
+    for estimate in fused:
+        if estimate is not None and estimate.used not in encoded:
+            encoded[estimate.used] = tuple(name.encode() for name in channels.sensors_used(estimate.used))
+    used = [() if estimate is None else encoded[estimate.used] for estimate in fused]
     shapes = [(len(state), len(method), tuple(map(len, names)), estimate is not None)
               for state, method, names, estimate in zip(states, methods, used, fused)]
     stamp = np.array(stamps, dtype=np.int64).reshape(-1, 2)

@@ -20,6 +20,7 @@ import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import numpy as np
@@ -55,6 +56,7 @@ from .tracking import ParameterView
 if TYPE_CHECKING:  # the node's process for the window updates: replay need not import it
     from .updates import UpdateProcess
 
+CONTRADICTS = "contradicts the other sensors"  # why a sensor the estimator rejects or leaves out is not fused
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
 
 
@@ -192,6 +194,12 @@ class MonitorStats:
             else:
                 entry[0] += 1
                 entry[2], entry[3] = stamp, why
+
+
+@lru_cache(maxsize=256)
+def _measured(used: tuple[str, ...]) -> tuple[bool, bool]:
+    """Whether an estimate that used these channels measured the tilt, and enough load pins to corroborate it."""
+    return "roll" in used and "pitch" in used, sum(name in used for name in TENSION_CHANNELS) >= CORROBORATING_PINS
 
 
 def stuck_faults(stuck: Mapping[str, tuple[float, float]], channels: ChannelRegistry) -> dict[str, str]:
@@ -370,16 +378,18 @@ class MonitorPipeline:
         rows = self._solved([e.solution for e in estimates], estimates, conditions, model)
         tilts = tilt_sigmas(model.physical, estimated.prior.length_covariance).tolist()
         due = estimated.parameters_due or [False] * len(rows)
+        left_out = tuple(sorted(set(estimated.left_out)))
+        contradicting = dict.fromkeys(estimated.left_out, CONTRADICTS)
         out = []
-        for k, row in enumerate(rows):
-            faults = {**samples[k].faults, **{sensor: "contradicts the other sensors" for sensor in
-                                             estimated.left_out + estimated.rejected[k]}}
-            view = ModelView(model_clearances[k], estimated.length_error[k],
-                             estimated.length_sigma[k], estimated.pin_error[k], estimated.pin_sigma[k],
-                             tilts[k], estimated.rejected[k],
-                             tuple(sorted(set(estimated.left_out) | set(samples[k].faults))), faults,
-                             estimated.parameters, due[k])
-            out.append(row._replace(model=view))
+        for row, sample, clearance, error, sigma, pin_error, pin_sigma, tilt, rejected, publishes in zip(
+                rows, samples, model_clearances, estimated.length_error, estimated.length_sigma, estimated.pin_error,
+                estimated.pin_sigma, tilts, estimated.rejected, due):
+            faulty = sample.faults
+            faults = {**faulty, **contradicting, **dict.fromkeys(rejected, CONTRADICTS)}
+            view = ModelView(clearance, error, sigma, pin_error, pin_sigma, tilt, rejected,
+                             tuple(sorted(set(left_out) | set(faulty))) if faulty else left_out, faults,
+                             estimated.parameters, publishes)
+            out.append(Solved(row.solution, row.clearance, row.estimate, row.predicted, view))
         return out
 
     def _solved(self, solutions: list[Solution], estimates: Sequence[Estimate | None],
@@ -414,7 +424,9 @@ class MonitorPipeline:
         alarm is based on, the alarms (their hysteresis carried from sample to sample, their sync errors and
         slack worked out together), each sample's load pins compared with the model. Returns each one's
         outputs and what `note` counts of them (replay's second process judges, the replay counts)."""
-        bases = [self._basis(done.clearance, done.estimate, done.model) for done in solved]
+        tilt_noise = max(self.noise.get("roll", math.nan), self.noise.get("pitch", math.nan))
+        sigma = tilt_noise if math.isfinite(tilt_noise) else None
+        bases = [self._basis(done.clearance, done.estimate, done.model, sigma) for done in solved]
         alarms = self.alarms.update_many([done.solution for done in solved], [basis.clearance for basis in bases],
                                          [basis.text if done.model is not None else "" for basis, done in
                                           zip(bases, solved)])
@@ -436,17 +448,16 @@ class MonitorPipeline:
         if outcome.status is SolveStatus.SOLVED:
             self.last_solved_stamp, self.last_predicted = outcome.stamp, outcome.predicted
 
-    def _basis(self, clearance: Clearance | None, fused: Estimate | None, view: ModelView | None) -> Basis:
+    def _basis(self, clearance: Clearance | None, fused: Estimate | None, view: ModelView | None,
+               sigma: float | None) -> Basis:
         """What the alarm is based on: the estimate's clearance where the lengths are taken as exact; else
-        the measured tilt's, or the model's where it is more dangerous beyond their spread."""
+        the measured tilt's, or the model's where it is more dangerous beyond their spread (`sigma`: the
+        inclinometer's noise [rad], None where the plant file gives none: the model's tilt spread stands in)."""
         if view is None:
             return Basis(clearance, "")
-        used = fused.used if fused is not None else ()
-        tilt = "roll" in used and "pitch" in used
-        pins = sum(name in used for name in TENSION_CHANNELS)
-        sigma = max(self.noise.get("roll", math.nan), self.noise.get("pitch", math.nan))
-        return judged(clearance if fused is not None and fused.ok else None, view.clearance, tilt,
-                      pins >= CORROBORATING_PINS, sigma if math.isfinite(sigma) else view.tilt_sigma, view.tilt_sigma)
+        tilt, corroborated = _measured(fused.used if fused is not None else ())
+        return judged(clearance if fused is not None and fused.ok else None, view.clearance, tilt, corroborated,
+                      view.tilt_sigma if sigma is None else sigma, view.tilt_sigma)
 
     def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True,
                        values: dict[str, float] | None = None) -> Residuals | None:

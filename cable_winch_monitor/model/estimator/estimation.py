@@ -26,6 +26,7 @@ ropes. The admissible row of least cost is kept.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -175,12 +176,17 @@ class BatchEstimate:
         solutions = solved_rows(self.plant, METHOD, self.corrected[rows], self.rotation[rows], self.position[rows],
                                 self.tensions[rows], self.taut[rows], self.iterations[rows], loads=self.loads[rows],
                                 anchors=None if self.anchors is None else self.anchors[rows]) if rows.size else []
-        for i, solution in zip(rows.tolist(), solutions):
-            measured = np.isfinite(self.residuals[i])
-            out[i] = Estimate(solution, self.reported[i], self.corrected[i] - self.reported[i], self.sigma_length,
-                              {n: float(r) for n, r, m in zip(self.names, self.residuals[i], measured) if m},
-                              tuple(n for n, m in zip(self.names, measured) if m), self.loaded[i],
-                              None if self.cost is None else float(self.cost[i]))
+        used: dict[tuple[bool, ...], tuple[str, ...]] = {}  # the names measured, for each pattern (a few)
+        corrections = self.corrected[rows] - self.reported[rows]
+        costs = [None] * len(rows) if self.cost is None else self.cost[rows].tolist()
+        for i, solution, correction, row, cost in zip(rows.tolist(), solutions, corrections,
+                                                     self.residuals[rows].tolist(), costs):
+            measured = tuple(map(math.isfinite, row))
+            names = used.get(measured)
+            if names is None:
+                names = used[measured] = tuple(n for n, m in zip(self.names, measured) if m)
+            out[i] = Estimate(solution, self.reported[i], correction, self.sigma_length,
+                              {n: r for n, r, m in zip(self.names, row, measured) if m}, names, self.loaded[i], cost)
         return [out[i] for i in indices]
 
 

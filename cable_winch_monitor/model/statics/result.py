@@ -4,6 +4,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import lru_cache
 from typing import Any, Generic, TypeVar
 
 import numpy as np
@@ -80,13 +81,13 @@ class Solution:
         """1-based numbers of the taut cables, as the paper writes them."""
         if self.taut is None:
             return ()
-        return tuple(i + 1 for i, taut in enumerate(self.taut.tolist()) if taut)
+        return _taut_set(np.asarray(self.taut, dtype=bool).tobytes())
 
     @computed_once
     def tension_state(self) -> str:
         """Plain words: 'taut {1,2,4}', 'single cable 1: pose indeterminate', ..."""
         if self.status is SolveStatus.SOLVED:
-            return "taut {" + ",".join(str(i) for i in self.taut_set) + "}"
+            return _taut_words(self.taut_set)
         if self.status is SolveStatus.SINGLE_CABLE_INDETERMINATE:
             assert self.single_cable is not None  # a single-cable solution names its cable
             return f"single cable {self.single_cable + 1}: pose indeterminate"
@@ -134,6 +135,17 @@ class Solution:
             out["single_cable"] = CABLE_NAMES[self.single_cable]
             out["rotation_range"] = [list(interval) for interval in self.rotation_range]
         return out
+
+
+@lru_cache(maxsize=64)
+def _taut_set(taut: bytes) -> tuple[int, ...]:
+    """`Solution.taut_set` of a taut mask's bytes (a few masks, asked of every solution)."""
+    return tuple(i + 1 for i, flag in enumerate(taut) if flag)
+
+
+@lru_cache(maxsize=64)
+def _taut_words(taut_set: tuple[int, ...]) -> str:
+    return "taut {" + ",".join(str(i) for i in taut_set) + "}"
 
 
 def failed(status: SolveStatus, message: str, method: str, lengths: Sequence[float] | np.ndarray, **kwargs: Any) -> Solution:
@@ -244,12 +256,12 @@ def solved_rows(plant: Plant, method: str, lengths: np.ndarray, rotation: np.nda
     force, moment = wrench_residuals(geometry, points_b, point_c, tensions, loads)
     spans = np.linalg.norm(points_b - geometry.anchors, axis=-1)
     taut, tensions = np.asarray(taut, dtype=bool), np.asarray(tensions, dtype=float)
-    return [Solution(status=SolveStatus.SOLVED, message=message, method=method, lengths=lengths[i], taut=taut[i],
-                     tensions=tensions[i], rotation=rotation[i], position=position[i], points_b=points_b[i],
-                     point_c=point_c[i], spans=spans[i], force_residual=float(force[i]),
-                     moment_residual=float(moment[i]), iterations=int(iterations[i]), load=loads[i],
-                     extras=dict(extras or {}))
-            for i in range(len(lengths))]
+    rows = zip(lengths, taut, tensions, rotation, position, points_b, point_c, spans, force.tolist(), moment.tolist(),
+               np.asarray(iterations).tolist(), loads)
+    return [Solution(SolveStatus.SOLVED, message, method, length, flags, pulls, turn, place, points, point, span,
+                     force_residual, moment_residual, count, load=load, extras=dict(extras or {}))
+            for length, flags, pulls, turn, place, points, point, span, force_residual, moment_residual, count, load
+            in rows]
 
 
 FloatRows = float | np.ndarray  # one state's value, or one per row
