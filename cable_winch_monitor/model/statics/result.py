@@ -72,8 +72,9 @@ class Solution:
     load: np.ndarray | None = None  # the external wrench solved for (model.load); None: gravity
     extras: dict[str, Any] = field(default_factory=dict)
 
-    @property
+    @computed_once
     def ok(self) -> bool:
+        """Solved: a pose (asked a dozen times of each sample's solution on its way through replay)."""
         return self.status is SolveStatus.SOLVED
 
     @computed_once
