@@ -16,7 +16,7 @@ from cable_winch_monitor.model.statics.result import Solution, SolveStatus
 from cable_winch_monitor.monitor.alarm import Alarm
 from cable_winch_monitor.monitor.basis import Basis
 from cable_winch_monitor.monitor.clearance import Clearance
-from cable_winch_monitor.monitor.pipeline import ModelView, MonitorOutput
+from cable_winch_monitor.monitor.judged import ModelView, MonitorOutput
 
 
 @dataclasses.dataclass(frozen=True)

@@ -55,12 +55,16 @@ def encoding_costs(plant: Plant, lengths: np.ndarray) -> tuple[float, float]:
     """[us] one sample's outputs encoded, the lengths estimated with 1 mm encoders: a message at a time, and
     by the stacked encoders as a run of one."""
     monitor = MonitorPipeline(plant.with_changes(noise={**plant.noise, "length": 1e-3}))
-    outputs = [monitor.on_joint_state(JointSample(100.0 + k / RATE, CABLE_NAMES, row.tolist()))
-               for k, row in enumerate(lengths)]
-    solved = [output for output in outputs if output is not None]
+    runs = []  # each sample judged alone, as the node's come
+    for k, row in enumerate(lengths):
+        complete = monitor.merge_winch(JointSample(100.0 + k / RATE, CABLE_NAMES, row.tolist()))
+        if complete is not None:
+            sample = monitor.read_sensors(complete)
+            runs.append(monitor.judge_samples([sample], monitor.solve_samples([sample], monitor.conditions([sample]))))
+    outputs = [run.output(0) for run in runs]
     channels, stamp = monitor.model.channels, (100, 0)
-    return (per_sample(lambda k, _: records.sample_records(stamp, solved[k], channels), len(solved)),
-            per_sample(lambda k, _: records.run_records([stamp], [solved[k]], channels), len(solved)))
+    return (per_sample(lambda k, _: records.sample_records(stamp, outputs[k], channels), len(runs)),
+            per_sample(lambda k, _: records.run_records([stamp], runs[k], channels), len(runs)))
 
 
 def main() -> None:

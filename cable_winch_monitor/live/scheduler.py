@@ -32,7 +32,8 @@ import numpy as np
 
 from ..model.plantfile.plant import Plant
 from ..monitor.inputs import JointSample, StampWindow
-from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline
+from ..monitor.judged import MonitorOutput
+from ..monitor.pipeline import CompleteSample, MonitorPipeline
 from ..monitor.residuals import Residuals
 from ..monitor.sensors import READING_LAG
 from ..monitor.updates import UpdateProcess
@@ -134,10 +135,10 @@ class LiveScheduler:
             with self.lock:
                 if generation != self.generation:
                     return []
-                outputs = []
-                for output, outcome in monitor.judge_samples(samples, solved):
+                judged = monitor.judge_samples(samples, solved)
+                for outcome in judged.outcomes():
                     monitor.note(outcome)
-                    outputs.append(output)
+                outputs = judged.outputs()
                 self._time(started, self.clock())
                 return outputs
         finally:

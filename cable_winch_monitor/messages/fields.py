@@ -20,7 +20,7 @@ from ..model.plantfile.plant import CABLE_NAMES
 from ..model.statics.result import Solution, SolveStatus
 from ..monitor.alarm import Alarm
 from ..monitor.inputs import JointSample
-from ..monitor.pipeline import MonitorOutput
+from ..monitor.judged import ModelView
 from ..monitor.residuals import Residuals
 from ..monitor.tracking import ParameterView
 
@@ -143,18 +143,17 @@ def collision_alarm(stamp: Stamp, alarm: Alarm) -> Fields:
             "reason": alarm.reason}
 
 
-def model_error(stamp: Stamp, output: MonitorOutput) -> Fields:
-    """The model's estimated error per cable at an estimated sample, what the model alone predicts of the
-    clearance, what the alarm is based on and the sensors left out (needs `output.model`)."""
-    view, estimate = output.model, output.estimate
-    assert view is not None  # the callers write it only at estimated samples (`records.output_records`)
+def model_error(stamp: Stamp, view: ModelView, estimate: Estimate | None, basis: str) -> Fields:
+    """The model's estimated error per cable at an estimated sample (the model's `view` of it, its `estimate`),
+    what the model alone predicts of the clearance, what the alarm is based on (`basis`) and the sensors left
+    out."""
     clearance = view.clearance
     return {"header": header(stamp), "cables": list(CABLE_NAMES), "length_error": _floats(view.length_error),
             "length_error_sigma": _floats(view.length_sigma),
             "length_correction": _floats(estimate.corrections) if estimate is not None else [NAN] * 4,
             "tension_error": _floats(view.pin_error), "tension_error_sigma": _floats(view.pin_sigma),
             "model_clearance": NAN if clearance is None else float(clearance.value),
-            "basis": output.basis.text if output.basis is not None else "",
+            "basis": basis,
             "sensors_rejected": list(view.rejected), "sensors_left_out": list(view.left_out)}
 
 

@@ -18,8 +18,9 @@ from rosbags.typesys.store import Typestore
 from ..bagio.cdr import Encoder, encoder, fixed_encoder
 from ..bagio.typestore import knows, typestore
 from ..channels import ChannelRegistry
-from ..monitor.pipeline import MonitorOutput
+from ..monitor.judged import Judged, MonitorOutput
 from ..monitor.residuals import Residuals
+from ..monitor.tracking import ParameterView
 from . import fields, frames, stacked
 from .outputs import (
     ALARM,
@@ -90,37 +91,39 @@ def residual_records(stamp: fields.Stamp, residuals: Residuals | None) -> list[R
 
 
 def output_records(stamp: fields.Stamp, output: MonitorOutput, channels: ChannelRegistry) -> list[Record]:
-    """What the live node publishes for one solved sample, in its order: its `solved_records`, then its residuals
+    """What the live node publishes for one solved sample, in its order: its `sample_records`, then its residuals
     (if any)."""
-    return solved_records([stamp], [output], channels)[0] + residual_records(stamp, output.residuals)
+    return sample_records(stamp, output, channels) + residual_records(stamp, output.residuals)
 
 
-def solved_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput],
-                   channels: ChannelRegistry) -> list[list[Record]]:
-    """Each solved sample's outputs but its residuals (header stamps `stamps`), in the node's order: pose and /tf
-    (only if solved), tension distribution (the sensors of `channels`), collision alarm, the model's error (where
-    the sample was estimated), the tracked plant parameters (at the first sample of each second of stamps). A run
-    of STACKED_FROM samples or more is encoded together (`run_records`), fewer a message at a time
-    (`sample_records`: the node's sample, or the few it takes together)."""
-    if len(outputs) < STACKED_FROM:
-        return [sample_records(stamp, output, channels) for stamp, output in zip(stamps, outputs)]
-    return run_records(stamps, outputs, channels)
+def solved_records(stamps: Sequence[fields.Stamp], judged: Judged, channels: ChannelRegistry) -> list[list[Record]]:
+    """Each sample's outputs of a judged run but its residuals (header stamps `stamps`), in the node's order: pose
+    and /tf (only if solved), tension distribution (the sensors of `channels`), collision alarm, the model's error
+    (where the sample was estimated), the tracked plant parameters (at the first sample of each second of
+    stamps). A run of STACKED_FROM samples or more is encoded together (`run_records`), fewer a message at a time
+    (`sample_records`)."""
+    if len(judged) < STACKED_FROM:
+        return [sample_records(stamp, judged.output(k), channels) for k, stamp in enumerate(stamps)]
+    return run_records(stamps, judged, channels)
 
 
-def run_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput],
-                channels: ChannelRegistry) -> list[list[Record]]:
-    """`solved_records` of a run of samples, encoded together but the tracked parameters (stacked.py)."""
-    posed = [k for k, output in enumerate(outputs) if output.solution.ok]
-    estimated = [k for k, output in enumerate(outputs) if output.model is not None]
-    out: list[list[Record]] = [[] for _ in outputs]
-    for k, records in zip(posed, stacked.pose_records([stamps[k] for k in posed], [outputs[k].solution for k in posed])):
+def run_records(stamps: Sequence[fields.Stamp], judged: Judged, channels: ChannelRegistry) -> list[list[Record]]:
+    """`solved_records` of a run of samples, encoded together from its columns but the tracked parameters
+    (stacked.py)."""
+    solved = judged.solved
+    solutions = solved.solutions
+    posed = [k for k, solution in enumerate(solutions) if solution.ok]
+    out: list[list[Record]] = [[] for _ in solutions]
+    for k, records in zip(posed, stacked.pose_records([stamps[k] for k in posed], [solutions[k] for k in posed])):
         out[k] = records
-    for records, tension, alarm in zip(out, stacked.tension_records(stamps, outputs, channels),
-                                       stacked.alarm_records(stamps, outputs)):
+    for records, tension, alarm in zip(out, stacked.tension_records(stamps, solutions, solved.estimates, channels),
+                                       stacked.alarm_records(stamps, judged.alarms)):
         records += (tension, alarm)
-    errors = stacked.model_error_records([stamps[k] for k in estimated], [outputs[k] for k in estimated])
-    for k, error in zip(estimated, errors):
-        out[k] += [error, *_parameters(stamps[k], outputs[k])]
+    views = solved.views
+    if views is not None:
+        errors = stacked.model_error_records(stamps, views, [basis.text for basis in judged.bases], solved.estimates)
+        for records, stamp, error, parameters, due in zip(out, stamps, errors, views.parameters, views.parameters_due):
+            records += [error, *_parameters(stamp, parameters if due else None)]
     return out
 
 
@@ -136,17 +139,17 @@ def sample_records(stamp: fields.Stamp, output: MonitorOutput, channels: Channel
                     _record(TF, frames.platform_tf(stamp, position, quaternion))]
     records += [_record(TENSION, fields.tension_distribution(stamp, solution, output.estimate, channels)),
                 _record(ALARM, fields.collision_alarm(stamp, output.alarm))]
-    if output.model is not None:
-        records += [_record(MODEL_ERROR, fields.model_error(stamp, output)), *_parameters(stamp, output)]
+    view = output.model
+    if view is not None:
+        basis = output.basis.text if output.basis is not None else ""
+        records += [_record(MODEL_ERROR, fields.model_error(stamp, view, output.estimate, basis)),
+                    *_parameters(stamp, view.parameters if view.parameters_due else None)]
     return records
 
 
-def _parameters(stamp: fields.Stamp, output: MonitorOutput) -> list[Record]:
-    """The tracked plant parameters where the sample publishes them."""
-    view = output.model
-    if view is None or not view.parameters_due or view.parameters is None:
-        return []
-    return [_record(PARAMETERS, fields.model_parameters(stamp, view.parameters))]
+def _parameters(stamp: fields.Stamp, parameters: ParameterView | None) -> list[Record]:
+    """The tracked plant parameters where the sample publishes them (None: it does not)."""
+    return [] if parameters is None else [_record(PARAMETERS, fields.model_parameters(stamp, parameters))]
 
 
 def diagnostics_record(values: Mapping[str, Any]) -> Record:

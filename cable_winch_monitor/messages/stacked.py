@@ -21,10 +21,12 @@ import numpy as np
 
 from ..bagio.cdr import FieldPath, StackedEncoder
 from ..channels import ChannelRegistry
+from ..model.estimator import Estimate
 from ..model.plantfile.plant import CABLE_NAMES
 from ..model.statics.geometry import quaternions_from_rotations
 from ..model.statics.result import Solution
-from ..monitor.pipeline import MonitorOutput
+from ..monitor.alarm import SYNC_PAIR_NAMES, Alarms
+from ..monitor.judged import ModelViews
 from ..monitor.residuals import Residuals
 from . import fields, frames
 from .outputs import ALARM, MODEL_ERROR, OUTPUT_TYPES, POSE, RESIDUALS, TENSION, TF, Record
@@ -59,11 +61,10 @@ def pose_encoders() -> tuple[StackedEncoder, StackedEncoder]:
             StackedEncoder(OUTPUT_TYPES[TF], frames.platform_tf(*at_rest), tf))
 
 
-def tension_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput],
-                    channels: ChannelRegistry) -> list[Record]:
-    """Each sample's tension distribution (the sensors used those of `channels`)."""
-    solutions = [output.solution for output in outputs]
-    fused = [output.estimate if output.estimate is not None and output.estimate.fused else None for output in outputs]
+def tension_records(stamps: Sequence[fields.Stamp], solutions: Sequence[Solution],
+                    estimates: Sequence[Estimate | None], channels: ChannelRegistry) -> list[Record]:
+    """Each sample's tension distribution (its fused estimate's sensors used, those of `channels`)."""
+    fused = [estimate if estimate is not None and estimate.fused else None for estimate in estimates]
     states = [solution.tension_state.encode() for solution in solutions]
     methods = [solution.method.encode() for solution in solutions]
     encoded: dict[tuple[str, ...], tuple[bytes, ...]] = {}  # the sensors of each set of channels used (a few sets)
@@ -109,23 +110,22 @@ def tension_encoder(shape: tuple[int, int, tuple[int, ...], bool]) -> StackedEnc
     return StackedEncoder(OUTPUT_TYPES[TENSION], template, paths)
 
 
-def alarm_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput]) -> list[Record]:
+def alarm_records(stamps: Sequence[fields.Stamp], alarms: Alarms) -> list[Record]:
     """Each sample's collision alarm."""
-    alarms = [output.alarm for output in outputs]
-    clearances = [alarm.clearance for alarm in alarms]
+    clearances = alarms.clearances
     names = [b"" if c is None else c.point_name.encode() for c in clearances]
-    reasons = [alarm.reason.encode() for alarm in alarms]
-    shapes = [(len(name), len(reason), alarm.sync_error_pairs) for name, reason, alarm in zip(names, reasons, alarms)]
+    reasons = [reason.encode() for reason in alarms.reasons]
+    shapes = [(len(name), len(reason), SYNC_PAIR_NAMES) for name, reason in zip(names, reasons)]
     stamp = np.array(stamps, dtype=np.int64).reshape(-1, 2)
-    level = np.array([int(alarm.level) for alarm in alarms], dtype=np.uint8)
+    level = np.array(alarms.levels, dtype=np.uint8)
     value = np.array([NAN if c is None else float(c.value) for c in clearances])
     platform = _rows([None if c is None else c.point_platform for c in clearances], 3)
     shaft = _rows([None if c is None else c.point_shaft for c in clearances], 3)
+    errors = np.asarray(alarms.sync_errors, dtype=float).reshape(len(names), len(SYNC_PAIR_NAMES))
 
     def columns(shape: Any, rows: list[int]) -> list[Any]:
-        errors = np.array([alarms[k].sync_errors for k in rows], dtype=float).reshape(len(rows), len(shape[2]))
         return [stamp[rows, 0], stamp[rows, 1], level[rows], value[rows], [names[k] for k in rows],
-                *(platform[rows, i] for i in range(3)), *(shaft[rows, i] for i in range(3)), *errors.T,
+                *(platform[rows, i] for i in range(3)), *(shaft[rows, i] for i in range(3)), *errors[rows].T,
                 [reasons[k] for k in rows]]
 
     return _encoded(ALARM, shapes, alarm_encoder, columns)
@@ -148,25 +148,23 @@ def alarm_encoder(shape: tuple[int, int, tuple[str, ...]]) -> StackedEncoder:
 MODEL_ERROR_ROWS = ("length_error", "length_error_sigma", "length_correction", "tension_error", "tension_error_sigma")
 
 
-def model_error_records(stamps: Sequence[fields.Stamp], outputs: Sequence[MonitorOutput]) -> list[Record]:
-    """The model's error at each estimated sample (every output with its `model` view)."""
-    views = [output.model for output in outputs if output.model is not None]
-    assert len(views) == len(outputs)  # written only at estimated samples (`records.run_records`)
-    bases = [b"" if output.basis is None else output.basis.text.encode() for output in outputs]
-    rejected = [tuple(sensor.encode() for sensor in view.rejected) for view in views]
-    left_out = [tuple(sensor.encode() for sensor in view.left_out) for view in views]
-    shapes = [(len(basis), tuple(map(len, r)), tuple(map(len, o))) for basis, r, o in zip(bases, rejected, left_out)]
+def model_error_records(stamps: Sequence[fields.Stamp], views: ModelViews, bases: Sequence[str],
+                        estimates: Sequence[Estimate | None]) -> list[Record]:
+    """The model's error at each estimated sample: its view (`views`), what its alarm is based on (`bases`), its
+    estimate's length corrections."""
+    texts = [basis.encode() for basis in bases]
+    rejected = [tuple(sensor.encode() for sensor in sensors) for sensors in views.rejected]
+    left_out = [tuple(sensor.encode() for sensor in sensors) for sensors in views.left_out]
+    shapes = [(len(basis), tuple(map(len, r)), tuple(map(len, o))) for basis, r, o in zip(texts, rejected, left_out)]
     stamp = np.array(stamps, dtype=np.int64).reshape(-1, 2)
-    values = {"length_error": _rows([view.length_error for view in views]),
-              "length_error_sigma": _rows([view.length_sigma for view in views]),
-              "length_correction": _rows([None if o.estimate is None else o.estimate.corrections for o in outputs]),
-              "tension_error": _rows([view.pin_error for view in views]),
-              "tension_error_sigma": _rows([view.pin_sigma for view in views])}
-    clearance = np.array([NAN if view.clearance is None else float(view.clearance.value) for view in views])
+    values = {"length_error": _columns(views.length_error), "length_error_sigma": _columns(views.length_sigma),
+              "length_correction": _rows([None if e is None else e.corrections for e in estimates]),
+              "tension_error": _columns(views.pin_error), "tension_error_sigma": _columns(views.pin_sigma)}
+    clearance = np.array([NAN if c is None else float(c.value) for c in views.clearances])
 
     def columns(shape: Any, rows: list[int]) -> list[Any]:
         return [stamp[rows, 0], stamp[rows, 1], *(values[name][rows, i] for name in MODEL_ERROR_ROWS for i in range(4)),
-                clearance[rows], [bases[k] for k in rows], *([rejected[k][j] for k in rows] for j in range(len(shape[1]))),
+                clearance[rows], [texts[k] for k in rows], *([rejected[k][j] for k in rows] for j in range(len(shape[1]))),
                 *([left_out[k][j] for k in rows] for j in range(len(shape[2])))]
 
     return _encoded(MODEL_ERROR, shapes, model_error_encoder, columns)
@@ -216,6 +214,11 @@ def _rows(values: Sequence[Any], width: int = 4) -> np.ndarray:
     """(n, width) floats of per-sample arrays, NaN where a sample has none (None)."""
     missing = (NAN,) * width
     return np.array([missing if v is None else v for v in values], dtype=float).reshape(-1, width)
+
+
+def _columns(values: np.ndarray) -> np.ndarray:
+    """(n, 4) floats of a run's column."""
+    return np.asarray(values, dtype=float).reshape(-1, 4)
 
 
 def _encoded(topic: str, shapes: Sequence[Hashable], encoder_of: Callable[[Any], StackedEncoder],

@@ -1,7 +1,7 @@
 """Wall-collision alarm levels with hysteresis, so that an alarm does not chatter."""
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -62,6 +62,34 @@ class Alarm:
     reason: str
 
 
+@dataclass(frozen=True)
+class Alarms:
+    """The alarms of a run of samples, a column each (row k is sample k's `Alarm`): what the judge makes and
+    the encoders read, without an object per sample."""
+
+    levels: list[AlarmLevel]
+    clearances: list[Clearance | None]  # what each level is based on
+    sync_errors: np.ndarray             # (n, len(SYNC_PAIR_NAMES)) [m]
+    reasons: list[str]
+
+    def __len__(self) -> int:
+        return len(self.levels)
+
+    def __getitem__(self, k: int) -> Alarm:
+        return Alarm(self.levels[k], self.clearances[k], SYNC_PAIR_NAMES, self.sync_errors[k], self.reasons[k])
+
+    def __iter__(self) -> Iterator[Alarm]:
+        return (self[k] for k in range(len(self)))
+
+    @classmethod
+    def concatenated(cls, parts: Sequence[Alarms]) -> Alarms:
+        """Consecutive runs' alarms as one run's."""
+        return cls([level for part in parts for level in part.levels],
+                   [clearance for part in parts for clearance in part.clearances],
+                   np.concatenate([part.sync_errors for part in parts]) if parts else np.empty((0, len(SYNC_PAIR_NAMES))),
+                   [reason for part in parts for reason in part.reasons])
+
+
 SYNC_PAIRS = tuple((i, j) for i in range(4) for j in range(i + 1, 4))
 SYNC_PAIR_NAMES = tuple(f"{CABLE_NAMES[i]}-{CABLE_NAMES[j]}" for i, j in SYNC_PAIRS)
 _FIRST, _SECOND = (np.array(side) for side in zip(*SYNC_PAIRS))
@@ -93,14 +121,14 @@ class AlarmTracker:
         return self.update_many([solution], [clearance], [basis])[0]
 
     def update_many(self, solutions: Sequence[Solution], clearances: Sequence[Clearance | None],
-                    bases: Sequence[str]) -> list[Alarm]:
+                    bases: Sequence[str]) -> Alarms:
         """The alarms of consecutive samples, in order (the hysteresis carries from each to the next), with
         what each clearance is based on (`bases`, monitor.basis); the sync errors and the slack ropes'
         looseness of all of them worked out together."""
         lengths = np.array([solution.lengths for solution in solutions], dtype=float).reshape(-1, 4)
         errors = lengths[:, _FIRST] - lengths[:, _SECOND]
         loose = self._loose(solutions, lengths)
-        out = []
+        levels, reasons_of = [], []
         for k, (solution, clearance, basis) in enumerate(zip(solutions, clearances, bases)):
             reasons = []
             level = AlarmLevel.OK
@@ -121,8 +149,9 @@ class AlarmTracker:
                 reasons.append(f"no pose: {solution.tension_state}")
             self.level = level
             reason = "; ".join(reasons) or "clearance within margins"
-            out.append(Alarm(level, clearance, SYNC_PAIR_NAMES, errors[k], f"{reason} ({basis})" if basis else reason))
-        return out
+            levels.append(level)
+            reasons_of.append(f"{reason} ({basis})" if basis else reason)
+        return Alarms(levels, list(clearances), errors, reasons_of)
 
     def _loose(self, solutions: Sequence[Solution], lengths: np.ndarray) -> dict[int, list[tuple[int, float]]]:
         """The solved samples with a rope whose span falls short of its length by more than the slack tolerance:

@@ -29,7 +29,8 @@ from ..channels import ChannelRegistry
 from ..model.plantfile.plant import CABLE_NAMES
 from ..model.statics.result import SolveStatus
 from .alarm import AlarmLevel
-from .pipeline import MonitorOutput, MonitorPipeline
+from .judged import MonitorOutput
+from .pipeline import MonitorPipeline
 from .residuals import Residuals
 from .tracking import ParameterView
 

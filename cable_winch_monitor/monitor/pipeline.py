@@ -13,6 +13,10 @@ the latest readings of the other sensors within the staleness limit, with the mo
 error as part of the state, so that what is measured wins over what the model says.
 The model's own prediction comes with it, and the alarm is based on the measured tilt,
 or on the model where it is more dangerous beyond their spread (monitor.basis).
+
+Consecutive samples go through the stages together, as a run (the node's taken together, replay's
+window; one sample is a run of one): `solve_samples` gives their `SolvedRun`, `judge_samples` a
+`Judged` run, a column per quantity (monitor.judged).
 """
 from __future__ import annotations
 
@@ -30,7 +34,6 @@ from ..channels import TENSION_CHANNELS, ChannelRegistry, Input
 from ..effects import PlantModel
 from ..effects.estimate import fuses
 from ..effects.model import NO_CONDITIONS
-from ..frozen import fast_init
 from ..model.conditions import Conditions, ConditionsTracker
 from ..model.estimator import Estimate
 from ..model.plantfile.plant import Plant
@@ -49,90 +52,15 @@ from .inputs import (
     measurement_reason,
     small_mean,
 )
+from .judged import Judged, ModelViews, MonitorOutput, Outcome, SolvedRun
 from .residuals import Residuals, noise_levels, residuals
 from .sensors import READING_LAG, LatestReadings, PayoutHistory, StuckReadings
-from .tracking import ParameterView
 
 if TYPE_CHECKING:  # the node's process for the window updates: replay need not import it
     from .updates import UpdateProcess
 
 CONTRADICTS = "contradicts the other sensors"  # why a sensor the estimator rejects or leaves out is not fused
 SILENT = 2.0  # a sensor heard before is silent when its last reading is this many staleness limits old
-
-
-@fast_init
-@dataclass(frozen=True)
-class ModelView:
-    """What the model says of a sample beside the estimate: the clearance of its own equilibrium for the
-    reported lengths, its expected error, and that error per rope."""
-
-    clearance: Clearance | None   # of the model's own equilibrium for the reported lengths
-    length_error: np.ndarray      # (4,) model minus reported rope length [m]
-    length_sigma: np.ndarray      # (4,) its 1-sigma [m]
-    pin_error: np.ndarray         # (4,) load-pin reading minus the model's prediction [N]
-    pin_sigma: np.ndarray         # (4,) its 1-sigma [N]
-    tilt_sigma: float             # [rad] 1-sigma of the tilt the model's lengths give
-    rejected: tuple[str, ...]     # sensors rejected at this sample (they contradict the others)
-    left_out: tuple[str, ...]     # sensors left out while they are found faulty (contradicting, stuck, silent)
-    faults: Mapping[str, str] = field(default_factory=dict)  # each of those sensors: why
-    parameters: ParameterView | None = None  # the tracked plant parameters (None: none tracked)
-    parameters_due: bool = False  # this sample publishes them (the first of each second of stamps)
-
-
-@fast_init
-@dataclass(frozen=True)
-class MonitorOutput:
-    """Everything the monitor publishes for one solved sample, stamped with its input stamp."""
-
-    stamp: float
-    solution: Solution
-    clearance: Clearance | None
-    alarm: Alarm
-    residuals: Residuals | None
-    estimate: Estimate | None = None  # the fused estimate the solution is (None: the lengths taken as exact)
-    model: ModelView | None = None    # the model's own clearance and error (None: the lengths taken as exact)
-    basis: Basis | None = None        # what the alarm is based on
-
-    @property
-    def refused(self) -> tuple[str, ...]:
-        """The sensors not fused at this sample because they contradict the others."""
-        return () if self.model is None else tuple(sorted(set(self.model.rejected) | set(self.model.left_out)))
-
-    def outcome(self, predicted: dict[str, float] | None) -> Outcome:
-        view = self.model
-        return Outcome(self.stamp, self.solution.status, self.solution.tension_state, self.alarm.level.name,
-                       dict(view.faults) if view is not None else {}, predicted, self.residuals,
-                       "" if self.solution.ok else self.solution.failure,
-                       self.basis.summary if self.basis is not None else "",
-                       None if view is None else (tuple(view.length_error.tolist()), tuple(view.pin_error.tolist())))
-
-
-class Outcome(NamedTuple):
-    """What a solved sample leaves behind for the counts, /diagnostics and the residuals of the sensor
-    messages after it: small, so that replay's second process sends it back cheaply."""
-
-    stamp: float
-    status: SolveStatus
-    tension_state: str
-    level: str
-    faults: Mapping[str, str]             # sensors left out at the sample, with why
-    predicted: dict[str, float] | None    # what every channel reads of its state (None: not solved)
-    residuals: Residuals | None
-    failure: str = ""                     # why it was not solved
-    basis: str = ""                       # what the alarm is based on, without numbers ("": the lengths taken as exact)
-    error: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # the model's length [m] and load-pin [N] error per rope
-
-
-class Solved(NamedTuple):
-    """A sample's equilibrium, wall clearance, fused estimate (None: the lengths taken as exact), what
-    the model says each channel reads (None: not solved), and the model's own view (fused plants),
-    computed ahead (replay solves many at once)."""
-
-    solution: Solution
-    clearance: Clearance | None
-    estimate: Estimate | None
-    predicted: dict[str, float] | None
-    model: ModelView | None = None
 
 
 class CompleteSample(NamedTuple):
@@ -352,94 +280,89 @@ class MonitorPipeline:
                                    np.array([sample.speeds for sample in samples], dtype=float), inputs)
 
     def solve_samples(self, samples: Sequence[CompleteSample], conditions: Sequence[Conditions],
-                      estimator: MonitorEstimator | None = None) -> list[Solved]:
+                      estimator: MonitorEstimator | None = None) -> SolvedRun:
         """Estimate (or solve) consecutive complete samples at their conditions: the node's as they come,
         replay's a window at once, with the same answers. `estimator`: the pipeline's, as it was taken."""
         estimator = estimator or self.estimator
         if estimator is not None:
             inputs = [SampleInput(s.stamp, s.lengths, s.sensors, s.taken, c) for s, c in zip(samples, conditions)]
-            out: list[Solved] = []
-            for estimated, start in estimator.run(inputs):
-                stop = start + len(estimated)
-                out += self._estimated(estimated, samples[start:stop], conditions[start:stop])
-            return out
+            return SolvedRun.concatenated([
+                self._estimated(estimated, samples[start:start + len(estimated)],
+                                conditions[start:start + len(estimated)])
+                for estimated, start in estimator.run(inputs)])
         lengths = np.array([s.lengths for s in samples]).reshape(-1, 4)
         solutions = self.model.solve_batch(lengths, conditions, self._warm_start())
         return self._solved(solutions, [None] * len(solutions), conditions)
 
     def _estimated(self, estimated: Estimated, samples: Sequence[CompleteSample],
-                   conditions: Sequence[Conditions]) -> list[Solved]:
-        """The solved samples of an estimator's run, with the clearance of the model's own equilibrium beside
-        each, and what each channel reads there under the model they were estimated with (the plant file's,
-        with the tracked values then in use: a window's end within the samples of one call changes it)."""
+                   conditions: Sequence[Conditions]) -> SolvedRun:
+        """The solved samples of an estimator's run, with the model's own view of each (the clearance of its
+        own equilibrium, its error, the sensors left out and why), and what each channel reads there under the
+        model they were estimated with (the plant file's, with the tracked values then in use: a window's end
+        within the samples of one call changes it)."""
         model = estimated.model
         estimates = estimated.batch.estimates()
-        model_clearances = batch_clearances(model.physical, estimated.forward)
-        rows = self._solved([e.solution for e in estimates], estimates, conditions, model)
-        tilts = tilt_sigmas(model.physical, estimated.prior.length_covariance).tolist()
-        due = estimated.parameters_due or [False] * len(rows)
         left_out = tuple(sorted(set(estimated.left_out)))
         contradicting = dict.fromkeys(estimated.left_out, CONTRADICTS)
-        out = []
-        for row, sample, clearance, error, sigma, pin_error, pin_sigma, tilt, rejected, publishes in zip(
-                rows, samples, model_clearances, estimated.length_error, estimated.length_sigma, estimated.pin_error,
-                estimated.pin_sigma, tilts, estimated.rejected, due):
+        faults, left = [], []
+        for sample, rejected in zip(samples, estimated.rejected):
             faulty = sample.faults
-            faults = {**faulty, **contradicting, **dict.fromkeys(rejected, CONTRADICTS)}
-            view = ModelView(clearance, error, sigma, pin_error, pin_sigma, tilt, rejected,
-                             tuple(sorted(set(left_out) | set(faulty))) if faulty else left_out, faults,
-                             estimated.parameters, publishes)
-            out.append(Solved(row.solution, row.clearance, row.estimate, row.predicted, view))
-        return out
+            faults.append({**faulty, **contradicting, **dict.fromkeys(rejected, CONTRADICTS)})
+            left.append(tuple(sorted(set(left_out) | set(faulty))) if faulty else left_out)
+        count = len(estimates)
+        views = ModelViews(batch_clearances(model.physical, estimated.forward), estimated.length_error,
+                           estimated.length_sigma, estimated.pin_error, estimated.pin_sigma,
+                           tilt_sigmas(model.physical, estimated.prior.length_covariance).tolist(),
+                           list(estimated.rejected), left, faults, [estimated.parameters] * count,
+                           estimated.parameters_due or [False] * count)
+        return self._solved([e.solution for e in estimates], estimates, conditions, model, views)
 
-    def _solved(self, solutions: list[Solution], estimates: Sequence[Estimate | None],
-                conditions: Sequence[Conditions], model: PlantModel | None = None) -> list[Solved]:
-        """Each solution with its clearance, estimate and what every channel reads there (None where not
+    def _solved(self, solutions: list[Solution], estimates: Sequence[Estimate | None], conditions: Sequence[Conditions],
+                model: PlantModel | None = None, views: ModelViews | None = None) -> SolvedRun:
+        """The solutions with their clearances, estimates and what every channel reads there (NaN where not
         solved), computed together, under `model` (None: the plant file's)."""
         model = model or self.model
-        clearances = solution_clearances(model.physical, solutions)
-        predicted = model.predict_solutions(solutions, conditions)
-        names = list(predicted)
-        rows = zip(*(values.tolist() for values in predicted.values()))
-        return [Solved(solution, clearance, estimate, dict(zip(names, row)) if solution.ok else None)
-                for solution, clearance, estimate, row in zip(solutions, clearances, estimates, rows)]
+        return SolvedRun(solutions, solution_clearances(model.physical, solutions), list(estimates),
+                         model.predict_solutions(solutions, conditions), views)
 
     def solve(self, sample: CompleteSample) -> MonitorOutput:
-        """Solve (or estimate, from what the sensors read) a complete sample, judge it and count it."""
-        output, outcome = self.judge(sample)
-        self.note(outcome)
-        return output
+        """Solve (or estimate, from what the sensors read) a complete sample, judge it and count it: the stages
+        with one sample as a run of one."""
+        judged = self.judge_samples([sample], self.solve_samples([sample], self.conditions([sample])))
+        self.note(judged.outcomes()[0])
+        return judged.output(0)
 
-    def judge(self, sample: CompleteSample, solved: Solved | None = None,
-              conditions: Conditions | None = None) -> tuple[MonitorOutput, Outcome]:
-        """`judge_samples` of one sample: solved (or estimated) here unless `solved` ahead at its `conditions`."""
-        conditions = conditions or self.conditions([sample])[0]
-        if solved is None:
-            solved = self.solve_samples([sample], [conditions])[0]
-        return self.judge_samples([sample], [solved])[0]
-
-    def judge_samples(self, samples: Sequence[CompleteSample],
-                      solved: Sequence[Solved]) -> list[tuple[MonitorOutput, Outcome]]:
+    def judge_samples(self, samples: Sequence[CompleteSample], solved: SolvedRun) -> Judged:
         """Consecutive samples, estimated (or solved) together by `solve_samples`, judged in order: what each
         alarm is based on, the alarms (their hysteresis carried from sample to sample, their sync errors and
-        slack worked out together), each sample's load pins compared with the model. Returns each one's
-        outputs and what `note` counts of them (replay's second process judges, the replay counts)."""
-        tilt_noise = max(self.noise.get("roll", math.nan), self.noise.get("pitch", math.nan))
-        sigma = tilt_noise if math.isfinite(tilt_noise) else None
-        bases = [self._basis(done.clearance, done.estimate, done.model, sigma) for done in solved]
-        alarms = self.alarms.update_many([done.solution for done in solved], [basis.clearance for basis in bases],
-                                         [basis.text if done.model is not None else "" for basis, done in
-                                          zip(bases, solved)])
-        out = []
-        for sample, (solution, clearance, fused, predicted, view), basis, alarm in zip(samples, solved, bases, alarms):
-            pins = {TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
-            resid = residuals(self.noise, sample.stamp, pins, predicted) if predicted is not None else None
-            output = MonitorOutput(sample.stamp, solution, clearance, alarm, resid, fused, view, basis)
-            self.last = output
+        slack worked out together), each sample's load pins compared with the model. Replay's second process
+        judges, the replay counts (`note` of the run's `outcomes`)."""
+        views = solved.views
+        if views is None:
+            bases = [Basis(clearance, "") for clearance in solved.clearances]
+        else:
+            tilt_noise = max(self.noise.get("roll", math.nan), self.noise.get("pitch", math.nan))
+            sigma = tilt_noise if math.isfinite(tilt_noise) else None
+            bases = [self._basis(clearance, fused, model, tilt, sigma) for clearance, fused, model, tilt in
+                     zip(solved.clearances, solved.estimates, views.clearances, views.tilt_sigma)]
+        alarms = self.alarms.update_many(solved.solutions, [basis.clearance for basis in bases],
+                                         [basis.text for basis in bases])
+        predicted = {name: values.tolist() for name, values in solved.predicted.items()}
+        pins_residuals = []
+        for k, (sample, solution) in enumerate(zip(samples, solved.solutions)):
+            resid = None
             if solution.ok:
-                self.last_solved = output
-            out.append((output, output.outcome(predicted)))
-        return out
+                pins = {TENSION_CHANNELS[i]: sample.tensions[i] for i in sample.accepted}
+                resid = residuals(self.noise, sample.stamp, pins,
+                                  {name: predicted[name][k] for name in pins if name in predicted})
+            pins_residuals.append(resid)
+        judged = Judged([sample.stamp for sample in samples], solved, bases, alarms, pins_residuals)
+        if samples:
+            self.last = judged.output(len(samples) - 1)
+            posed = [k for k, solution in enumerate(solved.solutions) if solution.ok]
+            if posed:
+                self.last_solved = self.last if posed[-1] == len(samples) - 1 else judged.output(posed[-1])
+        return judged
 
     def note(self, outcome: Outcome) -> None:
         """A solved sample's counts, and its predictions for the residuals of the sensor messages after it
@@ -448,16 +371,16 @@ class MonitorPipeline:
         if outcome.status is SolveStatus.SOLVED:
             self.last_solved_stamp, self.last_predicted = outcome.stamp, outcome.predicted
 
-    def _basis(self, clearance: Clearance | None, fused: Estimate | None, view: ModelView | None,
+    @staticmethod
+    def _basis(clearance: Clearance | None, fused: Estimate | None, model: Clearance | None, model_sigma: float,
                sigma: float | None) -> Basis:
-        """What the alarm is based on: the estimate's clearance where the lengths are taken as exact; else
-        the measured tilt's, or the model's where it is more dangerous beyond their spread (`sigma`: the
-        inclinometer's noise [rad], None where the plant file gives none: the model's tilt spread stands in)."""
-        if view is None:
-            return Basis(clearance, "")
+        """What the alarm of an estimated sample is based on: the measured tilt's clearance, or the model's
+        (`model`, its tilt's 1-sigma `model_sigma` [rad]) where it is more dangerous beyond their spread
+        (`sigma`: the inclinometer's noise [rad], None where the plant file gives none: the model's tilt spread
+        stands in)."""
         tilt, corroborated = _measured(fused.used if fused is not None else ())
-        return judged(clearance if fused is not None and fused.ok else None, view.clearance, tilt, corroborated,
-                      view.tilt_sigma if sigma is None else sigma, view.tilt_sigma)
+        return judged(clearance if fused is not None and fused.ok else None, model, tilt, corroborated,
+                      model_sigma if sigma is None else sigma, model_sigma)
 
     def on_measurement(self, topic: str, stamp: float, message: Any, keep: bool = True,
                        values: dict[str, float] | None = None) -> Residuals | None:

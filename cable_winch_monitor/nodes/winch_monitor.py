@@ -46,7 +46,8 @@ from ..model.plantfile.plant import PlantConfigError, load_plant
 from ..model.solvers.solve import METHODS
 from ..monitor.diagnostics import DiagnosticsReporter
 from ..monitor.inputs import StampWindow
-from ..monitor.pipeline import CompleteSample, MonitorOutput
+from ..monitor.judged import MonitorOutput
+from ..monitor.pipeline import CompleteSample
 from ..monitor.residuals import Residuals
 from ..monitor.sensors import READING_LAG
 from ..monitor.waiting import READING_WAIT

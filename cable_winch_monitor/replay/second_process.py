@@ -22,19 +22,19 @@ import functools
 import os
 import pickle
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ..messages.fields import Stamp
-from ..monitor.pipeline import CompleteSample, Outcome
+from ..monitor.pipeline import CompleteSample
 from ..monitor.residuals import Residuals
-from .stages import Encoded, WindowStages
+from .stages import Encoded, Staged, WindowStages
 from .worker import ForkedWorker, WorkerLost
 
 Packed = tuple[np.ndarray, list[tuple[Any, ...]]]  # a window's lengths (n, 4), each sample's other fields
 LENGTHS = CompleteSample._fields.index("lengths")
-RESIDUALS = Outcome._fields.index("residuals")
 
 
 def _packed(samples: Sequence[CompleteSample]) -> Packed:
@@ -47,29 +47,28 @@ def _unpacked(packed: Packed) -> list[CompleteSample]:
     return [CompleteSample._make((*row[:LENGTHS], row_lengths, *row[LENGTHS:])) for row_lengths, row in zip(lengths, rows)]
 
 
-def _plain(encoded: Sequence[Encoded]) -> tuple[bytes, ...]:
-    """A window's `Encoded` from the worker (never with their outputs) as they cross: its records, outcomes (plain
-    tuples, residuals too), /diagnostics views and scenes, each list pickled apart (pickled together, every object
-    of the window shares one memo: 46 against 31 ms for (a)'s windows, 69 against 54 ms to read them back)."""
-    outcomes = [(*o[:RESIDUALS], None if o.residuals is None else tuple(o.residuals), *o[RESIDUALS + 1:])
-                for o in (e.outcome for e in encoded)]
+def _plain(staged: Staged) -> tuple[bytes, ...]:
+    """A window's `Staged` from the worker (never with their outputs) as it crosses: its records, outcomes (columns;
+    their residuals apart, as plain tuples), /diagnostics views and scenes, each pickled apart (pickled together,
+    every object of the window shares one memo: 46 against 31 ms for (a)'s windows, 69 against 54 ms to read them
+    back)."""
+    outcomes = staged.outcomes
+    residuals = [None if r is None else tuple(r) for r in outcomes.residuals]
     return tuple(pickle.dumps(part, protocol=pickle.HIGHEST_PROTOCOL) for part in
-                 ([e.records for e in encoded], outcomes, [e.view for e in encoded], [e.scene for e in encoded]))
+                 (staged.records, replace(outcomes, residuals=[]), residuals, staged.views, staged.scenes))
 
 
 def _encoded(plain: tuple[bytes, ...]) -> list[Encoded]:
-    records, outcomes, views, scenes = (pickle.loads(part) for part in plain)
-    return [Encoded(r, Outcome._make((*o[:RESIDUALS], None if o[RESIDUALS] is None else Residuals._make(o[RESIDUALS]),
-                                      *o[RESIDUALS + 1:])), view, scene)
-            for r, o, view, scene in zip(records, outcomes, views, scenes)]
+    records, outcomes, residuals, views, scenes = (pickle.loads(part) for part in plain)
+    outcomes = replace(outcomes, residuals=[None if r is None else Residuals._make(r) for r in residuals])
+    return Staged(records, outcomes, views, scenes).encoded()
 
 
 def _job(stages: WindowStages, job: tuple[Any, ...]) -> tuple[tuple[bytes, ...], bytes]:
-    """The worker's job: a window's samples encoded (without the outputs themselves) and the stages' state
-    after them."""
+    """The worker's job: a window's samples through the stages (without the outputs themselves) and the stages'
+    state after them."""
     samples, inputs, headers, batched = job
-    encoded = stages.run(_unpacked(samples), inputs, headers, batched, outputs=False)
-    return _plain(encoded), stages.state()
+    return _plain(stages.run(_unpacked(samples), inputs, headers, batched, outputs=False)), stages.state()
 
 
 class SecondProcess:
@@ -116,7 +115,7 @@ class SecondProcess:
         if self.state is not None:
             self.local.restore(self.state)
             self.state = None
-        return self.local.run(*job)
+        return self.local.run(*job).encoded()
 
     def _lost(self, why: str) -> None:
         """The worker is gone (or could not hand a window over): it is ended, the rest run here."""

@@ -22,7 +22,8 @@ from ..messages.fields import Stamp
 from ..messages.records import Record
 from ..messages.scene import SceneBuilder, SceneState, SceneThrottle
 from ..monitor.diagnostics import SampleView, sample_view
-from ..monitor.pipeline import CompleteSample, MonitorOutput, MonitorPipeline, Outcome
+from ..monitor.judged import Judged, MonitorOutput, Outcome, Outcomes
+from ..monitor.pipeline import CompleteSample, MonitorPipeline
 from ..monitor.residuals import Residuals
 from ..monitor.seconds import FirstOfEachSecond
 
@@ -54,6 +55,22 @@ class Measured(NamedTuple):
     records: list[Record]
 
 
+class Staged(NamedTuple):
+    """A window's samples through the stages, a column each: their records, outcomes, /diagnostics views (None
+    where none is due), the scenes due (what each shows; None where none is), and where asked for, the outputs
+    themselves. `encoded` gives each sample's `Encoded`."""
+
+    records: list[list[Record]]
+    outcomes: Outcomes
+    views: list[SampleView | None]
+    scenes: list[SceneState | None]
+    outputs: list[MonitorOutput] | None = None
+
+    def encoded(self) -> list[Encoded]:
+        outputs = self.outputs if self.outputs is not None else [None] * len(self.records)
+        return [Encoded(*sample) for sample in zip(self.records, self.outcomes.each(), self.views, self.scenes, outputs)]
+
+
 class WindowStages:
     """A window's merged samples estimated (or solved) together, judged in order -- alarm, residuals, what the
     alarm is based on -- and encoded, by the monitor's own code; the residuals are encoded and the scenes drawn
@@ -65,8 +82,8 @@ class WindowStages:
         self.first_of_second = FirstOfEachSecond()  # where the diagnostics view of a sample is sent
 
     def run(self, samples: Sequence[CompleteSample], inputs: Sequence[Mapping[str, float]] | None,
-            headers: Sequence[Stamp], batched: bool = True, outputs: bool = True) -> list[Encoded]:
-        """What replay writes for each sample (header stamps `headers`, the extra inputs' values at their stamps
+            headers: Sequence[Stamp], batched: bool = True, outputs: bool = True) -> Staged:
+        """What replay writes for the samples (header stamps `headers`, the extra inputs' values at their stamps
         `inputs`, None where the plant reads none); solved together where `batched`; with the outputs themselves
         where `outputs` (a second process sends back only what replay writes)."""
         monitor = self.monitor
@@ -74,15 +91,16 @@ class WindowStages:
         conditions = monitor.conditions(samples, inputs)
         if batched:
             judged = monitor.judge_samples(samples, monitor.solve_samples(samples, conditions))
-        else:  # each solved as the node solves one alone (warm-started by the one before)
-            judged = [monitor.judge(sample, None, at) for sample, at in zip(samples, conditions)]
-        encoded = records.solved_records(headers, [output for output, _ in judged], channels)
-        out = []
-        for (output, outcome), written in zip(judged, encoded):
-            scene = SceneState.of(output.solution, output.alarm) if self.throttle.due(output.stamp) else None
-            view = sample_view(output, monitor.fusing, channels) if self.first_of_second(output.stamp) else None
-            out.append(Encoded(written, outcome, view, scene, output if outputs else None))
-        return out
+        else:  # each solved as the node solves one alone (warm-started by the one before), encoded together
+            judged = Judged.concatenated([monitor.judge_samples([sample], monitor.solve_samples([sample], [at]))
+                                          for sample, at in zip(samples, conditions)])
+        solutions, alarms = judged.solved.solutions, judged.alarms
+        scenes = [SceneState.of(solutions[k], alarms[k]) if self.throttle.due(stamp) else None
+                  for k, stamp in enumerate(judged.stamps)]
+        views = [sample_view(judged.output(k), monitor.fusing, channels) if self.first_of_second(stamp) else None
+                 for k, stamp in enumerate(judged.stamps)]
+        return Staged(records.solved_records(headers, judged, channels), judged.outcomes(), views, scenes,
+                      judged.outputs() if outputs else None)
 
     def state(self) -> bytes:
         """What the stages have learnt so far (the estimator's, the alarm's, the scenes'), pickled."""

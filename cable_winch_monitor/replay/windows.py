@@ -235,7 +235,7 @@ class WindowScheduler:
             if second is not None:
                 second.submit(*job)
             else:
-                self._encoded = self.stages.run(*job)
+                self._encoded = self.stages.run(*job).encoded()
             counted, self._merging = _since(self._merging, self.monitor.stats), None
             return Prepared(window, merged, inputs, counted)
 

@@ -1,21 +1,23 @@
-"""A run of samples' outputs encoded together are, message by message, what `fields` lays out for each sample
-alone and rosbags serialises: taut, slack, single-cable and unsolved states; fused and unfused estimates;
-sensors rejected and left out; an alarm without a clearance; texts with characters of more than one byte."""
+"""A run of samples' outputs encoded together from its columns are, message by message, what `fields` lays out
+for each sample alone and rosbags serialises: taut, slack, single-cable and unsolved states; fused and unfused
+estimates; estimated runs and runs of lengths taken as exact; sensors rejected and left out; an alarm without a
+clearance; texts with characters of more than one byte."""
 from __future__ import annotations
 
 from typing import Any
 
 import numpy as np
+import pytest
 
 from cable_winch_monitor.bagio.typestore import typestore
 from cable_winch_monitor.channels import BUILTIN_CHANNELS
 from cable_winch_monitor.messages import fields, frames, outputs, records, stacked
 from cable_winch_monitor.model.estimator import estimate
 from cable_winch_monitor.model.solvers.energy import solve_energy
-from cable_winch_monitor.monitor.alarm import AlarmPolicy, AlarmTracker
+from cable_winch_monitor.monitor.alarm import AlarmPolicy, Alarms, AlarmTracker
 from cable_winch_monitor.monitor.basis import Basis
 from cable_winch_monitor.monitor.clearance import solution_clearance
-from cable_winch_monitor.monitor.pipeline import ModelView, MonitorOutput
+from cable_winch_monitor.monitor.judged import Judged, ModelViews, SolvedRun
 from cable_winch_monitor.monitor.residuals import Residuals
 
 LENGTHS = [[80.0] * 4, [100.0, 100.0, 100.0, 100.5], [20.0, 21.0, 22.0, 21.5], [np.nan, 80.0, 80.0, 80.0],
@@ -32,34 +34,46 @@ def serialised(topic: str, values: dict[str, Any]) -> bytes:
     return bytes(typestore().serialize_cdr(records.build(msgtype, values), msgtype))
 
 
-def run_of_outputs(plant: Any) -> list[MonitorOutput]:
+def judged_run(plant: Any, estimated: bool) -> Judged:
+    """A run of odd samples, with the model's view of each where `estimated` (a plant that fuses: every sample's)."""
+    count = len(LENGTHS)
     solutions = [solve_energy(plant, lengths) for lengths in LENGTHS]
     clearances = [solution_clearance(plant, solution) for solution in solutions]
     alarms = AlarmTracker(AlarmPolicy.from_plant(plant)).update_many(solutions, clearances, TEXTS)
-    rng = np.random.default_rng(5)
-    out = []
-    for k, (solution, clearance, alarm) in enumerate(zip(solutions, clearances, alarms)):
-        fused = estimate(plant, LENGTHS[k]) if k % 2 == 0 else None
-        rejected, left_out = SENSORS[k]
-        view = ModelView(clearance if k != 3 else None, *rng.normal(size=(4, 4)), 1e-4, rejected, left_out)
-        out.append(MonitorOutput(10.0 + k, solution, clearance, alarm, None, fused, view if k != 5 else None,
-                                 Basis(clearance, TEXTS[k]) if k != 1 else None))
-    return out
+    estimates = [estimate(plant, LENGTHS[k]) if k % 2 == 0 else None for k in range(count)]
+    views = None
+    if estimated:
+        errors = np.random.default_rng(5).normal(size=(4, count, 4))
+        views = ModelViews([clearance if k != 3 else None for k, clearance in enumerate(clearances)], *errors,
+                           [1e-4] * count, [rejected for rejected, _ in SENSORS], [left_out for _, left_out in SENSORS],
+                           [{} for _ in range(count)], [None] * count, [False] * count)
+    return Judged([10.0 + k for k in range(count)], SolvedRun(solutions, clearances, estimates, {}, views),
+                  [Basis(clearance, text) for clearance, text in zip(clearances, TEXTS)], alarms, [None] * count)
 
 
-def test_every_message_of_a_run_is_the_one_of_its_sample_alone(plant):
-    """Encoded together (`run_records`), a message at a time (`sample_records`, the node's), and each laid out by
-    `fields` and serialised by rosbags: the same bytes."""
-    run = run_of_outputs(plant)
+def twice(judged: Judged) -> Judged:
+    """The run, then the run again."""
+    alarms = judged.alarms
+    return Judged(judged.stamps * 2, SolvedRun.concatenated([judged.solved] * 2), judged.bases * 2,
+                  Alarms(alarms.levels * 2, alarms.clearances * 2, np.vstack([alarms.sync_errors] * 2),
+                         alarms.reasons * 2), judged.residuals * 2)
+
+
+@pytest.mark.parametrize("estimated", [True, False])
+def test_every_message_of_a_run_is_the_one_of_its_sample_alone(plant, estimated):
+    """Encoded together from the run's columns (`run_records`), a message at a time from each sample's outputs
+    (`sample_records`, the node's), and each laid out by `fields` and serialised by rosbags: the same bytes."""
+    judged = judged_run(plant, estimated)
+    run = judged.outputs()
     statuses = {output.solution.status for output in run}
     assert len(statuses) >= 3 and any(o.estimate is not None and o.estimate.fused for o in run)
-    assert any(o.alarm.clearance is None for o in run) and any(o.model is None for o in run)
+    assert any(o.alarm.clearance is None for o in run) and all((o.model is not None) == estimated for o in run)
     assert run[0].alarm.reason != run[6].alarm.reason and len(run[0].alarm.reason) == len(run[6].alarm.reason)
     stamps = [(1_700_000_000 + k, 123_456_789 * k % 1_000_000_000) for k in range(len(run))]
-    together = records.run_records(stamps, run, BUILTIN_CHANNELS)
+    together = records.run_records(stamps, judged, BUILTIN_CHANNELS)
     assert together == [records.sample_records(stamp, output, BUILTIN_CHANNELS) for stamp, output in zip(stamps, run)]
     assert len(run) * 2 >= records.STACKED_FROM  # a run that long is encoded together
-    assert records.solved_records(stamps * 2, run * 2, BUILTIN_CHANNELS) == together * 2
+    assert records.solved_records(stamps * 2, twice(judged), BUILTIN_CHANNELS) == together * 2
     for stamp, output, written in zip(stamps, run, together):
         solution = output.solution
         want = []
@@ -70,7 +84,7 @@ def test_every_message_of_a_run_is_the_one_of_its_sample_alone(plant):
         want += [(outputs.TENSION, fields.tension_distribution(stamp, solution, output.estimate, BUILTIN_CHANNELS)),
                  (outputs.ALARM, fields.collision_alarm(stamp, output.alarm))]
         if output.model is not None:
-            want.append((outputs.MODEL_ERROR, fields.model_error(stamp, output)))
+            want.append((outputs.MODEL_ERROR, fields.model_error(stamp, output.model, output.estimate, output.basis.text)))
         assert [(topic, data) for topic, _, data in written] == [(topic, serialised(topic, v)) for topic, v in want]
 
 

@@ -74,8 +74,8 @@ def test_a_run_of_samples_is_judged_in_order_with_each_ones_own_sync_errors_and_
     walk = [0.4, 0.14, 0.16, 0.049, 0.06]
     solutions = [level_one.solution] * len(walk) + [loose]
     clearances = [level_one.clearance(c) for c in walk] + [solution_clearance(plant, loose)]
-    alarms = AlarmTracker(AlarmPolicy(warning_margin=0.15, critical_margin=0.05, hysteresis=0.02)).update_many(
-        solutions, clearances, ["tilt measured"] * len(solutions))
+    alarms = list(AlarmTracker(AlarmPolicy(warning_margin=0.15, critical_margin=0.05, hysteresis=0.02)).update_many(
+        solutions, clearances, ["tilt measured"] * len(solutions)))
     assert [a.level for a in alarms[:5]] == [AlarmLevel.OK, AlarmLevel.WARNING, AlarmLevel.WARNING,
                                               AlarmLevel.CRITICAL, AlarmLevel.CRITICAL]
     assert alarms[5].level == AlarmLevel.WARNING and alarms[5].reason.startswith("slack: ")

@@ -28,7 +28,8 @@ from cable_winch_monitor.model.estimator import DEFAULT_PROBABILITY, DEFAULT_THR
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
 from cable_winch_monitor.model.statics.result import check_physics
 from cable_winch_monitor.monitor import estimator
-from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
+from cable_winch_monitor.monitor.judged import MonitorOutput
+from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 from cable_winch_monitor.replay import second_process, worker
 from cable_winch_monitor.replay.stages import Encoded
 from cable_winch_monitor.replay.windows import WindowScheduler

@@ -52,13 +52,14 @@ def generic_record(topic: str, values: dict[str, Any]) -> records.Record:
 def generic_stacked(patch: pytest.MonkeyPatch) -> None:
     """The outputs of a run of samples each laid out by `fields` and serialised by rosbags, not encoded together."""
     patch.setattr(stacked, "pose_records", generic_pose_records)
-    patch.setattr(stacked, "tension_records", lambda stamps, outs, channels: [
-        generic_record(outputs.TENSION, fields.tension_distribution(stamp, o.solution, o.estimate, channels))
-        for stamp, o in zip(stamps, outs)])
-    patch.setattr(stacked, "alarm_records", lambda stamps, outs: [
-        generic_record(outputs.ALARM, fields.collision_alarm(stamp, o.alarm)) for stamp, o in zip(stamps, outs)])
-    patch.setattr(stacked, "model_error_records", lambda stamps, outs: [
-        generic_record(outputs.MODEL_ERROR, fields.model_error(stamp, o)) for stamp, o in zip(stamps, outs)])
+    patch.setattr(stacked, "tension_records", lambda stamps, solutions, estimates, channels: [
+        generic_record(outputs.TENSION, fields.tension_distribution(stamp, solution, estimate, channels))
+        for stamp, solution, estimate in zip(stamps, solutions, estimates)])
+    patch.setattr(stacked, "alarm_records", lambda stamps, alarms: [
+        generic_record(outputs.ALARM, fields.collision_alarm(stamp, alarm)) for stamp, alarm in zip(stamps, alarms)])
+    patch.setattr(stacked, "model_error_records", lambda stamps, views, bases, estimates: [
+        generic_record(outputs.MODEL_ERROR, fields.model_error(stamp, views[k], estimates[k], bases[k]))
+        for k, stamp in enumerate(stamps)])
     patch.setattr(stacked, "residual_records", lambda stamps, residuals: [
         generic_record(outputs.RESIDUALS, fields.model_residuals(stamp, r)) for stamp, r in zip(stamps, residuals)])
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from cable_winch_monitor.model.statics.result import SolveStatus
-from cable_winch_monitor.monitor.pipeline import CompleteSample, Outcome
+from cable_winch_monitor.monitor.judged import Outcome, Outcomes
+from cable_winch_monitor.monitor.pipeline import CompleteSample
 from cable_winch_monitor.monitor.residuals import Residuals
 from cable_winch_monitor.replay.second_process import (
     _encoded,
@@ -12,7 +13,7 @@ from cable_winch_monitor.replay.second_process import (
     _plain,
     _unpacked,
 )
-from cable_winch_monitor.replay.stages import Encoded
+from cable_winch_monitor.replay.stages import Staged
 
 
 def test_a_windows_samples_cross_with_their_lengths_and_readings() -> None:
@@ -27,14 +28,23 @@ def test_a_windows_samples_cross_with_their_lengths_and_readings() -> None:
     assert _unpacked(_packed([])) == []
 
 
-def test_an_outcome_crosses_with_its_residuals_or_without() -> None:
+def test_a_windows_outcomes_cross_as_columns_and_come_back_as_each_samples() -> None:
+    """A window's outcomes cross as columns (their residuals apart) and come back as each sample's `Outcome`: its
+    predictions where solved, its residuals where it has them, the model's error per rope."""
     residuals = Residuals(10.0, ("roll", "pitch"), (0.01, 0.02), (0.011, 0.019), (1.7e-4, 1.7e-4))
-    for r in (residuals, None):
-        outcome = Outcome(10.0, SolveStatus.SOLVED, "taut {1,2,3,4}", "OK", {}, {"roll": 0.011}, r, "",
-                          "tilt measured; the model agrees", ((0.0,) * 4, (1.0,) * 4))
-        encoded = [Encoded([("/platform/pose", "geometry_msgs/msg/PoseStamped", b"\x00\x01")], outcome, None),
-                   Encoded([], outcome._replace(stamp=10.1), None)]
-        back = _encoded(_plain(encoded))
-        assert back == encoded and all(type(e.outcome) is Outcome for e in back)
-        assert r is None or all(type(e.outcome.residuals) is Residuals for e in back)
-    assert _encoded(_plain([])) == []
+    outcomes = Outcomes([10.0, 10.1], [SolveStatus.SOLVED, SolveStatus.NO_EQUILIBRIUM],
+                        ["taut {1,2,3,4}", "no equilibrium"], ["OK", "WARNING"], [{}, {"/platform/imu": "silent for 1.2 s"}],
+                        ["roll", "pitch"], np.array([[0.011, 0.019], [np.nan, np.nan]]), [residuals, None],
+                        ["", "no equilibrium"], ["tilt measured; the model agrees", "model only"], np.zeros((2, 4)),
+                        np.ones((2, 4)))
+    staged = Staged([[("/platform/pose", "geometry_msgs/msg/PoseStamped", b"\x00\x01")], []], outcomes, [None, None],
+                    [None, None])
+    back = _encoded(_plain(staged))
+    assert back == staged.encoded() and [type(e.outcome) for e in back] == [Outcome, Outcome]
+    first, second = (e.outcome for e in back)
+    assert type(first.residuals) is Residuals and first.residuals == residuals and second.residuals is None
+    assert first.predicted == {"roll": 0.011, "pitch": 0.019} and second.predicted is None
+    assert first.error == ((0.0,) * 4, (1.0,) * 4) and second.faults == {"/platform/imu": "silent for 1.2 s"}
+    assert first.failure == "" and second.failure == "no equilibrium" and second.level == "WARNING"
+    nothing = Outcomes([], [], [], [], [], [], np.empty((0, 0)), [], [], [], None, None)
+    assert _encoded(_plain(Staged([], nothing, [], []))) == []

@@ -12,7 +12,8 @@ from cable_winch_monitor import channels
 from cable_winch_monitor.bench.plants import realistic
 from cable_winch_monitor.messages import fields, records
 from cable_winch_monitor.model.plantfile.plant import CABLE_NAMES
-from cable_winch_monitor.monitor.pipeline import MonitorOutput, MonitorPipeline
+from cable_winch_monitor.monitor.judged import MonitorOutput
+from cable_winch_monitor.monitor.pipeline import MonitorPipeline
 from cable_winch_monitor.replay.stages import Encoded, Measured
 from cable_winch_monitor.replay.windows import FIRST_WINDOW, Failed, WindowScheduler, window_sizes
 
