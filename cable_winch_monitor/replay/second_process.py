@@ -10,11 +10,12 @@ A window's job and its results (about 1 kB a sample) go through files in the wor
 (worker.py: /dev/shm, or TMPDIR where that cannot be written), not a pipe, which would make
 either process wait for the other to read. With each window comes the stages' state after
 it, so that where the worker is lost -- it died, failed on a window, or stopped answering --
-the replay runs the rest itself from there. Samples and outcomes cross as plain tuples, a window's
-lengths as one array (`_packed`, `_plain`): pickling a named tuple or a small array per sample cost more
-than the rest of the crossing. The samples' conditions are the worker's to work out (the stages). Only a
-fork can start it (the process inherits the plant model as it is, a user's effects included); where
-there is none, or no spool or process can be had, the replay runs the stages itself.
+the replay runs the rest itself from there. Samples cross as plain tuples, a window's lengths as one
+array (`_packed`), and the outcomes come back as columns, their residuals plain tuples (`_plain`):
+pickling a named tuple or a small array per sample cost more than the rest of the crossing. The
+samples' conditions are the worker's to work out (the stages). Only a fork can start it (the process
+inherits the plant model as it is, a user's effects included); where there is none, or no spool or
+process can be had, the replay runs the stages itself.
 """
 from __future__ import annotations
 

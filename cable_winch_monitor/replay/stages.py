@@ -4,8 +4,10 @@ What happens to a complete sample after it is merged -- its conditions (speeds, 
 directions), its estimate (the model's error carried from window to window), its alarm and
 residuals, its records and scene -- is a function of the merged samples in order
 (`WindowStages`), by the monitor's own code, which the node runs on the samples waiting when its
-worker takes them. What comes out per sample is bytes and a small outcome (`Encoded`), so that a
-second process can hand it back cheaply (second_process.py). A sample due a
+worker takes them. What comes out is columns over the window (`Staged`): each sample's bytes, the
+outcomes (monitor.judged.Outcomes), the /diagnostics views and scenes due, so that a second
+process can hand them back cheaply (second_process.py); `Staged.encoded` makes each sample's
+`Encoded` where the replay writes. A sample due a
 scene brings what the scene shows (its solution and alarm) instead of the scene itself, and its
 residuals come in its outcome, not encoded: the scene is drawn and the residuals encoded where the
 replay writes (`finished`), by the process that reads and writes, which has time to spare while the
