@@ -28,7 +28,7 @@ import numpy as np
 
 from ..channels import LENGTH_NOISE, TENSION_CHANNELS
 from ..model.conditions import Conditions, StackedConditions
-from ..model.estimator import BatchEstimate, Estimate, Observation, States, estimate, estimate_batch, forward_differences
+from ..model.estimator import BatchEstimate, Estimate, Observation, States, estimate_batch, forward_differences
 from ..model.estimator import observations as obs
 from ..model.statics.result import Solution
 from .model import NO_CONDITIONS, REFINE_STEPS, REFINE_TOL, PlantModel
@@ -115,36 +115,13 @@ def fuses(model: PlantModel) -> bool:
     return length_noise(model) is not None and model.solver == "energy"
 
 
-def estimate_sample(model: PlantModel, reported: Sequence[float], measured: Mapping[str, float],
-                    conditions: Conditions = NO_CONDITIONS, warm_start: Estimate | None = None) -> Estimate:
-    """The fused state of one sample (never raises); the model's forward kinematics where it cannot fuse."""
-    warm = None if warm_start is None else warm_start.solution
-    if not fuses(model):
-        return forward_estimate(model.solve(reported, warm, conditions), reported)
-    try:
-        lengths = model.true_lengths(np.asarray(reported, dtype=float), conditions)
-        load = model.load(conditions)
-    except (TypeError, ValueError):  # not four numbers, or an effect's hook failed: the solve says what is wrong
-        return forward_estimate(model.solve(reported, None, conditions), np.full(4, np.nan))
-    observations = observations_for(model, measured, [conditions])
-    if not observations:  # lengths alone: the forward kinematics, warm-started as the solver is
-        return forward_estimate(model.solve(reported, warm, conditions), reported)
-    if model.refining:
-        return _estimate_refined(model, lengths[None], observations, load[None], [conditions], [warm_start],
-                                 live=True)[0]
-    sigma = length_noise(model)
-    assert sigma is not None  # the model fuses (above)
-    ropes = model.ropes
-    return estimate(model.physical, lengths, observations, sigma, ropes.axial_stiffness, ropes.weight, load,
-                    warm_start)
-
-
 def estimate_recording(model: PlantModel, reported: np.ndarray, measured: Mapping[str, np.ndarray],
                        conditions: Sequence[Conditions],
                        warm_starts: Sequence[Estimate | None] | None = None) -> list[Estimate]:
-    """`estimate_sample` for N samples at once: reported (N, 4), each channel (N,) (NaN where not
-    measured), each sample's conditions (its load, its lengths, what its sensors read depend on them),
-    and optionally each sample's estimate under slightly different parameters to start from (a fit)."""
+    """The fused states of N samples: reported (N, 4), each channel (N,) (NaN where not measured), each
+    sample's conditions (its load, its lengths, what its sensors read depend on them), and optionally each
+    sample's estimate under slightly different parameters to start from (a fit); the model's forward
+    kinematics where it cannot fuse (no length noise, or not the energy solver)."""
     reported = np.asarray(reported, dtype=float).reshape(-1, 4)
     if len(conditions) != len(reported):
         raise ValueError(f"{len(conditions)} conditions for {len(reported)} samples")
@@ -184,25 +161,24 @@ def unhooked(model: PlantModel, reported: np.ndarray, conditions: Conditions) ->
 
 
 def _batch(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation], loads: np.ndarray,
-           warm_starts: Sequence[Estimate | None] | None, anchors: np.ndarray | None = None,
-           live: bool = False) -> BatchEstimate:
+           warm_starts: Sequence[Estimate | None] | None, anchors: np.ndarray | None = None) -> BatchEstimate:
     """The estimator on true (or free) lengths (N, 4) with the model's rope law under each sample's load
-    (N, 6) (`live`: the warm start is the previous sample's state)."""
+    (N, 6), each warm-started from an estimate of the same sample."""
     ropes = model.ropes
     sigma = length_noise(model)
     assert sigma is not None  # only a model that fuses is estimated in batches
     return estimate_batch(model.physical, lengths, observations, sigma, ropes.axial_stiffness, ropes.weight,
-                          loads=loads, warm_starts=warm_starts, anchors=anchors, same_samples=not live)
+                          loads=loads, warm_starts=warm_starts, anchors=anchors)
 
 
 def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequence[Observation], loads: np.ndarray,
-                      conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None,
-                      live: bool = False) -> list[Estimate]:
+                      conditions: Sequence[Conditions], warm_starts: Sequence[Estimate | None] | None
+                      ) -> list[Estimate]:
     """Estimates where the geometry depends on the pose: each round estimates every sample with the
     anchors and free lengths of its last estimate's pose, warm-started there, until no attachment
     point moves more than REFINE_TOL (at most REFINE_STEPS rounds); the first round with the tangent
-    points of the warm starts' poses (live: the previous sample's; a fit: the reference model's estimate
-    of the same sample, whose pose is close: a round fewer than from the plant's anchors), else with
+    points of the warm starts' poses (a fit: the reference model's estimate of the same sample, whose
+    pose is close: a round fewer than from the plant's anchors), else with
     the plant's anchors. A sample the estimator leaves gets the model's forward kinematics, which
     refines its own geometry."""
     nominal = np.broadcast_to(model.physical.anchors, (len(lengths), 4, 3))
@@ -222,7 +198,7 @@ def _estimate_refined(model: PlantModel, lengths: np.ndarray, observations: Sequ
                                         np.array([np.eye(3) if s is None else s.rotation for s in warm]),
                                         np.array([np.full(3, np.nan) if s is None else s.position for s in warm]),
                                         np.array([np.zeros(4) if s is None else s.tensions for s in warm])))
-    batch = _batch(model, free, observations, loads, warm_starts, anchors, live=live)
+    batch = _batch(model, free, observations, loads, warm_starts, anchors)
     states = posed(batch)
     for _ in range(REFINE_STEPS):
         anchors, free = geometry(states)

@@ -10,7 +10,7 @@ import numpy as np
 from lengths import random_lengths
 from root_truth import elastic_truth
 
-from cable_winch_monitor.effects.estimate import estimate_recording, estimate_sample, length_noise
+from cable_winch_monitor.effects.estimate import estimate_recording, length_noise
 from cable_winch_monitor.effects.model import NO_CONDITIONS, PlantModel
 from cable_winch_monitor.effects.rope import RopeElasticity, RopeWeight
 from cable_winch_monitor.model.statics.result import check_physics
@@ -26,22 +26,22 @@ def test_lengths_alone_are_the_models_forward_kinematics(plant):
     model = PlantModel(noisy_plant(plant))
     assert length_noise(model) == 1e-3
     lengths = random_lengths(40, seed=17)
-    recording = estimate_recording(model, lengths, {}, [NO_CONDITIONS] * len(lengths))
+    recording = estimate_recording(model, lengths, {"depth": np.full(len(lengths), np.nan)},
+                                   [NO_CONDITIONS] * len(lengths))
     for row, fused in zip(lengths, recording):
         want = model.solve(row)
-        got = estimate_sample(model, row, {"depth": float("nan")})
-        assert not got.fused and got.used == ()  # one sample with nothing but its lengths: the model's solve
-        for estimate in (got, fused):
-            assert estimate.solution.status is want.status
-            if want.ok:
-                assert estimate.solution.taut_set == want.taut_set
-                assert np.abs(estimate.solution.points_b - want.points_b).max() < 1e-6
-                assert np.abs(estimate.solution.tensions - want.tensions).max() < 1.0
+        assert fused.used == ()  # nothing measured but the lengths
+        assert fused.solution.status is want.status
+        if want.ok:
+            assert fused.solution.taut_set == want.taut_set
+            assert np.abs(fused.solution.points_b - want.points_b).max() < 1e-6
+            assert np.abs(fused.solution.tensions - want.tensions).max() < 1.0
 
 
 def test_without_length_noise_the_lengths_are_exact(plant):
     model = PlantModel(plant.with_changes(noise={k: v for k, v in plant.noise.items() if k != "length"}))
-    got = estimate_sample(model, [300.02, 300.0, 300.01, 300.0], {"tension_cable_1": 5e4})
+    got, = estimate_recording(model, np.array([[300.02, 300.0, 300.01, 300.0]]), {"tension_cable_1": np.array([5e4])},
+                              [NO_CONDITIONS])
     assert not got.fused and got.used == ()
     assert np.array_equal(got.solution.tensions, model.solve([300.02, 300.0, 300.01, 300.0]).tensions)
 
@@ -50,38 +50,32 @@ def test_pins_reading_the_rope_weight_are_predicted_by_the_model(plant):
     ea, weight = 75e6, 60.0
     model = PlantModel(noisy_plant(plant), (RopeElasticity({"EA": ea}), RopeWeight({"w": weight})))
     rng = np.random.default_rng(4)
-    errors, misfits, samples = [], [], []
+    truths, reported, measured = [], [], []
     for _ in range(12):
         truth = elastic_truth(plant, rng.uniform(100.0, 600.0) + rng.uniform(-0.05, 0.05, 4), ea, weight)
         points = truth.position + plant.attachments @ truth.rotation.T
         top = truth.tensions + weight * (plant.anchors[:, 2] - points[:, 2])  # the pins carry the rope too
-        measured = {f"tension_cable_{i + 1}": top[i] + rng.normal(0.0, NOISE["tension"]) for i in range(4)}
-        measured["depth"] = truth.position[2] + rng.normal(0.0, NOISE["depth"])
-        reported = truth.lengths + rng.normal(0.0, NOISE["length"], 4)
-        got = estimate_sample(model, reported, measured)
-        samples.append((reported, measured, got))
-        assert got.fused and set(got.used) == set(measured)
+        readings = {f"tension_cable_{i + 1}": top[i] + rng.normal(0.0, NOISE["tension"]) for i in range(4)}
+        readings["depth"] = truth.position[2] + rng.normal(0.0, NOISE["depth"])
+        truths.append(truth)
+        reported.append(truth.lengths + rng.normal(0.0, NOISE["length"], 4))
+        measured.append(readings)
+    channels = {name: np.array([row[name] for row in measured]) for name in measured[0]}
+    conditions = [NO_CONDITIONS] * len(truths)
+    recording = estimate_recording(model, np.array(reported), channels, conditions)
+    without = estimate_recording(PlantModel(model.plant, (RopeElasticity({"EA": ea}),)), np.array(reported), channels,
+                                 conditions)
+    for truth, got, forgetting in zip(truths, recording, without):
+        assert got.fused and set(got.used) == set(channels)
         assert check_physics(model.physical, got.loaded_solution).passes()
         assert max(abs(r) for r in got.residuals.values()) < 4.0
-        errors.append(np.abs(got.solution.tensions - truth.tensions).max())
-        without = estimate_sample(PlantModel(model.plant, (RopeElasticity({"EA": ea}),)), reported, measured)
-        misfits.append(min(abs(without.residuals[f"tension_cable_{i + 1}"]) for i in range(4)))
-    assert max(errors) <= 3.0 * NOISE["tension"]
-    recording = estimate_recording(model, np.array([s[0] for s in samples]),
-                                   {name: np.array([s[1][name] for s in samples]) for name in samples[0][1]},
-                                   [NO_CONDITIONS] * len(samples))
-    for (_, _, one), batched in zip(samples, recording):
-        assert np.abs(batched.solution.tensions - one.solution.tensions).max() < 1.0
-    # a model that forgets the rope's weight cannot explain the pins: the balance holds the tensions
-    # to the platform's weight, and every pin is left many sigma off
-    assert min(misfits) > 10.0
+        assert np.abs(got.solution.tensions - truth.tensions).max() <= 3.0 * NOISE["tension"]
+        # a model that forgets the rope's weight cannot explain the pins: the balance holds the tensions
+        # to the platform's weight, and every pin is left many sigma off
+        assert min(abs(forgetting.residuals[f"tension_cable_{i + 1}"]) for i in range(4)) > 10.0
 
-
-def test_bad_lengths_are_a_status(plant):
-    got = estimate_sample(PlantModel(noisy_plant(plant)), ["a", 1.0, 2.0, 3.0], {})
-    assert got.solution.status.value == "invalid_input" and "number" in got.solution.message
-
-
-def test_bad_lengths_are_a_status_under_elastic_ropes_too(plant):
-    got = PlantModel(plant, (RopeElasticity({"EA": 7.5e7}),)).solve(["a", 1.0, 2.0, 3.0])
-    assert got.status.value == "invalid_input" and "number" in got.message and got.method == "elastic"
+def test_bad_lengths_are_a_status_under_rigid_and_elastic_ropes(plant):
+    for model, method in ((PlantModel(noisy_plant(plant)), "energy"),
+                          (PlantModel(plant, (RopeElasticity({"EA": 7.5e7}),)), "elastic")):
+        got = model.solve(["a", 1.0, 2.0, 3.0])
+        assert got.status.value == "invalid_input" and "number" in got.message and got.method == method

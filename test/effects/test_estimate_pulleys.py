@@ -11,7 +11,7 @@ import pytest
 
 from cable_winch_monitor import channels
 from cable_winch_monitor.effects import PlantModel
-from cable_winch_monitor.effects.estimate import estimate_recording, estimate_sample
+from cable_winch_monitor.effects.estimate import estimate_recording
 from cable_winch_monitor.effects.model import NO_CONDITIONS, REFINE_TOL
 from cable_winch_monitor.model.estimator import States
 from cable_winch_monitor.model.plantfile.plant import load_plant
@@ -77,17 +77,3 @@ def test_fused_tensions_and_pose_match_the_truth_and_balance_at_the_tangent_poin
         assert np.abs(estimate.corrections_sigma).max() < 5.0
     roll_pitch = np.array([roll_pitch_yaw(e.solution.rotation)[:2] for e in fused])
     assert np.abs(roll_pitch - np.array([s.angles[:2] for s in truths])).max() < 4.0 * NOISE["roll"]
-
-
-def test_live_estimate_is_the_recordings(lowering):
-    """Warm-started from the previous sample, one at a time, as the node estimates."""
-    _, _, reported, measured = lowering
-    model = PlantModel.from_plant(LAB.with_changes(noise=NOISE))
-    recording = estimate_recording(model, reported, measured, [NO_CONDITIONS] * COUNT)
-    previous = None
-    for k in range(0, COUNT, 7):
-        live = estimate_sample(model, reported[k], {name: float(v[k]) for name, v in measured.items()},
-                               warm_start=previous)
-        assert live.solution.taut_set == recording[k].solution.taut_set
-        assert np.abs(live.solution.tensions - recording[k].solution.tensions).max() < 1e-3
-        previous = live

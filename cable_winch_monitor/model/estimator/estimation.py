@@ -218,23 +218,22 @@ def estimate(plant: Plant, lengths: object, observations: Sequence[Observation] 
 def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Observation] = (),
                    sigma_length: float = 1e-3, axial_stiffness: object = None, rope_weight: float = 0.0,
                    loads: np.ndarray | None = None, warm_starts: Sequence[Estimate | None] | None = None,
-                   anchors: np.ndarray | None = None, same_samples: bool = True,
-                   prior: Prior | None = None, forward: BatchSolution | None = None) -> BatchEstimate:
+                   anchors: np.ndarray | None = None, prior: Prior | None = None,
+                   forward: BatchSolution | None = None) -> BatchEstimate:
     """`estimate` for the rows of lengths (N, 4), observation values (N,) each, under `loads` (one
     wrench (6,) for all, one per sample (N, 6), None: gravity), with each sample's `anchors` (N, 4, 3)
     where the geometry depends on the pose (None: the plant's): every sample starts from its warm start
     where given (an estimate of the sample under slightly different parameters or geometry, as a fit
     and the pose-dependent geometry's refinement make them), else from the batched forward kinematics
     of its reported lengths (with the `prior`'s expected corrections, where one is given: the model's
-    expected error, one row per sample); the search runs on all together. Warm starts that are other samples'
-    states (`same_samples` False: the previous sample's, live) are searched as the live estimate is.
-    `forward`: the samples' `forward_kinematics` of their expected lengths, where the caller has it
-    (their cold starts). ValueError names a bad argument."""
+    expected error, one row per sample); the search runs on all together. `forward`: the samples'
+    `forward_kinematics` of their expected lengths, where the caller has it (their cold starts).
+    ValueError names a bad argument."""
     lengths = np.asarray(lengths, dtype=float).reshape(-1, 4)
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
         problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads, anchors, prior)
-        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, same_samples,
+        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, True,
                          forward)
 
 
