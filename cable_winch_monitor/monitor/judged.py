@@ -107,10 +107,11 @@ class SolvedRun:
         names = dict.fromkeys(name for part in parts for name in part.predicted)
         predicted = {name: np.concatenate([part.predicted.get(name, np.full(len(part), np.nan)) for part in parts])
                      for name in names}
-        views = [part.views for part in parts]
-        return cls(sum((part.solutions for part in parts), []), sum((part.clearances for part in parts), []),
-                   sum((part.estimates for part in parts), []), predicted,
-                   None if any(view is None for view in views) else ModelViews.concatenated(views))  # type: ignore[arg-type]
+        views = [part.views for part in parts if part.views is not None]
+        return cls([solution for part in parts for solution in part.solutions],
+                   [clearance for part in parts for clearance in part.clearances],
+                   [estimate for part in parts for estimate in part.estimates], predicted,
+                   ModelViews.concatenated(views) if len(views) == len(parts) else None)
 
 
 @fast_init
