@@ -347,7 +347,7 @@ class MonitorPipeline:
                      zip(solved.clearances, solved.estimates, views.clearances, views.tilt_sigma)]
         alarms = self.alarms.update_many(solved.solutions, [basis.clearance for basis in bases],
                                          [basis.text for basis in bases])
-        predicted = {name: values.tolist() for name, values in solved.predicted.items()}
+        predicted = {name: solved.predicted[name].tolist() for name in TENSION_CHANNELS if name in solved.predicted}
         pins_residuals = []
         for k, (sample, solution) in enumerate(zip(samples, solved.solutions)):
             resid = None
