@@ -152,7 +152,7 @@ class Outcome(NamedTuple):
 
 @dataclass(frozen=True)
 class Outcomes:
-    """What the samples of a judged run leave behind, a column each (`outcomes[k]` is sample k's `Outcome`): what
+    """What the samples of a judged run leave behind, a column each (`each()[k]` is sample k's `Outcome`): what
     replay's second process hands back, a few lists and arrays rather than a tuple and a dict per sample."""
 
     stamps: list[float]
@@ -170,9 +170,6 @@ class Outcomes:
 
     def __len__(self) -> int:
         return len(self.stamps)
-
-    def __getitem__(self, k: int) -> Outcome:
-        return self.each()[k]
 
     def __iter__(self) -> Iterator[Outcome]:
         return iter(self.each())

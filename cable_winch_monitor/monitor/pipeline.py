@@ -329,7 +329,7 @@ class MonitorPipeline:
         """Solve (or estimate, from what the sensors read) a complete sample, judge it and count it: the stages
         with one sample as a run of one."""
         judged = self.judge_samples([sample], self.solve_samples([sample], self.conditions([sample])))
-        self.note(judged.outcomes()[0])
+        self.note(judged.outcomes().each()[0])
         return judged.output(0)
 
     def judge_samples(self, samples: Sequence[CompleteSample], solved: SolvedRun) -> Judged:

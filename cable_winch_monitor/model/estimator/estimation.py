@@ -233,8 +233,8 @@ def estimate_batch(plant: Plant, lengths: np.ndarray, observations: Sequence[Obs
     ropes = Ropes.of(axial_stiffness, rope_weight)
     with np.errstate(all="ignore"):
         problem = Problem.build(plant, lengths, sigma_length, observations, ropes, loads, anchors, prior)
-        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None, True,
-                         forward)
+        return _estimate(problem, _warm_rows(problem, warm_starts) if warm_starts is not None else None,
+                         same_samples=True, forward=forward)
 
 
 def _warm_rows(problem: Problem, warm_starts: Sequence[Estimate | None]) -> Rows | None:
